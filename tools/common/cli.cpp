@@ -1,0 +1,175 @@
+#include "tools/common/cli.h"
+
+#include <cerrno>
+#include <charconv>
+#include <cstdio>
+#include <cstdlib>
+#include <sstream>
+
+namespace mocap::cli {
+
+ArgParser::ArgParser(std::string command, std::string summary)
+    : command_(std::move(command)), summary_(std::move(summary)) {}
+
+void ArgParser::flag(std::string name, bool* out, std::string help) {
+  opts_.push_back(Opt{std::move(name), "", std::move(help), nullptr, out});
+}
+
+void ArgParser::option(std::string name, std::string* out, std::string metavar, std::string help) {
+  opts_.push_back(Opt{std::move(name), std::move(metavar), std::move(help),
+                      [out](std::string_view v) -> Status {
+                        *out = std::string(v);
+                        return Status::Ok();
+                      },
+                      nullptr});
+}
+
+void ArgParser::option(std::string name, int* out, std::string metavar, std::string help) {
+  std::string n = name;
+  opts_.push_back(Opt{std::move(name), std::move(metavar), std::move(help),
+                      [out, n](std::string_view v) -> Status {
+                        int x = 0;
+                        auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), x);
+                        if (ec != std::errc() || p != v.data() + v.size()) {
+                          return Error(ErrorCode::kInvalidArgument,
+                                       n + " expects an integer, got '" + std::string(v) + "'");
+                        }
+                        *out = x;
+                        return Status::Ok();
+                      },
+                      nullptr});
+}
+
+void ArgParser::option(std::string name, double* out, std::string metavar, std::string help) {
+  std::string n = name;
+  opts_.push_back(Opt{std::move(name), std::move(metavar), std::move(help),
+                      [out, n](std::string_view v) -> Status {
+                        std::string s(v);
+                        char* end = nullptr;
+                        errno = 0;
+                        double x = std::strtod(s.c_str(), &end);
+                        if (s.empty() || end != s.c_str() + s.size() || errno != 0) {
+                          return Error(ErrorCode::kInvalidArgument,
+                                       n + " expects a number, got '" + s + "'");
+                        }
+                        *out = x;
+                        return Status::Ok();
+                      },
+                      nullptr});
+}
+
+void ArgParser::positional(std::string name, std::string* out, std::string help, bool required) {
+  positionals_.push_back(Pos{std::move(name), std::move(help), out, required});
+}
+
+Status ArgParser::parse(std::span<const std::string_view> args) {
+  size_t next_pos = 0;
+  for (size_t i = 0; i < args.size(); ++i) {
+    std::string_view a = args[i];
+    if (a == "--help" || a == "-h") {
+      help_requested_ = true;
+      return Status::Ok();
+    }
+    if (a.starts_with("--")) {
+      std::string_view name = a;
+      std::string_view value;
+      bool has_value = false;
+      if (auto eq = a.find('='); eq != std::string_view::npos) {
+        name = a.substr(0, eq);
+        value = a.substr(eq + 1);
+        has_value = true;
+      }
+      const Opt* opt = nullptr;
+      for (const Opt& o : opts_) {
+        if (o.name == name) opt = &o;
+      }
+      if (opt == nullptr) {
+        return Error(ErrorCode::kInvalidArgument,
+                     "unknown option '" + std::string(name) + "' (see " + command_ + " --help)");
+      }
+      if (opt->flag != nullptr) {
+        if (has_value) {
+          return Error(ErrorCode::kInvalidArgument, std::string(name) + " takes no value");
+        }
+        *opt->flag = true;
+        continue;
+      }
+      if (!has_value) {
+        if (i + 1 >= args.size()) {
+          return Error(ErrorCode::kInvalidArgument,
+                       std::string(name) + " needs a value (" + opt->metavar + ")");
+        }
+        value = args[++i];
+      }
+      if (Status s = opt->set(value); !s.ok()) return s;
+      continue;
+    }
+    if (next_pos >= positionals_.size()) {
+      return Error(ErrorCode::kInvalidArgument,
+                   "unexpected argument '" + std::string(a) + "' (see " + command_ + " --help)");
+    }
+    *positionals_[next_pos++].out = std::string(a);
+  }
+  for (size_t p = next_pos; p < positionals_.size(); ++p) {
+    if (positionals_[p].required) {
+      return Error(ErrorCode::kInvalidArgument,
+                   "missing argument " + positionals_[p].name + " (see " + command_ + " --help)");
+    }
+  }
+  return Status::Ok();
+}
+
+std::string ArgParser::help() const {
+  std::ostringstream os;
+  os << "usage: " << command_;
+  for (const Pos& p : positionals_) os << (p.required ? " " : " [") << p.name << (p.required ? "" : "]");
+  if (!opts_.empty()) os << " [options]";
+  os << "\n\n" << summary_ << "\n";
+  if (!positionals_.empty()) {
+    os << "\narguments:\n";
+    for (const Pos& p : positionals_) os << "  " << p.name << "\n      " << p.help << "\n";
+  }
+  os << "\noptions:\n";
+  for (const Opt& o : opts_) {
+    os << "  " << o.name;
+    if (!o.metavar.empty()) os << " " << o.metavar;
+    os << "\n      " << o.help << "\n";
+  }
+  os << "  --help\n      show this help\n";
+  return os.str();
+}
+
+Result<std::vector<int>> parse_int_list(std::string_view text) {
+  std::vector<int> out;
+  size_t pos = 0;
+  while (pos <= text.size()) {
+    size_t end = text.find(',', pos);
+    if (end == std::string_view::npos) end = text.size();
+    std::string_view item = text.substr(pos, end - pos);
+    int x = 0;
+    auto [p, ec] = std::from_chars(item.data(), item.data() + item.size(), x);
+    if (item.empty() || ec != std::errc() || p != item.data() + item.size() || x < 0) {
+      return Error(ErrorCode::kInvalidArgument,
+                   "expected a comma-separated list of non-negative integers, got '" +
+                       std::string(text) + "'");
+    }
+    out.push_back(x);
+    pos = end + 1;
+  }
+  return out;
+}
+
+int handle_parse(ArgParser& parser, std::span<const std::string_view> args) {
+  Status s = parser.parse(args);
+  if (!s.ok()) {
+    std::fprintf(stderr, "error: %s\n", s.error().message().c_str());
+    return 2;
+  }
+  if (parser.help_requested()) {
+    std::fputs(parser.help().c_str(), stdout);
+    return 0;
+  }
+  return -1;
+}
+
+}  // namespace mocap::cli

@@ -1,0 +1,59 @@
+// A small declarative argument parser for the CLI tools: options are declared with their
+// target variable, metavar and help; parse() validates and reports the offending flag.
+#pragma once
+
+#include <functional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "runtime/core/error.h"
+
+namespace mocap::cli {
+
+class ArgParser {
+ public:
+  ArgParser(std::string command, std::string summary);
+
+  void flag(std::string name, bool* out, std::string help);
+  void option(std::string name, std::string* out, std::string metavar, std::string help);
+  void option(std::string name, int* out, std::string metavar, std::string help);
+  void option(std::string name, double* out, std::string metavar, std::string help);
+  // Positional arguments in order; `required` ones must be present.
+  void positional(std::string name, std::string* out, std::string help, bool required = true);
+
+  // Parses args (without the command words). Sets help_requested() on --help/-h.
+  Status parse(std::span<const std::string_view> args);
+  bool help_requested() const { return help_requested_; }
+  std::string help() const;
+
+ private:
+  struct Opt {
+    std::string name;
+    std::string metavar;
+    std::string help;
+    std::function<Status(std::string_view)> set;  // null for flags
+    bool* flag = nullptr;
+  };
+  struct Pos {
+    std::string name;
+    std::string help;
+    std::string* out;
+    bool required;
+  };
+  std::string command_;
+  std::string summary_;
+  std::vector<Opt> opts_;
+  std::vector<Pos> positionals_;
+  bool help_requested_ = false;
+};
+
+// Parses a comma-separated list of non-negative integers ("0,2,4").
+Result<std::vector<int>> parse_int_list(std::string_view text);
+
+// Standard handling: parse, print help to stdout (exit 0) or the error to stderr (exit 2).
+// Returns -1 when the command should go on.
+int handle_parse(ArgParser& parser, std::span<const std::string_view> args);
+
+}  // namespace mocap::cli

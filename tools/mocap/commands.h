@@ -1,0 +1,13 @@
+// Subcommands of the `mocap` operator CLI. Each takes the arguments after its name.
+#pragma once
+
+#include <span>
+#include <string_view>
+
+namespace mocap::tools {
+
+using Args = std::span<const std::string_view>;
+
+int run_calib(Args args);  // mocap calib show|check FILE
+
+}  // namespace mocap::tools

@@ -1,0 +1,62 @@
+// mocap: the operator CLI, git-style subcommands. `mocap --help` lists them.
+#include <cstdio>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tools/mocap/commands.h"
+
+namespace {
+
+struct Command {
+  const char* name;
+  const char* summary;
+  int (*run)(mocap::tools::Args);  // null: not in this build yet
+  const char* pending;             // why it is missing, when run is null
+};
+
+// clang-format off
+const Command kCommands[] = {
+  {"calib",   "show or check a calibration file",                        mocap::tools::run_calib, nullptr},
+  {"eval",    "evaluate the association engine on a benchmark (shelf)",   nullptr, "the association engine (issue #3)"},
+  {"bench",   "benchmarks: assoc, cnn, pipeline",                         nullptr, "the association engine (issue #3) and the Vulkan CNN (issue #4)"},
+  {"infer",   "run the pose CNN on a tensor or an image",                 nullptr, "the Vulkan inference runtime (issue #4)"},
+  {"model",   "convert and inspect model files",                          nullptr, "the Vulkan inference runtime (issue #4)"},
+  {"replay",  "run a recorded multi-view video through the pipeline",     nullptr, "the hardware layer (issue #5) and mocapd (issue #6)"},
+  {"cameras", "list cameras and their formats",                           nullptr, "the hardware layer (issue #5)"},
+  {"capture", "record frames from cameras",                               nullptr, "the hardware layer (issue #5)"},
+  {"trigger", "drive or monitor a GPIO trigger line",                     nullptr, "the hardware layer (issue #5)"},
+  {"sync",    "live frame-set synchronisation statistics",                nullptr, "the hardware layer (issue #5)"},
+};
+// clang-format on
+
+void print_usage(std::FILE* out) {
+  std::fputs("usage: mocap <command> [arguments]   (mocap <command> --help for details)\n\ncommands:\n",
+             out);
+  for (const Command& c : kCommands) {
+    std::fprintf(out, "  %-8s %s%s\n", c.name, c.summary, c.run ? "" : "  [not in this build yet]");
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::string_view> args(argv + 1, argv + argc);
+  if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
+    print_usage(args.empty() ? stderr : stdout);
+    return args.empty() ? 2 : 0;
+  }
+  for (const Command& c : kCommands) {
+    if (args[0] != c.name) continue;
+    mocap::tools::Args rest(args.data() + 1, args.size() - 1);
+    if (c.run != nullptr) return c.run(rest);
+    const bool help = !rest.empty() && (rest[0] == "--help" || rest[0] == "-h");
+    std::fprintf(help ? stdout : stderr,
+                 "mocap %s: %s\nNot available in this build yet: it arrives with %s.\n", c.name,
+                 c.summary, c.pending);
+    return help ? 0 : 2;
+  }
+  std::fprintf(stderr, "mocap: unknown command '%s'\n\n", std::string(args[0]).c_str());
+  print_usage(stderr);
+  return 2;
+}
