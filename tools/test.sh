@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Runs the whole test suite (GoogleTest via CTest). Builds first if needed.
+#
+#   tools/test.sh              Release build in build/
+#   tools/test.sh --sanitize   ASan + UBSan build in build-asan/
+# Extra arguments after -- go to ctest (e.g. -- -R Shelf).
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+SANITIZE=0
+CTEST_ARGS=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --sanitize) SANITIZE=1 ;;
+    --) shift; CTEST_ARGS=("$@"); break ;;
+    -h|--help) sed -n '2,7p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "test.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
+  esac
+  shift
+done
+
+# Packages and models (fast no-ops when present).
+bash "$ROOT/tools/setup.sh" --no-build
+
+if [ "$SANITIZE" -eq 1 ]; then
+  B="$ROOT/build-asan"
+  cmake -S "$ROOT" -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMOCAP_SANITIZE=ON >/dev/null
+  export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
+else
+  B="$ROOT/build"
+  cmake -S "$ROOT" -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+fi
+cmake --build "$B"
+ctest --test-dir "$B" --output-on-failure -j "$(nproc)" "${CTEST_ARGS[@]}"
