@@ -1,5 +1,6 @@
 #include "runtime/skeleton/topology.h"
 
+#include <algorithm>
 #include <cassert>
 #include <cmath>
 #include <cstddef>
@@ -14,10 +15,18 @@ namespace {
 
 size_t idx(int i) { return static_cast<size_t>(i); }
 
+// "#<i>" for an index that has no name. (Built by appending: GCC 12 -Wrestrict misfires on
+// `"literal" + std::string&&`.)
+std::string index_text(int i) {
+  std::string s = "#";
+  s += std::to_string(i);
+  return s;
+}
+
 std::string limb_text(const std::vector<std::string>& names, const Limb& limb) {
   auto name_of = [&](int j) -> std::string {
     if (j >= 0 && idx(j) < names.size()) return names[idx(j)];
-    return "#" + std::to_string(j);
+    return index_text(j);
   };
   return name_of(limb.joint_a) + "-" + name_of(limb.joint_b);
 }
@@ -25,7 +34,9 @@ std::string limb_text(const std::vector<std::string>& names, const Limb& limb) {
 // Disjoint-set forest for the tree check.
 class UnionFind {
  public:
-  explicit UnionFind(size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), size_t{0}); }
+  explicit UnionFind(size_t n) : parent_(n) {
+    std::iota(parent_.begin(), parent_.end(), size_t{0});
+  }
   size_t find(size_t x) {
     while (parent_[x] != x) {
       parent_[x] = parent_[parent_[x]];
@@ -79,23 +90,22 @@ Result<SkeletonTopology> SkeletonTopology::create(std::string name,
     }
     auto [it, inserted] = seen_names.emplace(jn, j);
     if (!inserted) {
-      return Error(ErrorCode::kInvalidArgument, where + ": joint name '" + jn +
-                                                    "' is used by joints " +
-                                                    std::to_string(it->second) + " and " +
-                                                    std::to_string(j));
+      return Error(ErrorCode::kInvalidArgument,
+                   where + ": joint name '" + jn + "' is used by joints " +
+                       std::to_string(it->second) + " and " + std::to_string(j));
     }
   }
   const int joint_count = static_cast<int>(joint_names.size());
   std::set<std::pair<int, int>> seen_pairs;
   for (size_t l = 0; l < limbs.size(); ++l) {
     const Limb& limb = limbs[l];
-    const std::string lw = where + ": limb " + std::to_string(l) + " (" +
-                           limb_text(joint_names, limb) + ")";
+    const std::string lw =
+        where + ": limb " + std::to_string(l) + " (" + limb_text(joint_names, limb) + ")";
     for (int j : {limb.joint_a, limb.joint_b}) {
       if (j < 0 || j >= joint_count) {
-        return Error(ErrorCode::kInvalidArgument,
-                     lw + ": joint index " + std::to_string(j) + " is outside [0, " +
-                         std::to_string(joint_count) + ")");
+        return Error(ErrorCode::kInvalidArgument, lw + ": joint index " + std::to_string(j) +
+                                                      " is outside [0, " +
+                                                      std::to_string(joint_count) + ")");
       }
     }
     if (limb.joint_a == limb.joint_b) {
@@ -112,7 +122,7 @@ Result<SkeletonTopology> SkeletonTopology::create(std::string name,
 }
 
 std::string SkeletonTopology::limb_name(int l) const {
-  if (l < 0 || l >= limb_count()) return "#" + std::to_string(l);
+  if (l < 0 || l >= limb_count()) return index_text(l);
   return limb_text(joint_names_, limbs_[idx(l)]);
 }
 
@@ -179,10 +189,10 @@ std::vector<int> SkeletonTopology::parents() const {
 const SkeletonTopology& body25_topology() {
   static const SkeletonTopology topology = make_builtin(
       "body25",
-      {"nose",       "neck",    "r_shoulder", "r_elbow",     "r_wrist",     "l_shoulder", "l_elbow",
-       "l_wrist",    "mid_hip", "r_hip",      "r_knee",      "r_ankle",     "l_hip",      "l_knee",
-       "l_ankle",    "r_eye",   "l_eye",      "r_ear",       "l_ear",       "l_big_toe",  "l_small_toe",
-       "l_heel",     "r_big_toe", "r_small_toe", "r_heel"},
+      {"nose",    "neck",      "r_shoulder",  "r_elbow", "r_wrist", "l_shoulder", "l_elbow",
+       "l_wrist", "mid_hip",   "r_hip",       "r_knee",  "r_ankle", "l_hip",      "l_knee",
+       "l_ankle", "r_eye",     "l_eye",       "r_ear",   "l_ear",   "l_big_toe",  "l_small_toe",
+       "l_heel",  "r_big_toe", "r_small_toe", "r_heel"},
       // OpenPose PAF order: the order of the affinity matrices in detection files.
       {{1, 8},   {9, 10},  {10, 11}, {8, 9},   {8, 12},  {12, 13}, {13, 14}, {1, 2},  {2, 3},
        {3, 4},   {2, 17},  {1, 5},   {5, 6},   {6, 7},   {5, 18},  {1, 0},   {0, 15}, {0, 16},
@@ -216,31 +226,31 @@ const SkeletonTopology& coco17_topology() {
 }
 
 const SkeletonTopology& body19_topology() {
-  static const SkeletonTopology topology = make_builtin(
-      "body19",
-      {"pelvis", "neck", "r_hip", "l_hip", "nose", "r_shoulder", "l_shoulder", "r_knee", "l_knee",
-       "r_ear", "l_ear", "r_elbow", "l_elbow", "r_ankle", "l_ankle", "r_wrist", "l_wrist",
-       "r_big_toe", "l_big_toe"},
-      // Breadth-first from the torso: every limb's parent limb comes before it.
-      {{0, 1},    // pelvis-neck
-       {0, 2},    // pelvis-r_hip
-       {0, 3},    // pelvis-l_hip
-       {1, 4},    // neck-nose
-       {1, 5},    // neck-r_shoulder
-       {1, 6},    // neck-l_shoulder
-       {2, 7},    // r_hip-r_knee
-       {3, 8},    // l_hip-l_knee
-       {5, 9},    // r_shoulder-r_ear
-       {6, 10},   // l_shoulder-l_ear
-       {5, 11},   // r_shoulder-r_elbow
-       {6, 12},   // l_shoulder-l_elbow
-       {7, 13},   // r_knee-r_ankle
-       {8, 14},   // l_knee-l_ankle
-       {11, 15},  // r_elbow-r_wrist
-       {12, 16},  // l_elbow-l_wrist
-       {13, 17},  // r_ankle-r_big_toe
-       {14, 18}}  // l_ankle-l_big_toe
-  );
+  static const SkeletonTopology topology =
+      make_builtin("body19",
+                   {"pelvis", "neck", "r_hip", "l_hip", "nose", "r_shoulder", "l_shoulder",
+                    "r_knee", "l_knee", "r_ear", "l_ear", "r_elbow", "l_elbow", "r_ankle",
+                    "l_ankle", "r_wrist", "l_wrist", "r_big_toe", "l_big_toe"},
+                   // Breadth-first from the torso: every limb's parent limb comes before it.
+                   {{0, 1},    // pelvis-neck
+                    {0, 2},    // pelvis-r_hip
+                    {0, 3},    // pelvis-l_hip
+                    {1, 4},    // neck-nose
+                    {1, 5},    // neck-r_shoulder
+                    {1, 6},    // neck-l_shoulder
+                    {2, 7},    // r_hip-r_knee
+                    {3, 8},    // l_hip-l_knee
+                    {5, 9},    // r_shoulder-r_ear
+                    {6, 10},   // l_shoulder-l_ear
+                    {5, 11},   // r_shoulder-r_elbow
+                    {6, 12},   // l_shoulder-l_elbow
+                    {7, 13},   // r_knee-r_ankle
+                    {8, 14},   // l_knee-l_ankle
+                    {11, 15},  // r_elbow-r_wrist
+                    {12, 16},  // l_elbow-l_wrist
+                    {13, 17},  // r_ankle-r_big_toe
+                    {14, 18}}  // l_ankle-l_big_toe
+      );
   return topology;
 }
 
@@ -330,10 +340,21 @@ const JointMapping& coco17_to_body19() {
     std::vector<Terms> terms = {
         mid("l_hip", "r_hip"),            // pelvis
         mid("l_shoulder", "r_shoulder"),  // neck
-        one(j("r_hip")),      one(j("l_hip")),      one(j("nose")),    one(j("r_shoulder")),
-        one(j("l_shoulder")), one(j("r_knee")),     one(j("l_knee")),  one(j("r_ear")),
-        one(j("l_ear")),      one(j("r_elbow")),    one(j("l_elbow")), one(j("r_ankle")),
-        one(j("l_ankle")),    one(j("r_wrist")),    one(j("l_wrist")),
+        one(j("r_hip")),
+        one(j("l_hip")),
+        one(j("nose")),
+        one(j("r_shoulder")),
+        one(j("l_shoulder")),
+        one(j("r_knee")),
+        one(j("l_knee")),
+        one(j("r_ear")),
+        one(j("l_ear")),
+        one(j("r_elbow")),
+        one(j("l_elbow")),
+        one(j("r_ankle")),
+        one(j("l_ankle")),
+        one(j("r_wrist")),
+        one(j("l_wrist")),
         {},  // r_big_toe: COCO-17 has no feet
         {},  // l_big_toe
     };
@@ -369,25 +390,24 @@ Status validate_mapping(const JointMapping& m) {
   const SkeletonTopology& to = *m.to;
   const std::string where = "joint mapping " + from.name() + " -> " + to.name();
   if (static_cast<int>(m.joint_terms.size()) != to.joint_count()) {
-    return Error(ErrorCode::kInvalidArgument,
-                 where + ": " + std::to_string(m.joint_terms.size()) +
-                     " joint term lists, expected " + std::to_string(to.joint_count()) +
-                     " (one per target joint)");
+    return Error(ErrorCode::kInvalidArgument, where + ": " + std::to_string(m.joint_terms.size()) +
+                                                  " joint term lists, expected " +
+                                                  std::to_string(to.joint_count()) +
+                                                  " (one per target joint)");
   }
   if (static_cast<int>(m.limb_sources.size()) != to.limb_count()) {
     return Error(ErrorCode::kInvalidArgument,
-                 where + ": " + std::to_string(m.limb_sources.size()) +
-                     " limb sources, expected " + std::to_string(to.limb_count()) +
-                     " (one per target limb)");
+                 where + ": " + std::to_string(m.limb_sources.size()) + " limb sources, expected " +
+                     std::to_string(to.limb_count()) + " (one per target limb)");
   }
   for (int j = 0; j < to.joint_count(); ++j) {
     for (const auto& [src, w] : m.joint_terms[idx(j)]) {
-      const std::string jw = where + ": target joint " + std::to_string(j) + " (" +
-                             to.joint_name(j) + ")";
+      const std::string jw =
+          where + ": target joint " + std::to_string(j) + " (" + to.joint_name(j) + ")";
       if (src < 0 || src >= from.joint_count()) {
-        return Error(ErrorCode::kInvalidArgument,
-                     jw + ": source joint " + std::to_string(src) + " is outside [0, " +
-                         std::to_string(from.joint_count()) + ")");
+        return Error(ErrorCode::kInvalidArgument, jw + ": source joint " + std::to_string(src) +
+                                                      " is outside [0, " +
+                                                      std::to_string(from.joint_count()) + ")");
       }
       if (!std::isfinite(w)) {
         return Error(ErrorCode::kInvalidArgument,
@@ -439,8 +459,7 @@ void apply_mapping(const JointMapping& m, std::span<const Eigen::Vector3d> in,
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     bool valid = true;
     for (const auto& [src, w] : terms) {
-      if (src < 0 || idx(src) >= in.size() || idx(src) >= in_valid.size() ||
-          !in_valid[idx(src)]) {
+      if (src < 0 || idx(src) >= in.size() || idx(src) >= in_valid.size() || !in_valid[idx(src)]) {
         valid = false;
         break;
       }

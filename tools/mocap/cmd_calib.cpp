@@ -1,12 +1,94 @@
-// Placeholder replaced by the geometry work (calibration loader) — see runtime/geometry.
+// mocap calib show|check FILE: print or validate a calibration file.
+#include <cstdio>
+#include <string>
+#include <string_view>
+
+#include "runtime/geometry/calibration.h"
+#include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
 
-#include <cstdio>
-
 namespace mocap::tools {
+namespace {
 
-int run_calib(Args) {
-  std::fputs("mocap calib: calibration loader not built yet\n", stderr);
+constexpr const char* kUsage =
+    "usage: mocap calib <show|check> FILE   (mocap calib <show|check> --help for details)\n"
+    "\n"
+    "subcommands:\n"
+    "  show   print each view of a calibration file (intrinsics, distortion, camera centre)\n"
+    "  check  validate a calibration file; exit code 1 when it is invalid\n";
+
+int run_show(Args args) {
+  std::string file;
+  cli::ArgParser parser("mocap calib show",
+                        "Print each view of a calibration file: id, name, image size, fx fy cx "
+                        "cy, distortion [k1 k2 p1 p2 k3] and the camera centre in world "
+                        "coordinates (metres).");
+  parser.positional("FILE", &file, "calibration JSON file (keyed by view id; K, RT, imgSize)");
+  if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
+
+  Result<Calibration> calib = load_calibration(file);
+  if (!calib.ok()) {
+    std::fprintf(stderr, "error: %s\n", calib.error().message().c_str());
+    return 1;
+  }
+  std::printf("%s: %zu views\n", file.c_str(), calib->size());
+  for (std::size_t i = 0; i < calib->size(); ++i) {
+    const Camera& cam = calib->cameras[i];
+    const Distortion& d = cam.distortion();
+    const Eigen::Vector3d& c = cam.center_m();
+    std::printf("view %s", calib->view_ids[i].c_str());
+    if (!cam.name().empty()) std::printf("  name %s", cam.name().c_str());
+    std::printf("\n");
+    std::printf("  image      %d x %d px\n", cam.width_px(), cam.height_px());
+    std::printf("  fx fy      %.3f %.3f px\n", cam.fx(), cam.fy());
+    std::printf("  cx cy      %.3f %.3f px\n", cam.cx(), cam.cy());
+    if (cam.skew() != 0.0) std::printf("  skew       %.6g\n", cam.skew());
+    if (cam.has_distortion()) {
+      std::printf("  dist       k1 %.6g  k2 %.6g  p1 %.6g  p2 %.6g  k3 %.6g\n", d.k1, d.k2, d.p1,
+                  d.p2, d.k3);
+    } else {
+      std::printf("  dist       none\n");
+    }
+    std::printf("  centre     %.4f %.4f %.4f m\n", c.x(), c.y(), c.z());
+  }
+  return 0;
+}
+
+int run_check(Args args) {
+  std::string file;
+  cli::ArgParser parser("mocap calib check",
+                        "Validate a calibration file (fields, array lengths, finite numbers, "
+                        "non-singular K, orthonormal R, image size). Prints \"ok: N views\" and "
+                        "exits 0, or prints the error and exits 1.");
+  parser.positional("FILE", &file, "calibration JSON file (keyed by view id; K, RT, imgSize)");
+  if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
+
+  Result<Calibration> calib = load_calibration(file);
+  if (!calib.ok()) {
+    std::printf("error: %s\n", calib.error().message().c_str());
+    return 1;
+  }
+  std::printf("ok: %zu views\n", calib->size());
+  return 0;
+}
+
+}  // namespace
+
+int run_calib(Args args) {
+  if (args.empty()) {
+    std::fputs(kUsage, stderr);
+    return 2;
+  }
+  const std::string_view sub = args[0];
+  if (sub == "--help" || sub == "-h" || sub == "help") {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
+  const Args rest = args.subspan(1);
+  if (sub == "show") return run_show(rest);
+  if (sub == "check") return run_check(rest);
+  std::fprintf(stderr, "mocap calib: unknown subcommand '%s'\n\n%s", std::string(sub).c_str(),
+               kUsage);
   return 2;
 }
 

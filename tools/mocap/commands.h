@@ -9,5 +9,6 @@ namespace mocap::tools {
 using Args = std::span<const std::string_view>;
 
 int run_calib(Args args);  // mocap calib show|check FILE
+int run_eval(Args args);   // mocap eval shelf ...
 
 }  // namespace mocap::tools

@@ -18,7 +18,7 @@ struct Command {
 // clang-format off
 const Command kCommands[] = {
   {"calib",   "show or check a calibration file",                        mocap::tools::run_calib, nullptr},
-  {"eval",    "evaluate the association engine on a benchmark (shelf)",   nullptr, "the association engine (issue #3)"},
+  {"eval",    "evaluate the association engine on a benchmark (shelf)",   mocap::tools::run_eval, nullptr},
   {"bench",   "benchmarks: assoc, cnn, pipeline",                         nullptr, "the association engine (issue #3) and the Vulkan CNN (issue #4)"},
   {"infer",   "run the pose CNN on a tensor or an image",                 nullptr, "the Vulkan inference runtime (issue #4)"},
   {"model",   "convert and inspect model files",                          nullptr, "the Vulkan inference runtime (issue #4)"},

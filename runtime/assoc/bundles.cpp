@@ -1,0 +1,603 @@
+#include "runtime/assoc/bundles.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <queue>
+
+#include "runtime/core/log.h"
+#include "runtime/skeleton/topology.h"
+
+MOCAP_LOG_CATEGORY(Assoc)
+
+namespace mocap::assoc {
+namespace {
+
+inline std::size_t ix(int i) { return static_cast<std::size_t>(i); }
+
+// ------------------------------------------------------------------ bitsets for Bron–Kerbosch
+
+class Bits {
+ public:
+  void reset(int n) {
+    n_ = n;
+    w_.assign(ix((n + 63) / 64), 0);
+  }
+  void set(int i) { w_[ix(i >> 6)] |= (std::uint64_t{1} << (i & 63)); }
+  void clear(int i) { w_[ix(i >> 6)] &= ~(std::uint64_t{1} << (i & 63)); }
+  bool test(int i) const { return (w_[ix(i >> 6)] >> (i & 63)) & 1u; }
+  bool empty() const {
+    for (std::uint64_t w : w_)
+      if (w) return false;
+    return true;
+  }
+  int size() const { return n_; }
+  std::vector<std::uint64_t>& words() { return w_; }
+  const std::vector<std::uint64_t>& words() const { return w_; }
+
+ private:
+  int n_ = 0;
+  std::vector<std::uint64_t> w_;
+};
+
+int popcount_and(const Bits& a, const Bits& b) {
+  int c = 0;
+  for (std::size_t i = 0; i < a.words().size(); ++i) c += __builtin_popcountll(a.words()[i] & b.words()[i]);
+  return c;
+}
+
+template <typename F>
+void for_each_bit(const Bits& b, F&& f) {
+  const auto& w = b.words();
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    std::uint64_t x = w[i];
+    while (x) {
+      const int bit = __builtin_ctzll(x);
+      f(static_cast<int>(i * 64) + bit);
+      x &= x - 1;
+    }
+  }
+}
+
+struct CliqueGraph {
+  // Nodes 0..n2d-1 are 2D limbs (edge index = node), n2d.. are tracks.
+  int n2d = 0;
+  std::vector<int> track_of_node;  // for track nodes: graph track index
+  std::vector<Bits> adj;
+};
+
+struct BronKerbosch {
+  const CliqueGraph& g;
+  int cap;
+  std::vector<std::vector<int>>& out;
+  std::vector<int> r;
+  bool capped = false;
+
+  void run(Bits p, Bits x) {
+    if (capped) return;
+    if (p.empty()) {
+      if (x.empty()) {
+        if (static_cast<int>(out.size()) >= cap) {
+          capped = true;
+          return;
+        }
+        out.push_back(r);
+      }
+      return;
+    }
+    // Pivot: the node of P ∪ X with most neighbours in P.
+    int pivot = -1;
+    int best = -1;
+    auto consider = [&](int u) {
+      const int c = popcount_and(p, g.adj[ix(u)]);
+      if (c > best) {
+        best = c;
+        pivot = u;
+      }
+    };
+    for_each_bit(p, consider);
+    for_each_bit(x, consider);
+    std::vector<int> cand;
+    for_each_bit(p, [&](int v) {
+      if (!g.adj[ix(pivot)].test(v)) cand.push_back(v);
+    });
+    for (int v : cand) {
+      Bits p2 = p;
+      Bits x2 = x;
+      const auto& nv = g.adj[ix(v)].words();
+      for (std::size_t i = 0; i < nv.size(); ++i) {
+        p2.words()[i] &= nv[i];
+        x2.words()[i] &= nv[i];
+      }
+      r.push_back(v);
+      run(std::move(p2), std::move(x2));
+      r.pop_back();
+      if (capped) return;
+      p.clear(v);
+      x.set(v);
+    }
+  }
+};
+
+// Clique score from its members (node ids of a CliqueGraph).
+struct Scorer {
+  const FrameGraph& graph;
+  const Limb& limb;
+  double hier;
+  const CliqueOptions& opt;
+  std::span<const LimbEdge> edges;
+  double weight_sum;
+
+  double pair_match(const LimbEdge& x, const LimbEdge& y) const {
+    return 0.5 * (static_cast<double>(graph.match(limb.joint_a, x.ka, y.ka)) +
+                  static_cast<double>(graph.match(limb.joint_b, x.kb, y.kb)));
+  }
+  double track_match(int t, const LimbEdge& x) const {
+    return 0.5 * (static_cast<double>(graph.track(limb.joint_a, t, x.ka)) +
+                  static_cast<double>(graph.track(limb.joint_b, t, x.kb)));
+  }
+  double score(int track, const std::vector<int>& members) const {
+    const int n = static_cast<int>(members.size());
+    if (n == 0) return 0;
+    double paf = 0;
+    double match = 0;
+    double trk = 0;
+    for (int i = 0; i < n; ++i) {
+      const LimbEdge& x = edges[ix(members[ix(i)])];
+      paf += static_cast<double>(x.p);
+      for (int j = i + 1; j < n; ++j) match += pair_match(x, edges[ix(members[ix(j)])]);
+      if (track >= 0) trk += track_match(track, x);
+    }
+    const double e_paf = paf / n;
+    const double e_match = n > 1 ? match / (0.5 * n * (n - 1)) : 0.0;
+    const double e_track = track >= 0 ? trk / n : 0.0;
+    const double r = n / opt.view_welsch_c;
+    const double e_view = 1.0 - std::exp(-0.5 * r * r);
+    return (opt.w_match * e_match + opt.w_track * e_track + opt.w_paf * e_paf +
+            opt.w_view * e_view + opt.w_hier * hier) /
+           weight_sum;
+  }
+};
+
+// Greedy pruning: drop the member whose removal raises the score most, while it does.
+double prune_clique(const Scorer& s, int& track, std::vector<int>& members) {
+  double best = s.score(track, members);
+  while (true) {
+    double cand_best = best;
+    int drop = -2;  // -1 = drop the track, i >= 0 = drop members[i]
+    if (track >= 0) {
+      const double sc = s.score(-1, members);
+      if (sc > cand_best) {
+        cand_best = sc;
+        drop = -1;
+      }
+    }
+    if (members.size() > 1) {
+      std::vector<int> tmp;
+      for (std::size_t i = 0; i < members.size(); ++i) {
+        tmp.assign(members.begin(), members.end());
+        tmp.erase(tmp.begin() + static_cast<std::ptrdiff_t>(i));
+        const double sc = s.score(track, tmp);
+        if (sc > cand_best) {
+          cand_best = sc;
+          drop = static_cast<int>(i);
+        }
+      }
+    }
+    if (drop == -2) return best;
+    if (drop == -1) {
+      track = -1;
+    } else {
+      members.erase(members.begin() + drop);
+    }
+    best = cand_best;
+  }
+}
+
+}  // namespace
+
+std::vector<double> limb_hierarchy_weights(const SkeletonTopology& topology) {
+  std::vector<double> w(ix(topology.limb_count()), 1.0);
+  const std::vector<int> parents = topology.parents();
+  if (parents.empty()) return w;
+  std::vector<int> depth(parents.size(), 0);
+  // Joint depth from the root (parents come from a BFS, so iterate until stable).
+  for (std::size_t it = 0; it < parents.size(); ++it) {
+    for (std::size_t j = 0; j < parents.size(); ++j) {
+      if (parents[j] >= 0) depth[j] = depth[ix(parents[j])] + 1;
+    }
+  }
+  int max_depth = 1;
+  std::vector<int> limb_depth(w.size());
+  for (int l = 0; l < topology.limb_count(); ++l) {
+    const Limb& L = topology.limb(l);
+    limb_depth[ix(l)] = std::min(depth[ix(L.joint_a)], depth[ix(L.joint_b)]);
+    max_depth = std::max(max_depth, limb_depth[ix(l)]);
+  }
+  for (std::size_t l = 0; l < w.size(); ++l) {
+    w[l] = 1.0 - static_cast<double>(limb_depth[l]) / max_depth;
+  }
+  return w;
+}
+
+double score_bundle(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
+                    double hierarchy_weight, const CliqueOptions& options, int track,
+                    const std::vector<int>& edges) {
+  const double wsum =
+      options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
+  Scorer s{graph, topology.limb(limb), hierarchy_weight, options, graph.limb_edges(limb), wsum};
+  return s.score(track, edges);
+}
+
+void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
+                        double hierarchy_weight, const CliqueOptions& options,
+                        std::vector<Bundle>& out, ParsingStats& stats) {
+  const Limb& L = topology.limb(limb);
+  const std::span<const LimbEdge> edges = graph.limb_edges(limb);
+  const int n2d = static_cast<int>(edges.size());
+  if (n2d == 0) return;
+
+  CliqueGraph cg;
+  cg.n2d = n2d;
+  for (int t = 0; t < graph.track_count(); ++t) {
+    if (graph.track_has_joint(t, L.joint_a) && graph.track_has_joint(t, L.joint_b)) {
+      cg.track_of_node.push_back(t);
+    }
+  }
+  const int n = n2d + static_cast<int>(cg.track_of_node.size());
+  cg.adj.resize(ix(n));
+  for (auto& b : cg.adj) b.reset(n);
+  for (int x = 0; x < n2d; ++x) {
+    const LimbEdge& ex = edges[ix(x)];
+    for (int y = x + 1; y < n2d; ++y) {
+      const LimbEdge& ey = edges[ix(y)];
+      if (ex.view == ey.view) continue;
+      if (graph.match(L.joint_a, ex.ka, ey.ka) <= 0.f) continue;
+      if (graph.match(L.joint_b, ex.kb, ey.kb) <= 0.f) continue;
+      cg.adj[ix(x)].set(y);
+      cg.adj[ix(y)].set(x);
+    }
+    for (int ti = 0; ti < static_cast<int>(cg.track_of_node.size()); ++ti) {
+      const int t = cg.track_of_node[ix(ti)];
+      if (graph.track(L.joint_a, t, ex.ka) <= 0.f) continue;
+      if (graph.track(L.joint_b, t, ex.kb) <= 0.f) continue;
+      cg.adj[ix(x)].set(n2d + ti);
+      cg.adj[ix(n2d + ti)].set(x);
+    }
+  }
+
+  std::vector<std::vector<int>> maximal;
+  BronKerbosch bk{cg, options.max_cliques_per_limb, maximal, {}, false};
+  Bits p;
+  p.reset(n);
+  for (int i = 0; i < n; ++i) p.set(i);
+  Bits x;
+  x.reset(n);
+  bk.run(std::move(p), std::move(x));
+  stats.cliques_enumerated += static_cast<long>(maximal.size());
+  if (bk.capped) {
+    ++stats.clique_cap_hits;
+    MOCAP_LOG(Assoc, Warn) << "limb " << limb << ": clique enumeration capped at "
+                           << options.max_cliques_per_limb << " maximal cliques (" << n
+                           << " nodes); raise clique.max_cliques_per_limb if this repeats";
+  }
+
+  const double wsum =
+      options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
+  const Scorer scorer{graph, L, hierarchy_weight, options, edges, wsum};
+
+  // Candidate bundles: each maximal clique split into (track, 2D members), pruned.
+  struct Cand {
+    double score;
+    int track;
+    std::vector<int> members;
+  };
+  auto make = [&](std::vector<int> nodes) {
+    Cand c{0, -1, {}};
+    for (int v : nodes) {
+      if (v < n2d) {
+        c.members.push_back(v);
+      } else {
+        c.track = cg.track_of_node[ix(v - n2d)];
+      }
+    }
+    return c;
+  };
+  auto cmp = [](const Cand& a, const Cand& b) { return a.score < b.score; };
+  std::priority_queue<Cand, std::vector<Cand>, decltype(cmp)> queue(cmp);
+  for (auto& m : maximal) {
+    Cand c = make(std::move(m));
+    if (c.members.empty()) continue;
+    c.score = prune_clique(scorer, c.track, c.members);
+    queue.push(std::move(c));
+  }
+
+  // Take the best; removing its limbs kills every 2D limb sharing a candidate, and its track.
+  std::vector<char> dead(ix(n2d), 0);
+  std::vector<char> track_dead(ix(graph.track_count()), 0);
+  while (!queue.empty()) {
+    Cand c = queue.top();
+    queue.pop();
+    bool stale = c.track >= 0 && track_dead[ix(c.track)];
+    for (int m : c.members) stale = stale || dead[ix(m)];
+    if (stale) {
+      if (c.track >= 0 && track_dead[ix(c.track)]) c.track = -1;
+      std::erase_if(c.members, [&](int m) { return dead[ix(m)] != 0; });
+      if (c.members.empty()) continue;
+      c.score = prune_clique(scorer, c.track, c.members);
+      queue.push(std::move(c));
+      continue;
+    }
+    if (c.score < options.min_bundle_score) break;
+    for (int m : c.members) {
+      const LimbEdge& e = edges[ix(m)];
+      for (int y = 0; y < n2d; ++y) {
+        const LimbEdge& f = edges[ix(y)];
+        if (f.view == e.view && (f.ka == e.ka || f.kb == e.kb)) dead[ix(y)] = 1;
+      }
+    }
+    if (c.track >= 0) track_dead[ix(c.track)] = 1;
+    out.push_back(Bundle{limb, c.track, std::move(c.members), c.score});
+  }
+}
+
+// ------------------------------------------------------------------------------- assembling
+
+namespace {
+
+class Assembler {
+ public:
+  Assembler(const FrameGraph& g, const SkeletonTopology& topo, const std::vector<double>& hier,
+            const CliqueOptions& opt, std::vector<PersonAssignment>& persons, AssemblyStats& stats)
+      : g_(g), topo_(topo), hier_(hier), opt_(opt), persons_(persons), stats_(stats) {
+    V_ = g.view_count();
+    owner_.resize(ix(g.joint_count()));
+    for (int j = 0; j < g.joint_count(); ++j) owner_[ix(j)].assign(ix(g.candidate_count(j)), -1);
+    track_owner_.assign(ix(g.track_count()), -1);
+  }
+
+  void run(std::vector<Bundle> bundles) {
+    auto cmp = [](const Bundle& a, const Bundle& b) { return a.score < b.score; };
+    std::priority_queue<Bundle, std::vector<Bundle>, decltype(cmp)> q(cmp, std::move(bundles));
+    while (!q.empty()) {
+      Bundle b = q.top();
+      q.pop();
+      ++stats_.bundles_popped;
+      std::vector<Bundle> parts;
+      place(std::move(b), parts);
+      for (Bundle& p : parts) {
+        p.score = score_bundle(g_, topo_, p.limb, hier_[ix(p.limb)], opt_, p.track, p.edges);
+        q.push(std::move(p));
+      }
+    }
+  }
+
+ private:
+  int& slot(int person, int joint, int view) {
+    return persons_[ix(person)].k[ix(joint * V_ + view)];
+  }
+
+  int new_person() {
+    PersonAssignment p;
+    p.k.assign(ix(g_.joint_count() * V_), -1);
+    persons_.push_back(std::move(p));
+    alive_.push_back(1);
+    return static_cast<int>(persons_.size()) - 1;
+  }
+
+  void assign(int person, int joint, int k) {
+    const int view = g_.candidates(joint)[ix(k)].view;
+    int& s = slot(person, joint, view);
+    if (s == k) return;
+    s = k;
+    owner_[ix(joint)][ix(k)] = person;
+    ++persons_[ix(person)].assignment_count;
+  }
+
+  bool compatible(int p, int q) const {
+    const PersonAssignment& a = persons_[ix(p)];
+    const PersonAssignment& b = persons_[ix(q)];
+    if (a.track >= 0 && b.track >= 0 && a.track != b.track) return false;
+    for (std::size_t i = 0; i < a.k.size(); ++i) {
+      if (a.k[i] >= 0 && b.k[i] >= 0 && a.k[i] != b.k[i]) return false;
+    }
+    return true;
+  }
+
+  void merge(int into, int from) {
+    PersonAssignment& b = persons_[ix(from)];
+    for (int j = 0; j < g_.joint_count(); ++j) {
+      for (int v = 0; v < V_; ++v) {
+        const int k = b.k[ix(j * V_ + v)];
+        if (k >= 0) assign(into, j, k);
+      }
+    }
+    if (b.track >= 0) {
+      persons_[ix(into)].track = b.track;
+      track_owner_[ix(b.track)] = into;
+    }
+    persons_[ix(into)].score_sum += b.score_sum;
+    b = PersonAssignment{};
+    alive_[ix(from)] = 0;
+    ++stats_.person_merges;
+  }
+
+  // Does 2D limb e (of limb L) contradict person p's assignments?
+  bool contradicts(int p, const Limb& L, const LimbEdge& e) const {
+    const PersonAssignment& a = persons_[ix(p)];
+    const int sa = a.k[ix(L.joint_a * V_ + e.view)];
+    const int sb = a.k[ix(L.joint_b * V_ + e.view)];
+    return (sa >= 0 && sa != e.ka) || (sb >= 0 && sb != e.kb);
+  }
+
+  void add_bundle_to(int p, const Bundle& b) {
+    const Limb& L = topo_.limb(b.limb);
+    const auto edges = g_.limb_edges(b.limb);
+    for (int m : b.edges) {
+      assign(p, L.joint_a, edges[ix(m)].ka);
+      assign(p, L.joint_b, edges[ix(m)].kb);
+    }
+    if (b.track >= 0) {
+      persons_[ix(p)].track = b.track;
+      track_owner_[ix(b.track)] = p;
+    }
+    persons_[ix(p)].score_sum += b.score;
+  }
+
+  void split_singletons(const Bundle& b, std::vector<Bundle>& parts) {
+    ++stats_.bundles_split;
+    for (std::size_t i = 0; i < b.edges.size(); ++i) {
+      // The track stays with the first member only; others become plain singletons.
+      parts.push_back(Bundle{b.limb, i == 0 ? b.track : -1, {b.edges[i]}, 0});
+    }
+  }
+
+  void place(Bundle b, std::vector<Bundle>& parts) {
+    const Limb& L = topo_.limb(b.limb);
+    const auto edges = g_.limb_edges(b.limb);
+    const int track_owner = b.track >= 0 ? track_owner_[ix(b.track)] : -1;
+    std::vector<int> owners;
+    auto note = [&](int o) {
+      if (o >= 0 && std::find(owners.begin(), owners.end(), o) == owners.end()) owners.push_back(o);
+    };
+    note(track_owner);
+    for (int m : b.edges) {
+      note(owner_[ix(L.joint_a)][ix(edges[ix(m)].ka)]);
+      note(owner_[ix(L.joint_b)][ix(edges[ix(m)].kb)]);
+    }
+
+    // A track not owned yet cannot join persons that already carry another track.
+    if (b.track >= 0 && track_owner < 0) {
+      for (int o : owners) {
+        if (persons_[ix(o)].track >= 0) {
+          b.track = -1;
+          parts.push_back(std::move(b));
+          ++stats_.bundles_split;
+          return;
+        }
+      }
+    }
+
+    if (owners.empty()) {
+      add_bundle_to(new_person(), b);
+      return;
+    }
+
+    if (owners.size() == 1) {
+      const int p = owners[0];
+      Bundle ok{b.limb, b.track, {}, 0};
+      std::vector<int> bad;
+      for (int m : b.edges) {
+        (contradicts(p, L, edges[ix(m)]) ? bad : ok.edges).push_back(m);
+      }
+      if (bad.empty()) {
+        add_bundle_to(p, b);
+        return;
+      }
+      if (b.edges.size() == 1) {  // a single 2D limb that contradicts its owner: discard
+        ++stats_.limbs_dropped;
+        return;
+      }
+      ++stats_.bundles_split;
+      if (!ok.edges.empty()) parts.push_back(std::move(ok));
+      for (int m : bad) parts.push_back(Bundle{b.limb, -1, {m}, 0});
+      return;
+    }
+
+    // Several owners. Try the Kruskal union: all owners pairwise compatible, and the bundle's
+    // unowned limbs consistent with the union.
+    bool mergeable = true;
+    for (std::size_t i = 0; i < owners.size() && mergeable; ++i) {
+      for (std::size_t j = i + 1; j < owners.size() && mergeable; ++j) {
+        mergeable = compatible(owners[i], owners[j]);
+      }
+    }
+    if (mergeable) {
+      // Each view's endpoints must not be owned by different persons that both have the other
+      // endpoint's slot filled differently: checked after the union by contradicts().
+      const int into = *std::min_element(owners.begin(), owners.end());
+      // Simulate: the union's slots.
+      bool consistent = true;
+      for (int m : b.edges) {
+        const LimbEdge& e = edges[ix(m)];
+        for (int o : owners) {
+          if (contradicts(o, L, e)) consistent = false;
+        }
+      }
+      if (consistent) {
+        for (int o : owners) {
+          if (o != into) merge(into, o);
+        }
+        add_bundle_to(into, b);
+        return;
+      }
+    }
+    if (b.edges.size() == 1) {
+      ++stats_.limbs_dropped;
+      return;
+    }
+    // Split by primary owner (owner of joint_a, else joint_b); unowned limbs join the largest
+    // group and the track joins its owner's group. One group only: split into singletons.
+    std::vector<std::pair<int, std::vector<int>>> groups;
+    std::vector<int> unowned;
+    for (int m : b.edges) {
+      const LimbEdge& e = edges[ix(m)];
+      int key = owner_[ix(L.joint_a)][ix(e.ka)];
+      if (key < 0) key = owner_[ix(L.joint_b)][ix(e.kb)];
+      if (key < 0) {
+        unowned.push_back(m);
+        continue;
+      }
+      auto it = std::find_if(groups.begin(), groups.end(), [&](auto& gr) { return gr.first == key; });
+      if (it == groups.end()) {
+        groups.push_back({key, {m}});
+      } else {
+        it->second.push_back(m);
+      }
+    }
+    if (groups.size() < 2) {
+      split_singletons(b, parts);
+      return;
+    }
+    ++stats_.bundles_split;
+    std::size_t largest = 0;
+    for (std::size_t i = 1; i < groups.size(); ++i) {
+      if (groups[i].second.size() > groups[largest].second.size()) largest = i;
+    }
+    for (int m : unowned) groups[largest].second.push_back(m);
+    for (auto& [key, members] : groups) {
+      const int trk = (b.track >= 0 && (track_owner == key || (track_owner < 0 && &members == &groups[largest].second)))
+                          ? b.track
+                          : -1;
+      std::sort(members.begin(), members.end());
+      parts.push_back(Bundle{b.limb, trk, std::move(members), 0});
+    }
+  }
+
+  const FrameGraph& g_;
+  const SkeletonTopology& topo_;
+  const std::vector<double>& hier_;
+  const CliqueOptions& opt_;
+  std::vector<PersonAssignment>& persons_;
+  AssemblyStats& stats_;
+  int V_ = 0;
+  std::vector<std::vector<int>> owner_;  // [joint][k] -> person
+  std::vector<int> track_owner_;         // [track] -> person
+  std::vector<char> alive_;
+};
+
+}  // namespace
+
+void assemble_persons(const FrameGraph& graph, const SkeletonTopology& topology,
+                      const std::vector<double>& hierarchy, const CliqueOptions& options,
+                      std::vector<Bundle> bundles, int min_assignments,
+                      std::vector<PersonAssignment>& persons, AssemblyStats& stats) {
+  persons.clear();
+  Assembler a(graph, topology, hierarchy, options, persons, stats);
+  a.run(std::move(bundles));
+  std::erase_if(persons, [&](const PersonAssignment& p) {
+    return p.assignment_count == 0 || (p.track < 0 && p.assignment_count < min_assignments);
+  });
+}
+
+}  // namespace mocap::assoc

@@ -1,0 +1,249 @@
+#include "runtime/assoc/engine.h"
+
+#include <algorithm>
+#include <chrono>
+#include <string>
+
+#include "runtime/assoc/triangulate.h"
+#include "runtime/core/log.h"
+#include "runtime/skeleton/topology.h"
+
+MOCAP_DECLARE_LOG_CATEGORY(Assoc);
+
+namespace mocap::assoc {
+namespace {
+
+inline std::size_t ix(int i) { return static_cast<std::size_t>(i); }
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+Result<std::unique_ptr<Engine>> Engine::create(const SkeletonTopology& topology,
+                                               std::vector<Camera> cameras,
+                                               const AssociationOptions& options) {
+  if (Status s = options.validate(); !s.ok()) return s.error();
+  if (cameras.size() < 2) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "the association engine needs at least 2 calibrated cameras, got " +
+                     std::to_string(cameras.size()));
+  }
+  if (topology.limb_count() == 0) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "topology '" + topology.name() + "' has no limbs to associate");
+  }
+  return std::unique_ptr<Engine>(new Engine(topology, std::move(cameras), options));
+}
+
+Engine::Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
+               const AssociationOptions& options)
+    : topology_(topology),
+      cameras_(std::move(cameras)),
+      options_(options),
+      hierarchy_(limb_hierarchy_weights(topology)),
+      parents_(topology.parents()) {}
+
+void Engine::reset() {
+  tracks_.clear();
+  next_track_id_ = 0;
+}
+
+Result<FrameResult> Engine::process(const DetectionSet& det) {
+  using clock = std::chrono::steady_clock;
+  const std::string where = "frame " + std::to_string(det.frame_id);
+  if (det.topology != &topology_) {
+    return Error(ErrorCode::kInvalidArgument,
+                 where + ": detections are in topology '" +
+                     (det.topology ? det.topology->name() : std::string("none")) +
+                     "' but the engine runs '" + topology_.name() + "'");
+  }
+  if (Status s = det.validate(); !s.ok()) return s.error();
+
+  const int J = topology_.joint_count();
+  const int V = static_cast<int>(cameras_.size());
+  const TrackingOptions& topt = options_.tracking;
+  FrameResult res;
+  FrameStats& st = res.stats;
+
+  // Previous skeletons as tracking nodes (joints seen recently enough).
+  auto t0 = clock::now();
+  track_poses_.resize(tracks_.size());
+  for (std::size_t t = 0; t < tracks_.size(); ++t) {
+    TrackPose& tp = track_poses_[t];
+    tp.track_id = tracks_[t].id;
+    tp.joints_m = tracks_[t].joints_m;
+    tp.valid.assign(ix(J), false);
+    for (int j = 0; j < J; ++j) {
+      const int age = tracks_[t].joint_age[ix(j)];
+      tp.valid[ix(j)] = age >= 0 && age <= topt.max_missed_frames;
+    }
+  }
+  if (Status s = graph_.build(det, cameras_, track_poses_, options_.graph); !s.ok()) {
+    return s.error();
+  }
+  for (int j = 0; j < J; ++j) st.candidates += graph_.candidate_count(j);
+  for (int l = 0; l < topology_.limb_count(); ++l) {
+    st.limb_edges += static_cast<int>(graph_.limb_edges(l).size());
+  }
+  st.graph_ms = ms_since(t0);
+
+  // 4D limb-bundle parsing.
+  t0 = clock::now();
+  bundles_.clear();
+  for (int l = 0; l < topology_.limb_count(); ++l) {
+    parse_limb_bundles(graph_, topology_, l, hierarchy_[ix(l)], options_.clique, bundles_,
+                       st.parsing);
+  }
+  st.bundles = static_cast<int>(bundles_.size());
+  st.parse_ms = ms_since(t0);
+
+  // Bundle Kruskal assembling.
+  t0 = clock::now();
+  assemble_persons(graph_, topology_, hierarchy_, options_.clique, bundles_,
+                   topt.min_assignments_new_person, persons_, st.assembly);
+  st.assemble_ms = ms_since(t0);
+
+  // Reconstruction and tracking.
+  t0 = clock::now();
+  const std::size_t old_tracks = tracks_.size();
+  std::vector<char> claimed(old_tracks, 0);
+  std::vector<Observation> obs;
+  std::vector<TriangulatedPoint> pts(ix(J));
+  std::vector<float> conf(ix(J));
+  struct Output {
+    std::size_t track;
+    std::vector<int> candidate;
+    std::vector<int> views_used;
+    std::vector<float> confidence;
+  };
+  std::vector<Output> outputs;
+
+  // Persons with more evidence first, so fragments do not steal tracks.
+  std::sort(persons_.begin(), persons_.end(), [](const auto& a, const auto& b) {
+    return a.assignment_count > b.assignment_count;
+  });
+  for (const PersonAssignment& p : persons_) {
+    int valid = 0;
+    for (int j = 0; j < J; ++j) {
+      obs.clear();
+      double score_sum = 0;
+      for (int v = 0; v < V; ++v) {
+        const int k = p.candidate(j, v, V);
+        if (k < 0) continue;
+        const GraphCandidate& c = graph_.candidates(j)[ix(k)];
+        obs.push_back(Observation{c.view, c.px, c.ray, static_cast<double>(c.score)});
+        score_sum += static_cast<double>(c.score);
+      }
+      pts[ix(j)] = triangulate(obs, cameras_, options_.triangulation);
+      conf[ix(j)] = 0.f;
+      if (pts[ix(j)].valid) {
+        ++valid;
+        conf[ix(j)] = static_cast<float>(std::min(1.0, score_sum / static_cast<double>(obs.size())));
+      }
+    }
+    if (valid == 0) continue;
+
+    // Which track: the one its bundles were attached to, else a close unclaimed one, else new.
+    std::size_t ti = old_tracks;  // none
+    if (p.track >= 0 && !claimed[ix(p.track)]) ti = ix(p.track);
+    if (ti == old_tracks) {
+      double best = topt.reattach_max_mean_dist_m;
+      for (std::size_t t = 0; t < old_tracks; ++t) {
+        if (claimed[t]) continue;
+        double sum = 0;
+        int n = 0;
+        for (int j = 0; j < J; ++j) {
+          if (!pts[ix(j)].valid || tracks_[t].joint_age[ix(j)] < 0) continue;
+          sum += (pts[ix(j)].X_m - tracks_[t].joints_m[ix(j)]).norm();
+          ++n;
+        }
+        if (n >= 3 && sum / n < best) {
+          best = sum / n;
+          ti = t;
+        }
+      }
+    }
+    if (ti == old_tracks) {
+      if (valid < topt.min_joints_new_track) continue;
+      Track nt;
+      nt.id = next_track_id_++;
+      nt.joints_m.assign(ix(J), Eigen::Vector3d::Zero());
+      nt.joint_age.assign(ix(J), -1);
+      tracks_.push_back(std::move(nt));
+      claimed.push_back(0);
+      ti = tracks_.size() - 1;
+      ++st.births;
+    }
+    claimed[ti] = 1;
+    Track& tr = tracks_[ti];
+    for (int j = 0; j < J; ++j) {
+      if (pts[ix(j)].valid) {
+        tr.joints_m[ix(j)] = pts[ix(j)].X_m;
+        tr.joint_age[ix(j)] = 0;
+      } else if (tr.joint_age[ix(j)] >= 0) {
+        ++tr.joint_age[ix(j)];
+      }
+    }
+    tr.missed = 0;
+    ++tr.observed_frames;
+
+    Output o{ti, {}, {}, conf};
+    o.candidate.assign(ix(J * V), -1);
+    o.views_used.assign(ix(J), 0);
+    for (int j = 0; j < J; ++j) {
+      for (int v = 0; v < V; ++v) {
+        const int k = p.candidate(j, v, V);
+        if (k >= 0) o.candidate[ix(j * V + v)] = graph_.candidates(j)[ix(k)].index;
+      }
+      o.views_used[ix(j)] = pts[ix(j)].valid ? pts[ix(j)].views_used : 0;
+    }
+    outputs.push_back(std::move(o));
+  }
+
+  // Unobserved tracks age and die.
+  for (std::size_t t = 0; t < old_tracks; ++t) {
+    if (claimed[t]) continue;
+    Track& tr = tracks_[t];
+    ++tr.missed;
+    for (int& a : tr.joint_age) {
+      if (a >= 0) ++a;
+    }
+  }
+
+  // Output skeletons (joints never seen are filled from the nearest seen ancestor with
+  // confidence 0; held joints keep their last position with confidence 0).
+  res.skeletons.frame_id = det.frame_id;
+  res.skeletons.timestamp_ns = det.timestamp_ns;
+  res.skeletons.topology = &topology_;
+  std::sort(outputs.begin(), outputs.end(), [&](const Output& a, const Output& b) {
+    return tracks_[a.track].id < tracks_[b.track].id;
+  });
+  for (Output& o : outputs) {
+    const Track& tr = tracks_[o.track];
+    PersonSkeleton ps;
+    ps.person_id = tr.id;
+    ps.joints_m = tr.joints_m;
+    ps.confidence = o.confidence;
+    for (int j = 0; j < J; ++j) {
+      if (tr.joint_age[ix(j)] >= 0 || parents_.empty()) continue;
+      int a = parents_[ix(j)];
+      while (a >= 0 && tr.joint_age[ix(a)] < 0) a = parents_[ix(a)];
+      if (a >= 0) ps.joints_m[ix(j)] = tr.joints_m[ix(a)];
+    }
+    ps.joint_rotations.assign(ix(J), Eigen::Quaterniond::Identity());
+    res.skeletons.persons.push_back(std::move(ps));
+    res.evidence.push_back(PersonEvidence{tr.id, std::move(o.candidate), std::move(o.views_used)});
+  }
+
+  const std::size_t before = tracks_.size();
+  std::erase_if(tracks_, [&](const Track& t) { return t.missed > topt.max_missed_frames; });
+  st.deaths = static_cast<int>(before - tracks_.size());
+  st.tracks = static_cast<int>(tracks_.size());
+  st.persons = static_cast<int>(res.skeletons.persons.size());
+  st.reconstruct_ms = ms_since(t0);
+  return res;
+}
+
+}  // namespace mocap::assoc

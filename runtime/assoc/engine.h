@@ -1,0 +1,101 @@
+// The association engine: per frame, builds the 4D graph from the detections and the
+// previous frame's skeletons, parses limb bundles, assembles persons, triangulates them and
+// keeps persistent tracks (birth, continuation, death after sustained absence).
+//
+// Skeleton-agnostic: it runs on any SkeletonTopology whose limbs carry the affinities of the
+// detections (body19 from BODY_25, COCO-17 from PoseNet).
+#pragma once
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <vector>
+
+#include "runtime/assoc/bundles.h"
+#include "runtime/assoc/graph.h"
+#include "runtime/assoc/options.h"
+#include "runtime/core/error.h"
+#include "runtime/geometry/camera.h"
+#include "runtime/msg/messages.h"
+
+namespace mocap {
+class SkeletonTopology;
+}
+
+namespace mocap::assoc {
+
+struct FrameStats {
+  int candidates = 0;
+  int limb_edges = 0;
+  ParsingStats parsing;
+  int bundles = 0;
+  AssemblyStats assembly;
+  int persons = 0;       // persons output this frame
+  int births = 0;
+  int deaths = 0;
+  int tracks = 0;        // live tracks after this frame
+  double graph_ms = 0;
+  double parse_ms = 0;
+  double assemble_ms = 0;
+  double reconstruct_ms = 0;
+};
+
+// The 2D evidence of one output person: for each (joint, view) the index of the candidate in
+// the DetectionSet's candidate list of that view and joint, or -1.
+struct PersonEvidence {
+  int person_id = -1;
+  std::vector<int> candidate;  // [joint * view_count + view]
+  std::vector<int> views_used; // [joint] number of views the 3D joint was triangulated from
+};
+
+struct FrameResult {
+  SkeletonSet skeletons;
+  std::vector<PersonEvidence> evidence;  // parallel to skeletons.persons
+  FrameStats stats;
+};
+
+class Engine {
+ public:
+  // `cameras` indexed by view id (DetectionSet::views[i].view_id is a camera index).
+  static Result<std::unique_ptr<Engine>> create(const SkeletonTopology& topology,
+                                                std::vector<Camera> cameras,
+                                                const AssociationOptions& options);
+
+  // Processes one frame; detections must be in the engine's topology. Errors (bad shapes, a
+  // view id without camera) name the frame and view; the track state is left unchanged then.
+  Result<FrameResult> process(const DetectionSet& detections);
+
+  // Forgets all tracks (e.g. between sequences).
+  void reset();
+
+  const SkeletonTopology& topology() const { return topology_; }
+  const std::vector<Camera>& cameras() const { return cameras_; }
+
+ private:
+  struct Track {
+    int id = -1;
+    std::vector<Eigen::Vector3d> joints_m;
+    std::vector<int> joint_age;  // frames since the joint was last triangulated (-1 = never)
+    int missed = 0;              // consecutive frames without observation
+    int observed_frames = 0;
+  };
+
+  Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
+         const AssociationOptions& options);
+
+  const SkeletonTopology& topology_;
+  std::vector<Camera> cameras_;
+  AssociationOptions options_;
+  std::vector<double> hierarchy_;
+  std::vector<int> parents_;
+  std::vector<Track> tracks_;
+  int next_track_id_ = 0;
+
+  // Per-frame scratch, reused (no per-frame growth once warmed up).
+  FrameGraph graph_;
+  std::vector<TrackPose> track_poses_;
+  std::vector<Bundle> bundles_;
+  std::vector<PersonAssignment> persons_;
+};
+
+}  // namespace mocap::assoc

@@ -1,0 +1,141 @@
+#include "runtime/assoc/graph.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "runtime/skeleton/topology.h"
+
+namespace mocap::assoc {
+namespace {
+
+// Shortest distance between two rays, and whether the closest points lie in front of both
+// cameras (depth along each ray >= min_depth_m).
+bool ray_pair_distance(const Ray& a, const Ray& b, double min_depth_m, double* dist_m) {
+  const Eigen::Vector3d w = a.origin_m - b.origin_m;
+  const double dab = a.direction.dot(b.direction);
+  const double denom = 1.0 - dab * dab;  // directions are unit
+  if (denom < 1e-12) return false;       // parallel rays never match
+  const double da = a.direction.dot(w);
+  const double db = b.direction.dot(w);
+  const double sa = (dab * db - da) / denom;
+  const double sb = (db - dab * da) / denom;
+  if (sa < min_depth_m || sb < min_depth_m) return false;
+  *dist_m = (w + sa * a.direction - sb * b.direction).norm();
+  return true;
+}
+
+}  // namespace
+
+Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera> cameras,
+                         std::span<const TrackPose> tracks, const GraphOptions& options) {
+  const SkeletonTopology& topo = *detections.topology;
+  const int J = topo.joint_count();
+  view_count_ = static_cast<int>(cameras.size());
+  track_count_ = static_cast<int>(tracks.size());
+  cands_.resize(idx(J));
+  match_.resize(idx(J));
+  track_.resize(idx(J));
+  limb_edges_.resize(idx(topo.limb_count()));
+  track_valid_.assign(idx(track_count_ * J), false);
+
+  // Views sorted by id so candidates come grouped by view.
+  std::vector<const ViewDetections*> views;
+  views.reserve(detections.views.size());
+  for (const ViewDetections& v : detections.views) {
+    if (v.view_id < 0 || v.view_id >= view_count_) {
+      return Error(ErrorCode::kInvalidArgument,
+                   "frame " + std::to_string(detections.frame_id) + ": detections of view " +
+                       std::to_string(v.view_id) + " but the calibration has " +
+                       std::to_string(view_count_) + " views");
+    }
+    views.push_back(&v);
+  }
+  std::sort(views.begin(), views.end(),
+            [](const ViewDetections* a, const ViewDetections* b) { return a->view_id < b->view_id; });
+
+  // Nodes: candidates with their rays.
+  for (int j = 0; j < J; ++j) {
+    auto& cj = cands_[idx(j)];
+    cj.clear();
+    for (const ViewDetections* v : views) {
+      const Camera& cam = cameras[idx(v->view_id)];
+      const auto& list = v->candidates[idx(j)];
+      for (int i = 0; i < static_cast<int>(list.size()); ++i) {
+        const JointCandidate& c = list[idx(i)];
+        if (static_cast<double>(c.score) < options.min_candidate_score) continue;
+        GraphCandidate g;
+        g.view = v->view_id;
+        g.index = i;
+        g.score = c.score;
+        g.px = Eigen::Vector2d(c.x_px, c.y_px);
+        g.ray = cam.backproject(g.px);
+        cj.push_back(g);
+      }
+    }
+    const int n = static_cast<int>(cj.size());
+    // Matching edges.
+    auto& m = match_[idx(j)];
+    m.assign(idx(n * n), 0.f);
+    for (int k1 = 0; k1 < n; ++k1) {
+      const GraphCandidate& a = cj[idx(k1)];
+      for (int k2 = k1 + 1; k2 < n; ++k2) {
+        const GraphCandidate& b = cj[idx(k2)];
+        if (a.view == b.view) continue;
+        double d = 0;
+        if (!ray_pair_distance(a.ray, b.ray, options.min_depth_m, &d)) continue;
+        if (d >= options.max_epipolar_dist_m) continue;
+        const float p = static_cast<float>(1.0 - d / options.max_epipolar_dist_m);
+        m[idx(k1 * n + k2)] = p;
+        m[idx(k2 * n + k1)] = p;
+      }
+    }
+    // Tracking edges.
+    auto& tr = track_[idx(j)];
+    tr.assign(idx(track_count_ * n), 0.f);
+    for (int t = 0; t < track_count_; ++t) {
+      const TrackPose& tp = tracks[idx(t)];
+      if (!tp.valid[idx(j)]) continue;
+      track_valid_[idx(t * J + j)] = true;
+      const Eigen::Vector3d& X = tp.joints_m[idx(j)];
+      for (int k = 0; k < n; ++k) {
+        const double d = point_ray_distance_m(X, cj[idx(k)].ray);
+        if (d >= options.max_track_dist_m) continue;
+        tr[idx(t * n + k)] = static_cast<float>(1.0 - d / options.max_track_dist_m);
+      }
+    }
+  }
+
+  // Parsing edges (2D limbs).
+  for (int l = 0; l < topo.limb_count(); ++l) {
+    const Limb& limb = topo.limb(l);
+    auto& edges = limb_edges_[idx(l)];
+    edges.clear();
+    const auto& ca = cands_[idx(limb.joint_a)];
+    const auto& cb = cands_[idx(limb.joint_b)];
+    // Candidates are grouped by view in the same view order for every joint.
+    std::size_t a0 = 0;
+    std::size_t b0 = 0;
+    for (const ViewDetections* v : views) {
+      std::size_t a1 = a0;
+      while (a1 < ca.size() && ca[a1].view == v->view_id) ++a1;
+      std::size_t b1 = b0;
+      while (b1 < cb.size() && cb[b1].view == v->view_id) ++b1;
+      const AffinityMatrix& aff = v->affinities[idx(l)];
+      for (std::size_t ia = a0; ia < a1; ++ia) {
+        for (std::size_t ib = b0; ib < b1; ++ib) {
+          const float raw = aff.at(ca[ia].index, cb[ib].index);
+          if (!(raw > 0.f)) continue;
+          const float p = static_cast<float>(std::pow(static_cast<double>(raw), options.affinity_exponent));
+          if (static_cast<double>(p) < options.min_affinity) continue;
+          edges.push_back(LimbEdge{v->view_id, static_cast<int>(ia), static_cast<int>(ib), p});
+        }
+      }
+      a0 = a1;
+      b0 = b1;
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace mocap::assoc

@@ -1,0 +1,84 @@
+// The 4D association graph of one frame (paper §3): nodes are the 2D joint candidates of every
+// view plus the previous frame's 3D joints; edges are parsing (limb affinity, same view),
+// matching (ray-to-ray distance, same joint type, two views) and tracking (point-to-ray
+// distance, previous 3D joint to a candidate).
+//
+// Storage is flat and reused between frames: candidates of one joint type are numbered
+// k = 0..n_j-1 across all views (grouped by view), and the matching/tracking edges of that
+// joint type are dense n_j x n_j / tracks x n_j tables of probabilities (0 = no edge).
+#pragma once
+
+#include <Eigen/Core>
+
+#include <span>
+#include <vector>
+
+#include "runtime/assoc/options.h"
+#include "runtime/core/error.h"
+#include "runtime/geometry/camera.h"
+#include "runtime/msg/messages.h"
+
+namespace mocap::assoc {
+
+struct GraphCandidate {
+  int view = -1;   // camera index
+  int index = -1;  // index in the view's candidate list of this joint (DetectionSet order)
+  float score = 0;
+  Eigen::Vector2d px = Eigen::Vector2d::Zero();  // raw image pixel
+  Ray ray;                                       // back-projected world ray
+};
+
+// A 2D limb in one view: candidate ka of the limb's joint_a and kb of its joint_b (graph
+// numbering) with parsing probability p.
+struct LimbEdge {
+  int view = -1;
+  int ka = -1;
+  int kb = -1;
+  float p = 0;
+};
+
+// A previous-frame 3D skeleton (tracking nodes).
+struct TrackPose {
+  int track_id = -1;
+  std::vector<Eigen::Vector3d> joints_m;  // [joint]
+  std::vector<bool> valid;                // [joint]
+};
+
+class FrameGraph {
+ public:
+  int view_count() const { return view_count_; }
+  int joint_count() const { return static_cast<int>(cands_.size()); }
+  int limb_count() const { return static_cast<int>(limb_edges_.size()); }
+  int track_count() const { return track_count_; }
+
+  std::span<const GraphCandidate> candidates(int joint) const { return cands_[idx(joint)]; }
+  int candidate_count(int joint) const { return static_cast<int>(cands_[idx(joint)].size()); }
+  // Matching probability between candidates k1, k2 of `joint` (0 when same view / no edge).
+  float match(int joint, int k1, int k2) const {
+    return match_[idx(joint)][idx(k1 * candidate_count(joint) + k2)];
+  }
+  // Tracking probability between track t's 3D joint and candidate k of `joint`.
+  float track(int joint, int t, int k) const {
+    return track_[idx(joint)][idx(t * candidate_count(joint) + k)];
+  }
+  bool track_has_joint(int t, int joint) const { return track_valid_[idx(t * joint_count() + joint)]; }
+  std::span<const LimbEdge> limb_edges(int limb) const { return limb_edges_[idx(limb)]; }
+
+  // Builds the graph. `cameras` is indexed by view id (DetectionSet view_id = camera index);
+  // detections must already be validated and in the engine topology.
+  Status build(const DetectionSet& detections, std::span<const Camera> cameras,
+               std::span<const TrackPose> tracks, const GraphOptions& options);
+
+ private:
+  static std::size_t idx(int i) { return static_cast<std::size_t>(i); }
+
+  int view_count_ = 0;
+  int track_count_ = 0;
+  std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
+  std::vector<std::vector<float>> match_;           // [joint][k1 * n + k2]
+  std::vector<std::vector<float>> track_;           // [joint][t * n + k]
+  std::vector<bool> track_valid_;                   // [t * joints + joint]
+  std::vector<std::vector<LimbEdge>> limb_edges_;   // [limb]
+};
+
+}  // namespace mocap::assoc

@@ -1,0 +1,84 @@
+// Options of the 4D association engine: every threshold and weight in one validated struct,
+// with units in the names and documented defaults (defaults suit OpenPose BODY_25 detections
+// on ~1000 px images in a room-sized capture volume such as Shelf).
+#pragma once
+
+#include <string>
+
+#include "runtime/core/error.h"
+
+namespace mocap::assoc {
+
+struct GraphOptions {
+  // Matching edge (same joint type, two views): p = 1 - d / max_epipolar_dist_m, where d is the
+  // shortest distance between the two back-projected rays. Pairs farther apart get no edge.
+  double max_epipolar_dist_m = 0.15;
+  // Tracking edge (previous 3D joint, 2D candidate): p = 1 - d / max_track_dist_m, d = distance
+  // from the 3D joint to the candidate's ray.
+  double max_track_dist_m = 0.20;
+  // Parsing edge: p = affinity^affinity_exponent, dropped when below min_affinity (after the
+  // exponent). Exponents < 1 lift weak-but-present affinities (authors' code: 0.2).
+  double affinity_exponent = 0.2;
+  double min_affinity = 0.35;
+  // Candidates whose heatmap score is below this are ignored.
+  double min_candidate_score = 0.05;
+  // A matching edge also needs both rays' closest points in front of their cameras, at least
+  // this far (metres).
+  double min_depth_m = 0.1;
+
+  Status validate() const;
+};
+
+// Limb-bundle (clique) score: (w_match·E_match + w_track·E_track + w_paf·E_paf + w_view·E_view
+// + w_hier·E_hier) / (sum of weights). E_view = 1 - exp(-½ (n / view_welsch_c)²) with n the number
+// of views in the clique; E_hier = 1 for limbs at the torso, falling linearly to 0 at the
+// outermost limbs of the tree.
+struct CliqueOptions {
+  double w_match = 2.0;
+  double w_track = 2.0;
+  double w_paf = 1.0;
+  double w_view = 2.0;
+  double w_hier = 0.5;
+  double view_welsch_c = 1.5;
+  // Bound on the work per limb type and frame: maximal cliques enumerated. Hitting it is
+  // counted in FrameStats::clique_cap_hits and logged, never silent.
+  int max_cliques_per_limb = 4096;
+  // Bundles below this score are not used.
+  double min_bundle_score = 0.0;
+
+  Status validate() const;
+};
+
+struct TrackingOptions {
+  // A new person needs at least this many (joint, view) assignments...
+  int min_assignments_new_person = 5;
+  // ...and this many joints triangulated from >= 2 views to become a track.
+  int min_joints_new_track = 10;
+  // A track not observed for this many consecutive frames is dropped.
+  int max_missed_frames = 12;
+  // A person with no tracking edge can still continue a track whose last pose is this close
+  // (mean distance over common joints, metres).
+  double reattach_max_mean_dist_m = 0.35;
+
+  Status validate() const;
+};
+
+struct TriangulationOptions {
+  // A joint needs this many views.
+  int min_views = 2;
+  // Views whose reprojection error exceeds this are dropped one at a time (worst first).
+  double max_reprojection_error_px = 25.0;
+
+  Status validate() const;
+};
+
+struct AssociationOptions {
+  GraphOptions graph;
+  CliqueOptions clique;
+  TrackingOptions tracking;
+  TriangulationOptions triangulation;
+
+  Status validate() const;
+};
+
+}  // namespace mocap::assoc

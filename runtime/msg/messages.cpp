@@ -1,0 +1,132 @@
+#include "runtime/msg/messages.h"
+
+#include <cmath>
+#include <cstddef>
+#include <sstream>
+#include <string>
+#include <unordered_map>
+
+#include "runtime/skeleton/topology.h"
+
+namespace mocap {
+
+std::string_view to_string(PixelFormat format) {
+  switch (format) {
+    case PixelFormat::kRGB24:
+      return "RGB24";
+    case PixelFormat::kYUYV:
+      return "YUYV";
+    case PixelFormat::kNV12:
+      return "NV12";
+    case PixelFormat::kGREY:
+      return "GREY";
+    case PixelFormat::kMJPEG:
+      return "MJPEG";
+  }
+  return "unknown";
+}
+
+namespace {
+
+// Scores and affinities may overshoot [0, 1] by float rounding in the network's output.
+constexpr float kUnitTolerance = 1e-6f;
+
+bool in_unit_range(float v) {
+  return std::isfinite(v) && v >= -kUnitTolerance && v <= 1.f + kUnitTolerance;
+}
+
+std::string num(float v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+Error invalid(std::string message) {
+  return Error(ErrorCode::kInvalidArgument, std::move(message));
+}
+
+Status validate_view(const std::string& frame, const SkeletonTopology& topo,
+                     const ViewDetections& view) {
+  const std::string where = frame + ", view " + std::to_string(view.view_id);
+  if (static_cast<int>(view.candidates.size()) != topo.joint_count()) {
+    return invalid(where + ": " + std::to_string(view.candidates.size()) +
+                   " candidate lists, expected " + std::to_string(topo.joint_count()) +
+                   " (one per joint of topology " + topo.name() + ")");
+  }
+  if (static_cast<int>(view.affinities.size()) != topo.limb_count()) {
+    return invalid(where + ": " + std::to_string(view.affinities.size()) +
+                   " affinity matrices, expected " + std::to_string(topo.limb_count()) +
+                   " (one per limb of topology " + topo.name() + ")");
+  }
+  for (int j = 0; j < topo.joint_count(); ++j) {
+    const auto& list = view.candidates[static_cast<size_t>(j)];
+    for (size_t c = 0; c < list.size(); ++c) {
+      const JointCandidate& cand = list[c];
+      const std::string cw = where + ", joint " + std::to_string(j) + " (" + topo.joint_name(j) +
+                             "), candidate " + std::to_string(c);
+      if (!std::isfinite(cand.x_px) || !std::isfinite(cand.y_px)) {
+        return invalid(cw + ": coordinates (" + num(cand.x_px) + ", " + num(cand.y_px) +
+                       ") are not finite");
+      }
+      if (!in_unit_range(cand.score)) {
+        return invalid(cw + ": score " + num(cand.score) + " is outside [0, 1]");
+      }
+    }
+  }
+  for (int l = 0; l < topo.limb_count(); ++l) {
+    const Limb& limb = topo.limb(l);
+    const std::string lw = where + ", limb " + std::to_string(l) + " (" + topo.limb_name(l) + ")";
+    if (limb.joint_a < 0 || limb.joint_a >= topo.joint_count() || limb.joint_b < 0 ||
+        limb.joint_b >= topo.joint_count()) {
+      return invalid(lw + ": topology " + topo.name() + " limb joins a joint index out of range");
+    }
+    const AffinityMatrix& m = view.affinities[static_cast<size_t>(l)];
+    const size_t rows = view.candidates[static_cast<size_t>(limb.joint_a)].size();
+    const size_t cols = view.candidates[static_cast<size_t>(limb.joint_b)].size();
+    if (m.rows < 0 || m.cols < 0 || static_cast<size_t>(m.rows) != rows ||
+        static_cast<size_t>(m.cols) != cols) {
+      return invalid(lw + ": affinity matrix is " + std::to_string(m.rows) + "x" +
+                     std::to_string(m.cols) + ", expected " + std::to_string(rows) + "x" +
+                     std::to_string(cols) + " from the candidate counts");
+    }
+    if (m.values.size() != rows * cols) {
+      return invalid(lw + ": affinity matrix " + std::to_string(rows) + "x" + std::to_string(cols) +
+                     " holds " + std::to_string(m.values.size()) + " values, expected " +
+                     std::to_string(rows * cols));
+    }
+    for (int r = 0; r < m.rows; ++r) {
+      for (int c = 0; c < m.cols; ++c) {
+        const float v = m.at(r, c);
+        if (!in_unit_range(v)) {
+          return invalid(lw + ": affinity at (" + std::to_string(r) + ", " + std::to_string(c) +
+                         ") is " + num(v) + ", outside [0, 1]");
+        }
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status DetectionSet::validate() const {
+  std::string frame = "frame ";
+  frame += std::to_string(frame_id);
+  if (topology == nullptr) return invalid(frame + ": detection set has no topology");
+  std::unordered_map<int, size_t> seen;
+  for (size_t i = 0; i < views.size(); ++i) {
+    auto [it, inserted] = seen.emplace(views[i].view_id, i);
+    if (!inserted) {
+      return invalid(frame + ", view " + std::to_string(views[i].view_id) +
+                     ": view id appears twice (entries " + std::to_string(it->second) + " and " +
+                     std::to_string(i) + ")");
+    }
+  }
+  for (const ViewDetections& view : views) {
+    Status s = validate_view(frame, *topology, view);
+    if (!s.ok()) return s;
+  }
+  return Status::Ok();
+}
+
+}  // namespace mocap
