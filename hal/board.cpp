@@ -31,7 +31,8 @@ Result<Board> load_board(const std::filesystem::path& board_json) {
   const std::string file = board_json.string();
   std::ifstream in(board_json);
   if (!in) {
-    return Error(ErrorCode::kNotFound, file + ": cannot open board file (boards live in board/<name>/board.json)");
+    return Error(ErrorCode::kNotFound,
+                 file + ": cannot open board file (boards live in board/<name>/board.json)");
   }
   json j = json::parse(in, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded() || !j.is_object()) {
@@ -71,7 +72,8 @@ Result<Board> load_board(const std::filesystem::path& board_json) {
   if (b.max_cameras < 1 || b.max_cameras > 32) {
     return Error(ErrorCode::kInvalidArgument, file + ": max_cameras must be in [1, 32]");
   }
-  if (b.trigger.mode != SyncMode::kSoftware && (b.trigger.gpio_chip.empty() || b.trigger.gpio_line.empty())) {
+  if (b.trigger.mode != SyncMode::kSoftware &&
+      (b.trigger.gpio_chip.empty() || b.trigger.gpio_line.empty())) {
     return Error(ErrorCode::kInvalidArgument,
                  file + ": trigger.gpio_chip and trigger.gpio_line are required for GPIO sync");
   }

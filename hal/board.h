@@ -21,8 +21,8 @@ struct BoardCamera {
 
 struct TriggerConfig {
   SyncMode mode = SyncMode::kSoftware;
-  std::string gpio_chip;   // e.g. "gpiochip0" (GPIO modes only)
-  std::string gpio_line;   // line name as in the device tree, or an offset as text
+  std::string gpio_chip;  // e.g. "gpiochip0" (GPIO modes only)
+  std::string gpio_line;  // line name as in the device tree, or an offset as text
   double pulse_width_us = 0;
 };
 

@@ -42,7 +42,8 @@ class Bits {
 
 int popcount_and(const Bits& a, const Bits& b) {
   int c = 0;
-  for (std::size_t i = 0; i < a.words().size(); ++i) c += __builtin_popcountll(a.words()[i] & b.words()[i]);
+  for (std::size_t i = 0; i < a.words().size(); ++i)
+    c += __builtin_popcountll(a.words()[i] & b.words()[i]);
   return c;
 }
 
@@ -548,7 +549,8 @@ class Assembler {
         unowned.push_back(m);
         continue;
       }
-      auto it = std::find_if(groups.begin(), groups.end(), [&](auto& gr) { return gr.first == key; });
+      auto it =
+          std::find_if(groups.begin(), groups.end(), [&](auto& gr) { return gr.first == key; });
       if (it == groups.end()) {
         groups.push_back({key, {m}});
       } else {
@@ -566,7 +568,8 @@ class Assembler {
     }
     for (int m : unowned) groups[largest].second.push_back(m);
     for (auto& [key, members] : groups) {
-      const int trk = (b.track >= 0 && (track_owner == key || (track_owner < 0 && &members == &groups[largest].second)))
+      const int trk = (b.track >= 0 && (track_owner == key ||
+                                        (track_owner < 0 && &members == &groups[largest].second)))
                           ? b.track
                           : -1;
       std::sort(members.begin(), members.end());

@@ -54,8 +54,8 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
 
 // One person's 2D assignments after assembling.
 struct PersonAssignment {
-  std::vector<int> k;   // [joint * view_count + view]: candidate (graph numbering) or -1
-  int track = -1;       // graph track index or -1
+  std::vector<int> k;  // [joint * view_count + view]: candidate (graph numbering) or -1
+  int track = -1;      // graph track index or -1
   int assignment_count = 0;
   double score_sum = 0;  // sum of the scores of the bundles merged into it
 

@@ -121,9 +121,8 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
   std::vector<Output> outputs;
 
   // Persons with more evidence first, so fragments do not steal tracks.
-  std::sort(persons_.begin(), persons_.end(), [](const auto& a, const auto& b) {
-    return a.assignment_count > b.assignment_count;
-  });
+  std::sort(persons_.begin(), persons_.end(),
+            [](const auto& a, const auto& b) { return a.assignment_count > b.assignment_count; });
   for (const PersonAssignment& p : persons_) {
     int valid = 0;
     for (int j = 0; j < J; ++j) {
@@ -137,10 +136,23 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
         score_sum += static_cast<double>(c.score);
       }
       pts[ix(j)] = triangulate(obs, cameras_, options_.triangulation);
+      if (log_category_Assoc().enabled(LogLevel::Debug)) {
+        LogMessage msg(log_category_Assoc(), LogLevel::Debug);
+        std::ostream& os = msg.stream();
+        os << "frame " << det.frame_id << " person(track " << p.track << ") joint "
+           << topology_.joint_name(j) << " views";
+        for (const Observation& o : obs) {
+          const auto px = cameras_[ix(o.view)].project(pts[ix(j)].X_m);
+          os << " v" << o.view << "(" << o.px.x() << "," << o.px.y() << " s=" << o.weight
+             << " err=" << (px ? (*px - o.px).norm() : -1.0) << ")";
+        }
+        os << (pts[ix(j)].valid ? " valid" : " invalid");
+      }
       conf[ix(j)] = 0.f;
       if (pts[ix(j)].valid) {
         ++valid;
-        conf[ix(j)] = static_cast<float>(std::min(1.0, score_sum / static_cast<double>(obs.size())));
+        conf[ix(j)] =
+            static_cast<float>(std::min(1.0, score_sum / static_cast<double>(obs.size())));
       }
     }
     if (valid == 0) continue;

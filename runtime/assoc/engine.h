@@ -30,10 +30,10 @@ struct FrameStats {
   ParsingStats parsing;
   int bundles = 0;
   AssemblyStats assembly;
-  int persons = 0;       // persons output this frame
+  int persons = 0;  // persons output this frame
   int births = 0;
   int deaths = 0;
-  int tracks = 0;        // live tracks after this frame
+  int tracks = 0;  // live tracks after this frame
   double graph_ms = 0;
   double parse_ms = 0;
   double assemble_ms = 0;
@@ -44,8 +44,8 @@ struct FrameStats {
 // the DetectionSet's candidate list of that view and joint, or -1.
 struct PersonEvidence {
   int person_id = -1;
-  std::vector<int> candidate;  // [joint * view_count + view]
-  std::vector<int> views_used; // [joint] number of views the 3D joint was triangulated from
+  std::vector<int> candidate;   // [joint * view_count + view]
+  std::vector<int> views_used;  // [joint] number of views the 3D joint was triangulated from
 };
 
 struct FrameResult {

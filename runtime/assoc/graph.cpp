@@ -51,8 +51,9 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
     }
     views.push_back(&v);
   }
-  std::sort(views.begin(), views.end(),
-            [](const ViewDetections* a, const ViewDetections* b) { return a->view_id < b->view_id; });
+  std::sort(views.begin(), views.end(), [](const ViewDetections* a, const ViewDetections* b) {
+    return a->view_id < b->view_id;
+  });
 
   // Nodes: candidates with their rays.
   for (int j = 0; j < J; ++j) {
@@ -126,7 +127,8 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
         for (std::size_t ib = b0; ib < b1; ++ib) {
           const float raw = aff.at(ca[ia].index, cb[ib].index);
           if (!(raw > 0.f)) continue;
-          const float p = static_cast<float>(std::pow(static_cast<double>(raw), options.affinity_exponent));
+          const float p =
+              static_cast<float>(std::pow(static_cast<double>(raw), options.affinity_exponent));
           if (static_cast<double>(p) < options.min_affinity) continue;
           edges.push_back(LimbEdge{v->view_id, static_cast<int>(ia), static_cast<int>(ib), p});
         }

@@ -61,7 +61,9 @@ class FrameGraph {
   float track(int joint, int t, int k) const {
     return track_[idx(joint)][idx(t * candidate_count(joint) + k)];
   }
-  bool track_has_joint(int t, int joint) const { return track_valid_[idx(t * joint_count() + joint)]; }
+  bool track_has_joint(int t, int joint) const {
+    return track_valid_[idx(t * joint_count() + joint)];
+  }
   std::span<const LimbEdge> limb_edges(int limb) const { return limb_edges_[idx(limb)]; }
 
   // Builds the graph. `cameras` is indexed by view id (DetectionSet view_id = camera index);

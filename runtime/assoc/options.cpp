@@ -8,7 +8,8 @@ namespace {
 
 Status check(bool ok, const char* field, const std::string& why) {
   if (ok) return Status::Ok();
-  return Error(ErrorCode::kInvalidArgument, std::string("association option ") + field + ": " + why);
+  return Error(ErrorCode::kInvalidArgument,
+               std::string("association option ") + field + ": " + why);
 }
 
 #define MOCAP_CHECK(cond, field, why) \

@@ -2,64 +2,103 @@
 
 #include <Eigen/Dense>
 
+#include <bit>
+#include <limits>
+
 namespace mocap::assoc {
+
+namespace {
+
+// Weighted least-squares point of the rays selected by `used`; false when degenerate.
+bool solve_rays(std::span<const Observation> obs, unsigned used, Eigen::Vector3d* X) {
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < obs.size(); ++i) {
+    if (!(used & (1u << i))) continue;
+    const Observation& o = obs[i];
+    const Eigen::Matrix3d P =
+        Eigen::Matrix3d::Identity() - o.ray.direction * o.ray.direction.transpose();
+    A += o.weight * P;
+    b += o.weight * (P * o.ray.origin_m);
+  }
+  Eigen::LDLT<Eigen::Matrix3d> ldlt(A);
+  if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-9) return false;
+  *X = ldlt.solve(b);
+  return X->allFinite();
+}
+
+// Reprojection error of X in observation o; +inf when behind the camera.
+double reprojection_error(const Observation& o, std::span<const Camera> cameras,
+                          const Eigen::Vector3d& X) {
+  const auto px = cameras[static_cast<std::size_t>(o.view)].project(X);
+  if (!px) return std::numeric_limits<double>::infinity();
+  return (*px - o.px).norm();
+}
+
+}  // namespace
 
 TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const Camera> cameras,
                               const TriangulationOptions& options) {
   TriangulatedPoint out;
   const int n = static_cast<int>(obs.size());
   if (n < options.min_views || n > 32) return out;
-  unsigned used = (n == 32) ? 0xffffffffu : ((1u << n) - 1u);
-  while (true) {
-    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    int count = 0;
-    for (int i = 0; i < n; ++i) {
-      if (!(used & (1u << i))) continue;
-      const Observation& o = obs[static_cast<std::size_t>(i)];
-      const Eigen::Matrix3d P =
-          Eigen::Matrix3d::Identity() - o.ray.direction * o.ray.direction.transpose();
-      A += o.weight * P;
-      b += o.weight * (P * o.ray.origin_m);
-      ++count;
+  const double thr = options.max_reprojection_error_px;
+
+  // Consensus: every pair of views proposes a point; the one whose inliers (reprojection error
+  // below thr) carry the most soft weight sum w·(1 − err/thr) wins. With 2 views this is
+  // the pair itself.
+  unsigned best_set = 0;
+  double best_score = 0;
+  for (int a = 0; a < n; ++a) {
+    for (int b = a + 1; b < n; ++b) {
+      Eigen::Vector3d X;
+      if (!solve_rays(obs, (1u << a) | (1u << b), &X)) continue;
+      unsigned set = 0;
+      double score = 0;
+      for (int i = 0; i < n; ++i) {
+        const double e = reprojection_error(obs[static_cast<std::size_t>(i)], cameras, X);
+        if (e < thr) {
+          set |= 1u << i;
+          score += obs[static_cast<std::size_t>(i)].weight * (1.0 - e / thr);
+        }
+      }
+      if (std::popcount(set) >= options.min_views && score > best_score) {
+        best_score = score;
+        best_set = set;
+      }
     }
-    if (count < options.min_views) return out;
-    const Eigen::Vector3d X = A.ldlt().solve(b);
-    if (!X.allFinite()) return out;
+  }
+  if (best_set == 0) return out;
+
+  // Refine on the consensus set; drop the worst view while any exceeds thr.
+  unsigned used = best_set;
+  while (std::popcount(used) >= options.min_views) {
+    Eigen::Vector3d X;
+    if (!solve_rays(obs, used, &X)) return out;
     double worst = -1;
     int worst_i = -1;
-    bool behind = false;
     for (int i = 0; i < n; ++i) {
       if (!(used & (1u << i))) continue;
-      const Observation& o = obs[static_cast<std::size_t>(i)];
-      const auto px = cameras[static_cast<std::size_t>(o.view)].project(X);
-      if (!px) {
-        behind = true;
-        worst_i = i;
-        worst = 1e30;
-        break;
-      }
-      const double e = (*px - o.px).norm();
+      const double e = reprojection_error(obs[static_cast<std::size_t>(i)], cameras, X);
       if (e > worst) {
         worst = e;
         worst_i = i;
       }
     }
-    if (!behind && worst <= options.max_reprojection_error_px) {
+    if (worst <= thr) {
       out.X_m = X;
       out.valid = true;
-      out.views_used = count;
+      out.views_used = std::popcount(used);
       out.max_reprojection_error_px = worst;
-      out.view_mask = 0;
       for (int i = 0; i < n; ++i) {
         const int v = obs[static_cast<std::size_t>(i)].view;
         if ((used & (1u << i)) && v >= 0 && v < 32) out.view_mask |= 1u << v;
       }
       return out;
     }
-    if (count - 1 < options.min_views) return out;
     used &= ~(1u << worst_i);
   }
+  return out;
 }
 
 }  // namespace mocap::assoc

@@ -25,10 +25,11 @@ struct TriangulatedPoint {
   unsigned view_mask = 0;  // bit v set when view v was used (views < 32)
 };
 
-// Weighted least squares over rays (the point minimising the weighted sum of squared
-// distances to the rays), then reprojection check in every used view: while the worst view
-// exceeds max_reprojection_error_px and more than min_views remain, drop it and re-solve.
-// Invalid when fewer than min_views views, or the solution is behind a camera or still off.
+// Consensus triangulation: every pair of views proposes a point (least squares over rays);
+// the proposal whose inlier views (reprojection error < max_reprojection_error_px) carry the
+// largest soft weight wins; the point is then re-solved on its inliers (weighted least squares
+// over rays, weights = detection scores), dropping the worst view while any exceeds the
+// threshold. Invalid when fewer than min_views views agree or the point is behind a camera.
 TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const Camera> cameras,
                               const TriangulationOptions& options);
 

@@ -57,7 +57,8 @@ Status parse_spec_locked(Registry& r, std::string_view spec) {
     std::string name = colon == std::string_view::npos ? "*" : std::string(item.substr(0, colon));
     std::string_view lvl = colon == std::string_view::npos ? item : item.substr(colon + 1);
     auto level = parse_log_level(lvl);
-    if (!level.ok()) return level.error().with_context("MOCAP_LOG item '" + std::string(item) + "'");
+    if (!level.ok())
+      return level.error().with_context("MOCAP_LOG item '" + std::string(item) + "'");
     parsed[name] = *level;
   }
   for (auto& [k, v] : parsed) r.overrides[k] = v;
@@ -70,7 +71,8 @@ void apply_env_locked(Registry& r) {
   r.env_applied = true;
   if (const char* env = std::getenv("MOCAP_LOG")) {
     Status s = parse_spec_locked(r, env);
-    if (!s.ok()) std::fprintf(stderr, "mocap: ignoring MOCAP_LOG: %s\n", s.error().to_string().c_str());
+    if (!s.ok())
+      std::fprintf(stderr, "mocap: ignoring MOCAP_LOG: %s\n", s.error().to_string().c_str());
   }
 }
 
@@ -106,8 +108,7 @@ LogMessage::LogMessage(const LogCategory& category, LogLevel level)
 
 LogMessage::~LogMessage() {
   using namespace std::chrono;
-  const double t_s =
-      duration<double>(steady_clock::now().time_since_epoch()).count();
+  const double t_s = duration<double>(steady_clock::now().time_since_epoch()).count();
   std::string line = stream_.str();
   // One fprintf per line: stdio locks the stream, so lines from threads do not interleave.
   std::fprintf(stderr, "[%12.6f] %-5s %s: %s\n", t_s, level_tag(level_), category_.name(),

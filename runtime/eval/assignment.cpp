@@ -69,8 +69,7 @@ std::vector<int> hungarian(int n, int m, CostFn a) {
 std::vector<int> min_cost_assignment(std::span<const double> cost, int rows, int cols) {
   if (rows <= 0) return {};
   std::vector<int> result(static_cast<std::size_t>(rows), -1);
-  if (cols <= 0 ||
-      cost.size() != static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols)) {
+  if (cols <= 0 || cost.size() != static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols)) {
     return result;
   }
   // Non-finite entries become a cost larger than any assignment of finite entries can reach.

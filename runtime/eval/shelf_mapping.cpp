@@ -122,9 +122,10 @@ Result<ShelfJoints> shelf15_from_body19(std::span<const Eigen::Vector3d> joints_
   s[kHipCenter] = at(b.pelvis);
 
   const Eigen::Vector3d& neck = at(b.neck);
-  const Eigen::Vector3d shoulder_c = present(b.r_shoulder) && present(b.l_shoulder)
-                                         ? Eigen::Vector3d(0.5 * (at(b.r_shoulder) + at(b.l_shoulder)))
-                                         : neck;
+  const Eigen::Vector3d shoulder_c =
+      present(b.r_shoulder) && present(b.l_shoulder)
+          ? Eigen::Vector3d(0.5 * (at(b.r_shoulder) + at(b.l_shoulder)))
+          : neck;
   const bool have_ears = present(b.r_ear) && present(b.l_ear);
   const Eigen::Vector3d ear_c = 0.5 * (at(b.r_ear) + at(b.l_ear));
   const Eigen::Vector3d bottom =
@@ -140,8 +141,8 @@ Result<ShelfJoints> shelf15_from_body19(std::span<const Eigen::Vector3d> joints_
     face = at(b.nose) - (have_ears ? ear_c : bottom);
     face -= up * face.dot(up);
     const double norm = face.norm();
-    face = std::isfinite(norm) && norm > 1e-9 ? Eigen::Vector3d(face / norm)
-                                              : Eigen::Vector3d::Zero();
+    face =
+        std::isfinite(norm) && norm > 1e-9 ? Eigen::Vector3d(face / norm) : Eigen::Vector3d::Zero();
   }
   Eigen::Vector3d dir = options.head_up_weight * up + options.head_face_weight * face;
   if (dir.norm() < 1e-12) dir = up;  // weights that cancel: fall back to straight up
@@ -164,8 +165,8 @@ Result<ShelfEstimateFrame> shelf15_estimates_from_skeletons(const SkeletonSet& s
     for (const PersonSkeleton& p : set.persons) {
       auto joints = shelf15_from_body19(p.joints_m, p.confidence, options);
       if (!joints.ok()) {
-        return joints.error().with_context("frame " + std::to_string(set.frame_id) +
-                                           ", person " + std::to_string(p.person_id));
+        return joints.error().with_context("frame " + std::to_string(set.frame_id) + ", person " +
+                                           std::to_string(p.person_id));
       }
       out.push_back({p.person_id, *joints});
     }

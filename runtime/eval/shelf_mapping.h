@@ -38,11 +38,11 @@
 namespace mocap {
 
 struct Shelf15MappingOptions {
-  double bottom_head_fraction = 0.5;  // 0 = shoulder centre, 1 = ear centre
-  double head_length_m = 0.225;       // |top_head - bottom_head|
-  double head_up_weight = 1.0;        // weight of the trunk "up" direction
-  double head_face_weight = 0.3;      // weight of the horizontal face direction
-  float min_confidence = 0.f;         // a joint with confidence <= this counts as missing
+  double bottom_head_fraction = 0.5;           // 0 = shoulder centre, 1 = ear centre
+  double head_length_m = 0.225;                // |top_head - bottom_head|
+  double head_up_weight = 1.0;                 // weight of the trunk "up" direction
+  double head_face_weight = 0.3;               // weight of the horizontal face direction
+  float min_confidence = 0.f;                  // a joint with confidence <= this counts as missing
   Eigen::Vector3d fallback_up{0.0, 0.0, 1.0};  // when neck - pelvis is degenerate (Shelf: +z)
 };
 

@@ -124,8 +124,10 @@ Status ShelfPcpEvaluator::add_frame(const ShelfGtFrame& gt,
         acc.pcp.far_matched_frames += 1;
       }
       for (int l = 0; l < kShelfPcpLimbCount; ++l) {
-        const auto a = static_cast<std::size_t>(kShelfPcpLimbs[static_cast<std::size_t>(l)].joint_a);
-        const auto b = static_cast<std::size_t>(kShelfPcpLimbs[static_cast<std::size_t>(l)].joint_b);
+        const auto a =
+            static_cast<std::size_t>(kShelfPcpLimbs[static_cast<std::size_t>(l)].joint_a);
+        const auto b =
+            static_cast<std::size_t>(kShelfPcpLimbs[static_cast<std::size_t>(l)].joint_b);
         if (!finite(est.joints_m[a]) || !finite(est.joints_m[b])) continue;
         const double ea = (est.joints_m[a] - actor.joints_m[a]).norm();
         const double eb = (est.joints_m[b] - actor.joints_m[b]).norm();
@@ -175,9 +177,8 @@ PcpReport ShelfPcpEvaluator::report() const {
     a.pcp = percent(correct, static_cast<long long>(a.annotated_frames) * kShelfPcpLimbCount);
     a.pcp_matched_only =
         percent(correct, static_cast<long long>(a.matched_frames) * kShelfPcpLimbCount);
-    a.mpjpe_mm = a.mpjpe_joints > 0
-                     ? 1000.0 * acc.error_sum_m / static_cast<double>(a.mpjpe_joints)
-                     : 0.0;
+    a.mpjpe_mm =
+        a.mpjpe_joints > 0 ? 1000.0 * acc.error_sum_m / static_cast<double>(a.mpjpe_joints) : 0.0;
     r.actors.push_back(std::move(a));
   }
   std::set<int> averaged;
@@ -232,8 +233,7 @@ std::string format_report(const PcpReport& r) {
     appendf(s, "%-6s %6d %7d %9d %4d |", a.name.c_str(), a.annotated_frames, a.matched_frames,
             a.unmatched_frames, a.far_matched_frames);
     for (const double v : a.limb_pcp) appendf(s, " %6.2f", v);
-    appendf(s, " | %6.2f %9.2f %8.1f %5d\n", a.pcp, a.pcp_matched_only, a.mpjpe_mm,
-            a.id_switches);
+    appendf(s, " | %6.2f %9.2f %8.1f %5d\n", a.pcp, a.pcp_matched_only, a.mpjpe_mm, a.id_switches);
   }
   std::string avg_name = "avg(";
   for (std::size_t i = 0; i < r.averaged_actor_ids.size(); ++i) {

@@ -65,23 +65,23 @@ inline constexpr std::array<ShelfPcpLimb, kShelfPcpLimbCount> kShelfPcpLimbs = {
 }};
 
 struct PcpOptions {
-  double alpha = 0.5;                       // limb threshold as a fraction of its GT length
-  double false_positive_distance_m = 0.5;   // mean joint error beyond which nothing matches
-  double missing_joint_penalty_m = 10.0;    // distance charged for a non-finite estimate joint
+  double alpha = 0.5;                      // limb threshold as a fraction of its GT length
+  double false_positive_distance_m = 0.5;  // mean joint error beyond which nothing matches
+  double missing_joint_penalty_m = 1.0;    // distance charged for a non-finite estimate joint
   std::vector<int> averaged_actor_ids = {0, 1, 2};  // A1-A3: the headline avg_pcp
 };
 
 struct ActorPcp {
   int actor_id = -1;
-  std::string name;              // "A<id+1>"
-  int annotated_frames = 0;      // frames where the actor is in the GT
-  int matched_frames = 0;        // ... and got an estimate
-  int unmatched_frames = 0;      // ... and got none (strict: all limbs wrong)
-  int far_matched_frames = 0;    // matched, but mean joint error > false_positive_distance_m
+  std::string name;            // "A<id+1>"
+  int annotated_frames = 0;    // frames where the actor is in the GT
+  int matched_frames = 0;      // ... and got an estimate
+  int unmatched_frames = 0;    // ... and got none (strict: all limbs wrong)
+  int far_matched_frames = 0;  // matched, but mean joint error > false_positive_distance_m
   std::array<int, kShelfPcpLimbCount> limb_correct{};  // frames with the limb correct
-  double pcp = 0;                // strict PCP in percent over annotated frames (all limbs)
-  double pcp_matched_only = 0;   // PCP in percent over matched frames only (lenient, for
-                                 // comparison with evaluators that skip unmatched actors)
+  double pcp = 0;               // strict PCP in percent over annotated frames (all limbs)
+  double pcp_matched_only = 0;  // PCP in percent over matched frames only (lenient, for
+                                // comparison with evaluators that skip unmatched actors)
   std::array<double, kShelfPcpLimbCount> limb_pcp{};  // percent over annotated frames
   double mpjpe_mm = 0;           // mean per-joint position error over matched frames, mm
   long long mpjpe_joints = 0;    // joints in the MPJPE (finite estimate joints)
@@ -92,17 +92,17 @@ struct ActorPcp {
 struct PcpReport {
   double alpha = 0.5;
   double false_positive_distance_m = 0.5;
-  int frames = 0;                 // frames evaluated
-  int frames_without_actor = 0;   // frames with no annotated actor
-  std::vector<ActorPcp> actors;   // every actor id seen in the GT, ascending
+  int frames = 0;                       // frames evaluated
+  int frames_without_actor = 0;         // frames with no annotated actor
+  std::vector<ActorPcp> actors;         // every actor id seen in the GT, ascending
   std::vector<int> averaged_actor_ids;  // those of PcpOptions present in the GT
-  double avg_pcp = 0;             // mean strict PCP over averaged_actor_ids (percent)
+  double avg_pcp = 0;                   // mean strict PCP over averaged_actor_ids (percent)
   std::array<double, kShelfPcpLimbCount> avg_limb_pcp{};  // same average, per limb
   int total_estimates = 0;
-  int matched_estimates = 0;      // assigned to an annotated actor
-  int surplus_estimates = 0;      // frames with actors: assigned to none
-  int false_positives = 0;        // frames with actors: > threshold from every actor
-  int unjudged_estimates = 0;     // estimates in frames without annotated actors
+  int matched_estimates = 0;   // assigned to an annotated actor
+  int surplus_estimates = 0;   // frames with actors: assigned to none
+  int false_positives = 0;     // frames with actors: > threshold from every actor
+  int unjudged_estimates = 0;  // estimates in frames without annotated actors
 };
 
 // Incremental evaluator: feed frames as they are produced, read the report at any time.

@@ -68,8 +68,8 @@ Result<ShelfRun> run_shelf_sequence(const std::filesystem::path& data_dir,
       auto r = (*engine)->process(body19);
       if (!r.ok()) return r.error();
       const assoc::FrameStats& st = r->stats;
-      run.timings.push_back(ShelfFrameTiming{st.graph_ms + st.parse_ms + st.assemble_ms,
-                                             st.reconstruct_ms});
+      run.timings.push_back(
+          ShelfFrameTiming{st.graph_ms + st.parse_ms + st.assemble_ms, st.reconstruct_ms});
       if (!last) continue;
       auto est = shelf15_estimates_from_skeletons(r->skeletons, options.mapping);
       if (!est.ok()) return est.error();

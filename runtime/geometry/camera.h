@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 #include <optional>
 #include <string>
+#include <utility>
 
 namespace mocap {
 

@@ -1,5 +1,6 @@
 #include "runtime/io/shelf_detections.h"
 
+#include <algorithm>
 #include <cstddef>
 #include <exception>
 #include <new>
@@ -34,6 +35,12 @@ std::string describe(ScanStatus status, const TextScanner& scan) {
   return "unknown scan status";
 }
 
+// Where in the file the parser is, formatted only when an error is reported.
+struct Place {
+  enum Kind { kHeader, kJoint, kLimb, kTrailer } kind = kHeader;
+  int index = -1;
+};
+
 class ViewParser {
  public:
   ViewParser(std::string_view text, std::string_view source, int view_id, int width_px,
@@ -49,8 +56,8 @@ class ViewParser {
   Result<std::vector<ViewDetections>> run();
 
  private:
-  // "<source>:<line>: frame F, <where>: <what>"
-  Error fail(std::string_view where, const std::string& what) const {
+  // "<source>:<line>: frame F, <place>: <what>"
+  Error fail(Place place, const std::string& what) const {
     std::string m(source_);
     m += ':';
     m += std::to_string(scan_.line());
@@ -60,22 +67,39 @@ class ViewParser {
       m += std::to_string(frame_);
       m += ", ";
     }
-    m += where;
+    switch (place.kind) {
+      case Place::kHeader:
+        m += "header";
+        break;
+      case Place::kJoint:
+        m += "joint ";
+        m += std::to_string(place.index);
+        m += " (";
+        m += topo_.joint_name(place.index);
+        m += ")";
+        break;
+      case Place::kLimb: {
+        const Limb& limb = topo_.limb(place.index);
+        m += "PAF limb ";
+        m += std::to_string(place.index);
+        m += " (";
+        m += topo_.joint_name(limb.joint_a);
+        m += "-";
+        m += topo_.joint_name(limb.joint_b);
+        m += ")";
+        break;
+      }
+      case Place::kTrailer:
+        m += "after the last frame";
+        break;
+    }
     m += ": ";
     m += what;
     return Error(ErrorCode::kParse, std::move(m));
   }
-  std::string joint_where(int j) const {
-    return "joint " + std::to_string(j) + " (" + topo_.joint_name(j) + ")";
-  }
-  std::string limb_where(int l) const {
-    const Limb& limb = topo_.limb(l);
-    return "PAF limb " + std::to_string(l) + " (" + topo_.joint_name(limb.joint_a) + "-" +
-           topo_.joint_name(limb.joint_b) + ")";
-  }
 
   // Reads a count in [0, max]; nullopt after storing the error in *error.
-  std::optional<int> read_count(std::int64_t max, const std::string& where, std::string_view what,
+  std::optional<int> read_count(std::int64_t max, Place place, std::string_view what,
                                 std::optional<Error>* error);
   std::optional<Error> parse_joint(int j, std::vector<JointCandidate>& out);
   std::optional<Error> parse_limb(int l, const std::vector<int>& counts, AffinityMatrix& out);
@@ -90,37 +114,37 @@ class ViewParser {
   int frame_ = -1;
 };
 
-std::optional<int> ViewParser::read_count(std::int64_t max, const std::string& where,
-                                          std::string_view what, std::optional<Error>* error) {
+std::optional<int> ViewParser::read_count(std::int64_t max, Place place, std::string_view what,
+                                          std::optional<Error>* error) {
   std::int64_t n = 0;
   const ScanStatus st = scan_.next_int(n);
   if (st == ScanStatus::kOutOfRange || (st == ScanStatus::kOk && n > max)) {
-    *error = fail(where, std::string(what) + " " + scan_.last_token_for_message() +
+    *error = fail(place, std::string(what) + " " + scan_.last_token_for_message() +
                              " is too large (limit " + std::to_string(max) + ")");
     return std::nullopt;
   }
   if (st != ScanStatus::kOk) {
-    *error = fail(where, std::string(what) + ": " + describe(st, scan_));
+    *error = fail(place, std::string(what) + ": " + describe(st, scan_));
     return std::nullopt;
   }
   if (n < 0) {
-    *error = fail(where, std::string(what) + " is negative: " + std::to_string(n));
+    *error = fail(place, std::string(what) + " is negative: " + std::to_string(n));
     return std::nullopt;
   }
   return static_cast<int>(n);
 }
 
+// Memory is bounded by the input: a block that announces more values than the rest of the
+// text can hold is scanned without being stored, so the error still points at the exact
+// value where the text runs out (or is malformed).
 std::optional<Error> ViewParser::parse_joint(int j, std::vector<JointCandidate>& out) {
+  const Place place{Place::kJoint, j};
   std::optional<Error> error;
-  const std::string where = joint_where(j);
-  const auto n = read_count(options_.max_candidates_per_joint, where, "candidate count", &error);
+  const auto n = read_count(options_.max_candidates_per_joint, place, "candidate count", &error);
   if (!n) return error;
   const std::size_t count = static_cast<std::size_t>(*n);
-  if (3 * count > scan_.max_tokens_left()) {
-    return fail(where, "candidate count " + std::to_string(count) +
-                           " needs more values than the rest of the file holds (truncated?)");
-  }
-  out.resize(count);
+  const bool store = 3 * count <= scan_.max_tokens_left();
+  out.resize(store ? count : 0);
   static constexpr const char* kRows[3] = {"x", "y", "score"};
   const float sx = static_cast<float>(width_px_ - 1);
   const float sy = static_cast<float>(height_px_ - 1);
@@ -129,52 +153,54 @@ std::optional<Error> ViewParser::parse_joint(int j, std::vector<JointCandidate>&
       float v = 0;
       const ScanStatus st = scan_.next_float(v);
       if (st != ScanStatus::kOk) {
-        return fail(where, std::string(kRows[row]) + " of candidate " + std::to_string(i) + ": " +
+        return fail(place, std::string(kRows[row]) + " of candidate " + std::to_string(i) + ": " +
                                describe(st, scan_));
       }
+      if (row == 2 && v < 0.f) {
+        return fail(place, "score of candidate " + std::to_string(i) +
+                               " is negative: " + scan_.last_token_for_message());
+      }
+      if (!store) continue;
       JointCandidate& c = out[i];
       if (row == 0) {
         c.x_px = v * sx;
       } else if (row == 1) {
         c.y_px = v * sy;
       } else {
-        if (v < 0.f) {
-          return fail(where, "score of candidate " + std::to_string(i) + " is negative: " +
-                                 scan_.last_token_for_message());
-        }
         c.score = v;
       }
     }
+  }
+  if (!store) {  // unreachable: the text cannot have held all the values
+    return fail(place, "candidate count " + std::to_string(count) + " exceeds the file");
   }
   return std::nullopt;
 }
 
 std::optional<Error> ViewParser::parse_limb(int l, const std::vector<int>& counts,
                                             AffinityMatrix& out) {
+  const Place place{Place::kLimb, l};
   const Limb& limb = topo_.limb(l);
   const int rows = counts[static_cast<std::size_t>(limb.joint_a)];
   const int cols = counts[static_cast<std::size_t>(limb.joint_b)];
   const std::size_t size = static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols);
-  if (size > scan_.max_tokens_left()) {
-    return fail(limb_where(l), std::to_string(rows) + "x" + std::to_string(cols) +
-                                   " matrix needs more values than the rest of the file holds "
-                                   "(truncated?)");
-  }
+  const bool store = size <= scan_.max_tokens_left();
   out.rows = rows;
   out.cols = cols;
-  out.values.resize(size);
+  out.values.resize(store ? size : 0);
   for (std::size_t i = 0; i < size; ++i) {
     float v = 0;
     const ScanStatus st = scan_.next_float(v);
     if (st != ScanStatus::kOk) {
       const std::size_t c = static_cast<std::size_t>(cols);
-      return fail(limb_where(l), "value (" + std::to_string(i / c) + "," + std::to_string(i % c) +
-                                     "): " + describe(st, scan_));
+      return fail(place, "value (" + std::to_string(i / c) + "," + std::to_string(i % c) +
+                             "): " + describe(st, scan_));
     }
-    if (v < 0.f) {
-      return fail(limb_where(l), "negative PAF score " + scan_.last_token_for_message());
-    }
-    out.values[i] = v;
+    if (v < 0.f) return fail(place, "negative PAF score " + scan_.last_token_for_message());
+    if (store) out.values[i] = v;
+  }
+  if (!store) {  // unreachable: the text cannot have held all the values
+    return fail(place, "matrix size " + std::to_string(size) + " exceeds the file");
   }
   return std::nullopt;
 }
@@ -193,7 +219,7 @@ Result<std::vector<ViewDetections>> ViewParser::run() {
   const int limbs = topo_.limb_count();
 
   std::optional<Error> error;
-  const auto type = read_count(1 << 30, "header", "skeleton type", &error);
+  const auto type = read_count(1 << 30, Place{}, "skeleton type", &error);
   if (!type) return *error;
   if (*type != kShelfSkeletonTypeBody25) {
     return Error(ErrorCode::kUnsupported,
@@ -201,18 +227,12 @@ Result<std::vector<ViewDetections>> ViewParser::run() {
                      std::to_string(*type) + " is not supported (only " +
                      std::to_string(kShelfSkeletonTypeBody25) + " = BODY_25)");
   }
-  const auto frames = read_count(1 << 30, "header", "frame count", &error);
+  const auto frames = read_count(1 << 30, Place{}, "frame count", &error);
   if (!frames) return *error;
-  // Every frame holds at least one count per joint.
-  const std::size_t min_tokens =
-      static_cast<std::size_t>(*frames) * static_cast<std::size_t>(joints);
-  if (min_tokens > scan_.max_tokens_left()) {
-    return fail("header", "frame count " + std::to_string(*frames) +
-                              " needs more values than the file holds (truncated?)");
-  }
-
   std::vector<ViewDetections> out;
-  out.reserve(static_cast<std::size_t>(*frames));
+  // Every frame holds at least one count per joint: never reserve more than the text can fill.
+  out.reserve(std::min(static_cast<std::size_t>(*frames),
+                       scan_.max_tokens_left() / static_cast<std::size_t>(joints)));
   std::vector<int> counts(static_cast<std::size_t>(joints));
   for (frame_ = 0; frame_ < *frames; ++frame_) {
     ViewDetections& vd = out.emplace_back();
@@ -232,20 +252,18 @@ Result<std::vector<ViewDetections>> ViewParser::run() {
   }
   frame_ = -1;
   if (!scan_.at_end()) {
-    return fail("after the last frame", "trailing data " + scan_.last_token_for_message() +
-                                            " (header announces " + std::to_string(*frames) +
-                                            " frames)");
+    return fail(Place{Place::kTrailer, -1}, "trailing data " + scan_.last_token_for_message() +
+                                                " (header announces " + std::to_string(*frames) +
+                                                " frames)");
   }
   return out;
 }
 
 }  // namespace
 
-Result<std::vector<ViewDetections>> parse_shelf_detection_view(std::string_view text,
-                                                               std::string_view source_name,
-                                                               int view_id, int width_px,
-                                                               int height_px,
-                                                               const ShelfDetectionOptions& options) {
+Result<std::vector<ViewDetections>> parse_shelf_detection_view(
+    std::string_view text, std::string_view source_name, int view_id, int width_px, int height_px,
+    const ShelfDetectionOptions& options) {
   try {
     return ViewParser(text, source_name, view_id, width_px, height_px, options).run();
   } catch (const std::bad_alloc&) {
@@ -253,10 +271,9 @@ Result<std::vector<ViewDetections>> parse_shelf_detection_view(std::string_view 
   }
 }
 
-Result<std::vector<ViewDetections>> load_shelf_detection_view(const std::filesystem::path& file,
-                                                              int view_id, int width_px,
-                                                              int height_px,
-                                                              const ShelfDetectionOptions& options) {
+Result<std::vector<ViewDetections>> load_shelf_detection_view(
+    const std::filesystem::path& file, int view_id, int width_px, int height_px,
+    const ShelfDetectionOptions& options) {
   auto text = io::read_text_file(file);
   if (!text.ok()) return text.error();
   return parse_shelf_detection_view(*text, file.string(), view_id, width_px, height_px, options);

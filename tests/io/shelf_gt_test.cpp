@@ -22,8 +22,8 @@ ShelfGtActor make_actor(int id, double offset) {
   ShelfGtActor a;
   a.actor_id = id;
   for (int j = 0; j < kShelfJointCount; ++j) {
-    a.joints_m[static_cast<size_t>(j)] = Eigen::Vector3d(offset + 0.1 * j, -0.25 * j + 1.0 / 3.0,
-                                                         1e-5 * j + offset * 0.5);
+    a.joints_m[static_cast<size_t>(j)] =
+        Eigen::Vector3d(offset + 0.1 * j, -0.25 * j + 1.0 / 3.0, 1e-5 * j + offset * 0.5);
   }
   return a;
 }
@@ -67,13 +67,15 @@ TEST(ShelfGtTest, ParsesSmallFile) {
 TEST(ShelfGtTest, Errors) {
   expect_parse_error("14 1\n0\n", {"joint count is 14"});
   expect_parse_error("15 3\n0\n0\n", {"frame 2", "actor count", "end of file"});
+  expect_parse_error("15 1000000000\n0\n", {"frame 1", "actor count", "end of file"});
+  expect_parse_error("15 3\n0\n0\n         \n", {"frame 2", "actor count", "end of file"});
   expect_parse_error("15 1\n-1\n", {"frame 0", "actor count", "out of range"});
   expect_parse_error("15 1\n100000\n", {"frame 0", "actor count", "out of range"});
   expect_parse_error("15 1\n900\n0\n", {"frame 0", "actor count 900", "truncated"});
 
   std::string text = small_gt();
-  expect_parse_error(text.substr(0, text.size() - 30), {"frame 0", "actor entry 1", "id 2",
-                                                        "homogeneous row", "end of file"});
+  expect_parse_error(text.substr(0, text.size() - 30),
+                     {"frame 0", "actor entry 1", "id 2", "homogeneous row", "end of file"});
   text = small_gt();
   text.replace(text.find("1.000000"), 8, "0.500000");
   expect_parse_error(text, {"frame 0", "actor entry 0", "homogeneous row, joint 0", "expected 1"});

@@ -21,16 +21,16 @@ inline bool running_in_ci() {
 }  // namespace mocap::testing
 
 // Declares `path_var` = <data dir>/<sub>, or skips (fails in CI) when it is absent.
-#define MOCAP_REQUIRE_DATA(path_var, sub)                                                  \
-  std::filesystem::path path_var;                                                          \
-  do {                                                                                     \
-    auto found_ = ::mocap::find_data_subdir(sub);                                          \
-    if (!found_) {                                                                         \
-      std::string why_ = std::string("data set '") + (sub) + "' not found under " +        \
-                         ::mocap::default_data_dir().string() +                            \
-                         " (set MOCAP_DATA_DIR to the shared data folder)";                \
-      if (::mocap::testing::running_in_ci()) FAIL() << why_;                               \
-      GTEST_SKIP() << why_;                                                                \
-    }                                                                                      \
-    path_var = *found_;                                                                    \
+#define MOCAP_REQUIRE_DATA(path_var, sub)                                           \
+  std::filesystem::path path_var;                                                   \
+  do {                                                                              \
+    auto found_ = ::mocap::find_data_subdir(sub);                                   \
+    if (!found_) {                                                                  \
+      std::string why_ = std::string("data set '") + (sub) + "' not found under " + \
+                         ::mocap::default_data_dir().string() +                     \
+                         " (set MOCAP_DATA_DIR to the shared data folder)";         \
+      if (::mocap::testing::running_in_ci()) FAIL() << why_;                        \
+      GTEST_SKIP() << why_;                                                         \
+    }                                                                               \
+    path_var = *found_;                                                             \
   } while (0)

@@ -122,7 +122,8 @@ Status ArgParser::parse(std::span<const std::string_view> args) {
 std::string ArgParser::help() const {
   std::ostringstream os;
   os << "usage: " << command_;
-  for (const Pos& p : positionals_) os << (p.required ? " " : " [") << p.name << (p.required ? "" : "]");
+  for (const Pos& p : positionals_)
+    os << (p.required ? " " : " [") << p.name << (p.required ? "" : "]");
   if (!opts_.empty()) os << " [options]";
   os << "\n\n" << summary_ << "\n";
   if (!positionals_.empty()) {

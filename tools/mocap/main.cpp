@@ -31,8 +31,9 @@ const Command kCommands[] = {
 // clang-format on
 
 void print_usage(std::FILE* out) {
-  std::fputs("usage: mocap <command> [arguments]   (mocap <command> --help for details)\n\ncommands:\n",
-             out);
+  std::fputs(
+      "usage: mocap <command> [arguments]   (mocap <command> --help for details)\n\ncommands:\n",
+      out);
   for (const Command& c : kCommands) {
     std::fprintf(out, "  %-8s %s%s\n", c.name, c.summary, c.run ? "" : "  [not in this build yet]");
   }

@@ -21,8 +21,9 @@ int main(int argc, char** argv) {
     std::puts("mocapd 0.1.0");
     return 0;
   }
-  std::fputs("mocapd: the capture/streaming pipeline is not in this build yet (issue #6).\n"
-             "Run `build/bin/mocap --help` for what is available.\n",
-             stderr);
+  std::fputs(
+      "mocapd: the capture/streaming pipeline is not in this build yet (issue #6).\n"
+      "Run `build/bin/mocap --help` for what is available.\n",
+      stderr);
   return 2;
 }
