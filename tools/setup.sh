@@ -36,6 +36,15 @@ install_packages() {
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
 }
 
+install_npm() {
+  # Node.js/npm may come from the machine image rather than Debian; only install when absent.
+  command -v npm >/dev/null && return
+  say "npm not found: installing Debian's nodejs + npm"
+  local sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends nodejs npm
+}
+
 build() {
   say "Build (Release) in build/"
   cmake -S "$ROOT" -B "$ROOT/build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
@@ -44,6 +53,7 @@ build() {
 
 install_packages
 if [ "$MODELS" -eq 1 ]; then
+  install_npm
   say "Models"
   bash "$ROOT/tools/fetch_models.sh"
 fi

@@ -124,7 +124,7 @@ ScanStatus TextScanner::next_float(float& value) {
     double d = 0;
     const auto r = std::from_chars(start, ptr, d, std::chars_format::general);
     if (r.ec != std::errc() || !std::isfinite(d) ||
-        std::fabs(d) > double{std::numeric_limits<float>::max()}) {
+        std::fabs(d) > static_cast<double>(std::numeric_limits<float>::max())) {
       return ScanStatus::kOutOfRange;
     }
     value = static_cast<float>(d);
