@@ -43,7 +43,12 @@ Engine::Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
       cameras_(std::move(cameras)),
       options_(options),
       hierarchy_(limb_hierarchy_weights(topology)),
-      parents_(topology.parents()) {}
+      parents_(topology.parents()) {
+  if (options.fit.enabled && topology.is_tree()) {
+    auto f = fit::SkeletonFitter::create(topology, options.fit);
+    if (f.ok()) fitter_.emplace(std::move(*f));
+  }
+}
 
 void Engine::reset() {
   tracks_.clear();
@@ -117,7 +122,12 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
     std::vector<int> candidate;
     std::vector<int> views_used;
     std::vector<float> confidence;
+    std::vector<Eigen::Quaterniond> rotations;
   };
+  std::vector<Eigen::Vector3d> tri_X(ix(J));
+  std::vector<bool> tri_valid(ix(J));
+  std::vector<int> tri_views(ix(J));
+  std::vector<fit::JointObservation> fit_obs;
   std::vector<Output> outputs;
 
   // Persons with more evidence first, so fragments do not steal tracks.
@@ -183,6 +193,7 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
       nt.id = next_track_id_++;
       nt.joints_m.assign(ix(J), Eigen::Vector3d::Zero());
       nt.joint_age.assign(ix(J), -1);
+      if (fitter_) nt.fit = fitter_->new_person();
       tracks_.push_back(std::move(nt));
       claimed.push_back(0);
       ti = tracks_.size() - 1;
@@ -190,18 +201,57 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
     }
     claimed[ti] = 1;
     Track& tr = tracks_[ti];
-    for (int j = 0; j < J; ++j) {
-      if (pts[ix(j)].valid) {
-        tr.joints_m[ix(j)] = pts[ix(j)].X_m;
-        tr.joint_age[ix(j)] = 0;
-      } else if (tr.joint_age[ix(j)] >= 0) {
-        ++tr.joint_age[ix(j)];
+    std::vector<Eigen::Quaterniond> rotations(ix(J), Eigen::Quaterniond::Identity());
+    bool fitted = false;
+    if (fitter_) {
+      const auto tf = clock::now();
+      for (int j = 0; j < J; ++j) {
+        tri_X[ix(j)] = pts[ix(j)].X_m;
+        tri_valid[ix(j)] = pts[ix(j)].valid;
+        tri_views[ix(j)] = pts[ix(j)].valid ? pts[ix(j)].views_used : 0;
+      }
+      fitter_->learn(tr.fit, tri_X, tri_valid, tri_views);
+      fit_obs.clear();
+      for (int j = 0; j < J; ++j) {
+        for (int v = 0; v < V; ++v) {
+          const int k = p.candidate(j, v, V);
+          if (k < 0) continue;
+          const GraphCandidate& c = graph_.candidates(j)[ix(k)];
+          fit_obs.push_back(fit::JointObservation{j, v, c.px, static_cast<double>(c.score)});
+        }
+      }
+      fit::FitResult fr = fitter_->fit(tr.fit, cameras_, fit_obs, tri_X, tri_valid);
+      if (fr.fitted) {
+        fitted = true;
+        ++st.persons_fitted;
+        rotations = std::move(fr.rotations);
+        for (int j = 0; j < J; ++j) {
+          tr.joints_m[ix(j)] = fr.joints_m[ix(j)];
+          if (pts[ix(j)].valid) {
+            tr.joint_age[ix(j)] = 0;
+          } else if (tr.joint_age[ix(j)] >= 0) {
+            ++tr.joint_age[ix(j)];
+          } else {
+            tr.joint_age[ix(j)] = 0;  // placed by the fitted skeleton
+          }
+        }
+      }
+      st.fit_ms += ms_since(tf);
+    }
+    if (!fitted) {
+      for (int j = 0; j < J; ++j) {
+        if (pts[ix(j)].valid) {
+          tr.joints_m[ix(j)] = pts[ix(j)].X_m;
+          tr.joint_age[ix(j)] = 0;
+        } else if (tr.joint_age[ix(j)] >= 0) {
+          ++tr.joint_age[ix(j)];
+        }
       }
     }
     tr.missed = 0;
     ++tr.observed_frames;
 
-    Output o{ti, {}, {}, conf};
+    Output o{ti, {}, {}, conf, std::move(rotations)};
     o.candidate.assign(ix(J * V), -1);
     o.views_used.assign(ix(J), 0);
     for (int j = 0; j < J; ++j) {
@@ -244,7 +294,7 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
       while (a >= 0 && tr.joint_age[ix(a)] < 0) a = parents_[ix(a)];
       if (a >= 0) ps.joints_m[ix(j)] = tr.joints_m[ix(a)];
     }
-    ps.joint_rotations.assign(ix(J), Eigen::Quaterniond::Identity());
+    ps.joint_rotations = std::move(o.rotations);
     res.skeletons.persons.push_back(std::move(ps));
     res.evidence.push_back(PersonEvidence{tr.id, std::move(o.candidate), std::move(o.views_used)});
   }

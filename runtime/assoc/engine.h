@@ -9,12 +9,14 @@
 #include <Eigen/Core>
 
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "runtime/assoc/bundles.h"
 #include "runtime/assoc/graph.h"
 #include "runtime/assoc/options.h"
 #include "runtime/core/error.h"
+#include "runtime/fit/skeleton_fitter.h"
 #include "runtime/geometry/camera.h"
 #include "runtime/msg/messages.h"
 
@@ -37,7 +39,9 @@ struct FrameStats {
   double graph_ms = 0;
   double parse_ms = 0;
   double assemble_ms = 0;
-  double reconstruct_ms = 0;
+  double reconstruct_ms = 0;  // triangulation, tracking and skeleton fitting
+  double fit_ms = 0;          // of which skeleton fitting
+  int persons_fitted = 0;
 };
 
 // The 2D evidence of one output person: for each (joint, view) the index of the candidate in
@@ -78,6 +82,7 @@ class Engine {
     std::vector<int> joint_age;  // frames since the joint was last triangulated (-1 = never)
     int missed = 0;              // consecutive frames without observation
     int observed_frames = 0;
+    fit::PersonFitState fit;
   };
 
   Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
@@ -90,6 +95,7 @@ class Engine {
   std::vector<int> parents_;
   std::vector<Track> tracks_;
   int next_track_id_ = 0;
+  std::optional<fit::SkeletonFitter> fitter_;  // empty: topology not a tree or fitting off
 
   // Per-frame scratch, reused (no per-frame growth once warmed up).
   FrameGraph graph_;

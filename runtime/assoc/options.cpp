@@ -61,6 +61,7 @@ Status AssociationOptions::validate() const {
   if (Status s = graph.validate(); !s.ok()) return s;
   if (Status s = clique.validate(); !s.ok()) return s;
   if (Status s = tracking.validate(); !s.ok()) return s;
+  if (Status s = fit.validate(); !s.ok()) return s;
   return triangulation.validate();
 }
 

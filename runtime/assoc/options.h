@@ -6,6 +6,7 @@
 #include <string>
 
 #include "runtime/core/error.h"
+#include "runtime/fit/skeleton_fitter.h"
 
 namespace mocap::assoc {
 
@@ -77,6 +78,7 @@ struct AssociationOptions {
   CliqueOptions clique;
   TrackingOptions tracking;
   TriangulationOptions triangulation;
+  fit::FitOptions fit;  // parametric skeleton fitting (needs a tree topology)
 
   Status validate() const;
 };

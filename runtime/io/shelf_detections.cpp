@@ -340,7 +340,7 @@ Result<std::vector<DetectionSet>> load_shelf_detections(
         return Error(ErrorCode::kParse, "frame counts differ: " + files[0].string() + " has " +
                                             std::to_string(frames) + " frames, " +
                                             files[i].string() + " has " +
-                                            std::to_string(parsed[i]->value().size()));
+                                            std::to_string(parsed[i]->value().size()) + " frames");
       }
     }
 

@@ -17,6 +17,7 @@ int eval_shelf(Args args) {
   std::string views_text;
   std::string estimates_out;
   bool per_frame = false;
+  bool no_fit = false;
   cli::ArgParser p("mocap eval shelf",
                    "Runs the association engine over the whole Shelf sequence and prints strict "
                    "PCP\nper actor and per limb (A1-A3 averaged), surplus and false-positive "
@@ -28,9 +29,11 @@ int eval_shelf(Args args) {
   p.option("--estimates-out", &estimates_out, "FILE",
            "write the estimates in the gt.txt format (15 Shelf joints, metres, id = track id)");
   p.flag("--per-frame", &per_frame, "print per-frame person counts and timings");
+  p.flag("--no-fit", &no_fit, "skip the parametric skeleton fit (triangulated joints only)");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
 
   ShelfRunOptions opt;
+  opt.association.fit.enabled = !no_fit;
   if (!views_text.empty()) {
     auto v = cli::parse_int_list(views_text);
     if (!v.ok()) {

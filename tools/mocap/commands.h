@@ -10,5 +10,6 @@ using Args = std::span<const std::string_view>;
 
 int run_calib(Args args);  // mocap calib show|check FILE
 int run_eval(Args args);   // mocap eval shelf ...
+int run_bench(Args args);  // mocap bench assoc ...
 
 }  // namespace mocap::tools

@@ -1,0 +1,621 @@
+#include "runtime/fit/skeleton_fitter.h"
+
+#include <ceres/ceres.h>
+#include <ceres/jet.h>
+#include <ceres/sphere_manifold.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <string>
+
+#include "runtime/skeleton/topology.h"
+
+namespace mocap::fit {
+namespace {
+
+inline std::size_t ix(int i) { return static_cast<std::size_t>(i); }
+
+// ------------------------------------------------------------------ template skeleton (data)
+
+struct TemplateBone {
+  const char* parent;  // "x_" = either side (the child has the same side)
+  const char* child;
+  double length_m;
+  double dx, dy, dz;   // rest direction in the body frame: x = person's left, y forward, z up;
+                       // dx is given for the left side and mirrored for the right
+};
+
+// Adult of ~1.75 m in a T-pose.
+constexpr TemplateBone kTemplate[] = {
+    {"pelvis", "neck", 0.50, 0, 0, 1},          {"pelvis", "x_hip", 0.10, 1, 0, 0},
+    {"neck", "nose", 0.20, 0, 0.3, 1},          {"neck", "x_shoulder", 0.18, 1, 0, 0},
+    {"x_hip", "x_knee", 0.42, 0, 0, -1},        {"x_knee", "x_ankle", 0.41, 0, 0, -1},
+    {"x_shoulder", "x_ear", 0.20, -0.35, 0, 1}, {"x_shoulder", "x_elbow", 0.29, 1, 0, 0},
+    {"x_elbow", "x_wrist", 0.26, 1, 0, 0},      {"x_ankle", "x_big_toe", 0.16, 0, 1, -0.3},
+    {"nose", "x_eye", 0.04, 1, 0.5, 0.5},       {"x_eye", "x_ear", 0.08, 1, -1, 0},
+    {"nose", "x_shoulder", 0.25, 0.6, -0.2, -1}, {"x_shoulder", "x_hip", 0.50, 0, 0, -1},
+};
+
+// Side of a joint name: +1 "l_", -1 "r_", 0 none; and the name with the side replaced by "x_".
+int side_of(std::string_view name, std::string* generic) {
+  if (name.size() > 2 && (name.substr(0, 2) == "l_" || name.substr(0, 2) == "r_")) {
+    *generic = "x_" + std::string(name.substr(2));
+    return name[0] == 'l' ? 1 : -1;
+  }
+  *generic = std::string(name);
+  return 0;
+}
+
+const TemplateBone* find_template(std::string_view parent, std::string_view child, int* side) {
+  std::string gp;
+  std::string gc;
+  side_of(parent, &gp);
+  *side = side_of(child, &gc);
+  for (const TemplateBone& b : kTemplate) {
+    if (gp == b.parent && gc == b.child) return &b;
+  }
+  return nullptr;
+}
+
+// ------------------------------------------------------------------ projection with Jacobian
+
+template <typename T>
+void project_generic(const Camera& cam, const T X[3], T px[2]) {
+  const Eigen::Matrix3d& R = cam.R();
+  const Eigen::Vector3d& t = cam.t_m();
+  T xc[3];
+  for (int r = 0; r < 3; ++r) {
+    xc[r] = T(R(r, 0)) * X[0] + T(R(r, 1)) * X[1] + T(R(r, 2)) * X[2] + T(t(r));
+  }
+  T z = xc[2];
+  if (z < T(1e-6)) z = T(1e-6);  // behind the camera: clamp (the robust loss handles it)
+  T x = xc[0] / z;
+  T y = xc[1] / z;
+  if (cam.has_distortion()) {
+    const Distortion& d = cam.distortion();
+    const T r2 = x * x + y * y;
+    const T radial = T(1.0) + r2 * (T(d.k1) + r2 * (T(d.k2) + r2 * T(d.k3)));
+    const T xd = x * radial + T(2.0 * d.p1) * x * y + T(d.p2) * (r2 + T(2.0) * x * x);
+    const T yd = y * radial + T(d.p1) * (r2 + T(2.0) * y * y) + T(2.0 * d.p2) * x * y;
+    x = xd;
+    y = yd;
+  }
+  px[0] = T(cam.fx()) * x + T(cam.skew()) * y + T(cam.cx());
+  px[1] = T(cam.fy()) * y + T(cam.cy());
+}
+
+// Reprojection of joint j = r + Σ L_b u_b over its path; analytic chain rule around a
+// forward-mode Jacobian of the projection.
+class ReprojectionCost final : public ceres::CostFunction {
+ public:
+  ReprojectionCost(const Camera* cam, Eigen::Vector2d px, double weight,
+                   std::vector<double> lengths)
+      : cam_(cam), px_(px), w_(weight), lengths_(std::move(lengths)) {
+    set_num_residuals(2);
+    mutable_parameter_block_sizes()->push_back(3);  // root
+    for (std::size_t i = 0; i < lengths_.size(); ++i) mutable_parameter_block_sizes()->push_back(3);
+  }
+
+  bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
+    using Jet = ceres::Jet<double, 3>;
+    double X[3] = {p[0][0], p[0][1], p[0][2]};
+    for (std::size_t b = 0; b < lengths_.size(); ++b) {
+      for (int k = 0; k < 3; ++k) X[k] += lengths_[b] * p[b + 1][k];
+    }
+    Jet Xj[3];
+    for (int k = 0; k < 3; ++k) Xj[k] = Jet(X[k], k);
+    Jet out[2];
+    project_generic(*cam_, Xj, out);
+    residuals[0] = w_ * (out[0].a - px_.x());
+    residuals[1] = w_ * (out[1].a - px_.y());
+    if (jacobians != nullptr) {
+      for (std::size_t blk = 0; blk <= lengths_.size(); ++blk) {
+        if (jacobians[blk] == nullptr) continue;
+        const double s = blk == 0 ? w_ : w_ * lengths_[blk - 1];
+        for (int r = 0; r < 2; ++r) {
+          for (int c = 0; c < 3; ++c) jacobians[blk][r * 3 + c] = s * out[r].v[c];
+        }
+      }
+    }
+    return true;
+  }
+
+ private:
+  const Camera* cam_;
+  Eigen::Vector2d px_;
+  double w_;
+  std::vector<double> lengths_;
+};
+
+// w · (x − x_prev) on one 3-vector block.
+class AnchorCost final : public ceres::SizedCostFunction<3, 3> {
+ public:
+  AnchorCost(Eigen::Vector3d prev, double weight) : prev_(prev), w_(weight) {}
+  bool Evaluate(double const* const* p, double* r, double** j) const override {
+    for (int k = 0; k < 3; ++k) r[k] = w_ * (p[0][k] - prev_(k));
+    if (j != nullptr && j[0] != nullptr) {
+      for (int a = 0; a < 9; ++a) j[0][a] = (a % 4 == 0) ? w_ : 0.0;
+    }
+    return true;
+  }
+
+ private:
+  Eigen::Vector3d prev_;
+  double w_;
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+double template_bone_length_m(std::string_view parent_name, std::string_view child_name) {
+  int side = 0;
+  const TemplateBone* b = find_template(parent_name, child_name, &side);
+  return b ? b->length_m : 0.25;
+}
+
+Eigen::Vector3d template_rest_direction(std::string_view parent_name, std::string_view child_name) {
+  int side = 0;
+  const TemplateBone* b = find_template(parent_name, child_name, &side);
+  if (!b) return Eigen::Vector3d::UnitZ();
+  const double sx = side < 0 ? -1.0 : 1.0;
+  return Eigen::Vector3d(sx * b->dx, b->dy, b->dz).normalized();
+}
+
+Status FitOptions::validate() const {
+  auto bad = [](const char* f, const char* why) {
+    return Status(Error(ErrorCode::kInvalidArgument, std::string("fit option ") + f + ": " + why));
+  };
+  if (!(reprojection_weight > 0)) return bad("fit.reprojection_weight", "must be > 0");
+  if (!(robust_loss_px > 0)) return bad("fit.robust_loss_px", "must be > 0");
+  if (!(temporal_weight_px_per_m >= 0)) return bad("fit.temporal_weight_px_per_m", "must be >= 0");
+  if (bone_learning_frames < 1) return bad("fit.bone_learning_frames", "must be >= 1");
+  if (confident_min_views < 2) return bad("fit.confident_min_views", "must be >= 2");
+  if (max_iterations < 1) return bad("fit.max_iterations", "must be >= 1");
+  if (!(bone_sample_tolerance > 0)) return bad("fit.bone_sample_tolerance", "must be > 0");
+  if (!(up.norm() > 0.5)) return bad("fit.up", "must be a non-zero direction");
+  return Status::Ok();
+}
+
+Result<SkeletonFitter> SkeletonFitter::create(const SkeletonTopology& topology,
+                                              const FitOptions& options) {
+  if (Status s = options.validate(); !s.ok()) return s.error();
+  if (!topology.is_tree()) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "skeleton fitting needs a tree topology; '" + topology.name() + "' is not one");
+  }
+  return SkeletonFitter(topology, options);
+}
+
+SkeletonFitter::SkeletonFitter(const SkeletonTopology& topology, const FitOptions& options)
+    : topology_(&topology), options_(options), parents_(topology.parents()) {
+  const int J = topology.joint_count();
+  template_length_m_.assign(ix(J), 0.0);
+  rest_dir_.assign(ix(J), Eigen::Vector3d::UnitZ());
+  mirror_.assign(ix(J), -1);
+  // BFS order from the root.
+  std::vector<int> q;
+  for (int j = 0; j < J; ++j) {
+    if (parents_[ix(j)] < 0) q.push_back(j);
+  }
+  for (std::size_t h = 0; h < q.size(); ++h) {
+    for (int j = 0; j < J; ++j) {
+      if (parents_[ix(j)] == q[h]) q.push_back(j);
+    }
+  }
+  order_ = q;
+  for (int j = 0; j < J; ++j) {
+    const int p = parents_[ix(j)];
+    if (p >= 0) {
+      template_length_m_[ix(j)] = template_bone_length_m(topology.joint_name(p), topology.joint_name(j));
+      rest_dir_[ix(j)] = template_rest_direction(topology.joint_name(p), topology.joint_name(j));
+    }
+    std::string g;
+    const int side = side_of(topology.joint_name(j), &g);
+    if (side != 0) {
+      const std::string other = std::string(side > 0 ? "r_" : "l_") + g.substr(2);
+      mirror_[ix(j)] = topology.find_joint(other);
+    }
+  }
+}
+
+PersonFitState SkeletonFitter::new_person() const {
+  PersonFitState s;
+  const int J = topology_->joint_count();
+  s.bone_samples_m.assign(ix(J), {});
+  s.bone_length_m.assign(ix(J), 0.0);
+  s.dir_prev.assign(ix(J), Eigen::Vector3d::UnitZ());
+  return s;
+}
+
+void SkeletonFitter::learn(PersonFitState& state, std::span<const Eigen::Vector3d> joints_m,
+                           const std::vector<bool>& valid, std::span<const int> views_used) const {
+  if (state.lengths_ready) return;
+  const int J = topology_->joint_count();
+  bool all = true;
+  for (int j = 0; j < J; ++j) {
+    const int p = parents_[ix(j)];
+    if (p < 0) continue;
+    auto& samples = state.bone_samples_m[ix(j)];
+    if (static_cast<int>(samples.size()) < options_.bone_learning_frames && valid[ix(j)] &&
+        valid[ix(p)] && views_used[ix(j)] >= options_.confident_min_views &&
+        views_used[ix(p)] >= options_.confident_min_views) {
+      const double len = (joints_m[ix(j)] - joints_m[ix(p)]).norm();
+      const double ref = samples.empty() ? template_length_m_[ix(j)] : median(samples);
+      // The first sample is checked loosely against the template, later ones against the median.
+      const double tol = samples.empty() ? 2.0 * options_.bone_sample_tolerance
+                                         : options_.bone_sample_tolerance;
+      if (std::abs(len - ref) <= tol * ref) samples.push_back(len);
+    }
+    if (static_cast<int>(samples.size()) < options_.bone_learning_frames) all = false;
+  }
+  // Ready when the core bones are learned; bones of rarely confident joints (toes, ears) are
+  // filled from the template scaled like the learned ones.
+  int learned = 0;
+  int bones = 0;
+  double scale_num = 0;
+  double scale_den = 0;
+  for (int j = 0; j < J; ++j) {
+    if (parents_[ix(j)] < 0) continue;
+    ++bones;
+    const auto& s = state.bone_samples_m[ix(j)];
+    if (static_cast<int>(s.size()) >= options_.bone_learning_frames) {
+      ++learned;
+      scale_num += median(s);
+      scale_den += template_length_m_[ix(j)];
+    }
+  }
+  if (!all && learned * 4 < bones * 3) return;  // wait for >= 75 % of the bones
+  const double scale = scale_den > 0 ? scale_num / scale_den : 1.0;
+  for (int j = 0; j < J; ++j) {
+    if (parents_[ix(j)] < 0) continue;
+    const auto& s = state.bone_samples_m[ix(j)];
+    state.bone_length_m[ix(j)] = static_cast<int>(s.size()) >= options_.bone_learning_frames
+                                     ? median(s)
+                                     : scale * template_length_m_[ix(j)];
+  }
+  // Left/right symmetry.
+  std::vector<double> sym = state.bone_length_m;
+  for (int j = 0; j < J; ++j) {
+    const int m = mirror_[ix(j)];
+    if (m >= 0 && parents_[ix(j)] >= 0 && parents_[ix(m)] >= 0) {
+      sym[ix(j)] = 0.5 * (state.bone_length_m[ix(j)] + state.bone_length_m[ix(m)]);
+    }
+  }
+  state.bone_length_m = sym;
+  state.lengths_ready = true;
+}
+
+Eigen::Quaterniond SkeletonFitter::rest_to(const Eigen::Vector3d& rest,
+                                           const Eigen::Vector3d& dir) const {
+  return Eigen::Quaterniond::FromTwoVectors(rest, dir);
+}
+
+FitResult SkeletonFitter::fit(PersonFitState& state, std::span<const Camera> cameras,
+                              std::span<const JointObservation> observations,
+                              std::span<const Eigen::Vector3d> init_m,
+                              const std::vector<bool>& init_valid) const {
+  const int J = topology_->joint_count();
+  FitResult out;
+  out.joints_m.assign(init_m.begin(), init_m.end());
+  out.rotations.assign(ix(J), Eigen::Quaterniond::Identity());
+  if (!options_.enabled || !state.lengths_ready) return out;
+
+  const int root = order_.front();
+  // Initial parameters: triangulated directions, else the previous ones, else the rest pose.
+  Eigen::Vector3d r = init_valid[ix(root)] ? init_m[ix(root)]
+                      : state.has_previous ? state.root_prev
+                                           : Eigen::Vector3d::Zero();
+  if (!init_valid[ix(root)] && !state.has_previous) {
+    int n = 0;
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int j = 0; j < J; ++j) {
+      if (init_valid[ix(j)]) {
+        c += init_m[ix(j)];
+        ++n;
+      }
+    }
+    if (n == 0) return out;
+    r = c / n;
+  }
+  std::vector<Eigen::Vector3d> u(ix(J), Eigen::Vector3d::UnitZ());
+  for (int j : order_) {
+    const int p = parents_[ix(j)];
+    if (p < 0) continue;
+    if (init_valid[ix(j)] && init_valid[ix(p)] && (init_m[ix(j)] - init_m[ix(p)]).norm() > 1e-6) {
+      u[ix(j)] = (init_m[ix(j)] - init_m[ix(p)]).normalized();
+    } else if (state.has_previous) {
+      u[ix(j)] = state.dir_prev[ix(j)];
+    } else {
+      u[ix(j)] = rest_dir_[ix(j)];
+    }
+  }
+
+  const SolveStats solved = options_.solver == FitSolver::kCeres
+                                ? solve_ceres(state, cameras, observations, r, u)
+                                : solve_fast(state, cameras, observations, r, u);
+  if (!solved.ok) return out;
+
+  // Forward kinematics and rotations.
+  std::vector<Eigen::Quaterniond> global(ix(J), Eigen::Quaterniond::Identity());
+  out.joints_m[ix(root)] = r;
+  for (int j : order_) {
+    const int p = parents_[ix(j)];
+    if (p < 0) continue;
+    out.joints_m[ix(j)] = out.joints_m[ix(p)] + state.bone_length_m[ix(j)] * u[ix(j)];
+  }
+  for (int j : order_) {
+    const int p = parents_[ix(j)];
+    if (p < 0) {
+      // Root: the torso's swing from the rest "up" (first child bone) to its fitted direction.
+      for (int c : order_) {
+        if (parents_[ix(c)] == j) {
+          global[ix(j)] = rest_to(rest_dir_[ix(c)], u[ix(c)]);
+          break;
+        }
+      }
+      out.rotations[ix(j)] = global[ix(j)];
+      continue;
+    }
+    const Eigen::Vector3d in_parent = global[ix(p)].conjugate() * u[ix(j)];
+    const Eigen::Quaterniond local = rest_to(rest_dir_[ix(j)], in_parent);
+    global[ix(j)] = global[ix(p)] * local;
+    out.rotations[ix(j)] = local;
+  }
+  state.root_prev = r;
+  state.dir_prev = u;
+  state.has_previous = true;
+  out.fitted = true;
+  out.final_cost = solved.final_cost;
+  out.iterations = solved.iterations;
+  return out;
+}
+
+
+// Energy (same as the Ceres formulation): ½Σρ(‖w(π(X_j) − p)‖²) with Huber ρ of scale a, plus
+// ½‖w_t(r − r_prev)‖² + ½Σ‖w_t L_b (u_b − u_b_prev)‖². Parameters: root (3) and one rotation
+// vector per bone acting on its current direction (u ← exp(δ) u, ∂u/∂δ = −[u]×). Huber is
+// handled by iteratively reweighted least squares; steps by Levenberg–Marquardt.
+SkeletonFitter::SolveStats SkeletonFitter::solve_fast(const PersonFitState& state,
+                                                      std::span<const Camera> cameras,
+                                                      std::span<const JointObservation> observations,
+                                                      Eigen::Vector3d& r,
+                                                      std::vector<Eigen::Vector3d>& u) const {
+  const int J = topology_->joint_count();
+  // Parameter block of each joint's bone: 0 = root, 1 + slot for bones.
+  std::vector<int> block(ix(J), -1);
+  int nb = 1;
+  for (int j : order_) {
+    if (parents_[ix(j)] >= 0) block[ix(j)] = nb++;
+  }
+  const int n = 3 * nb;
+  const double a = options_.robust_loss_px;
+  const double wt = state.has_previous ? options_.temporal_weight_px_per_m : 0.0;
+  const auto& L = state.bone_length_m;
+
+  // Bones and root with neither observation below them nor a temporal anchor stay fixed.
+  std::vector<char> touched(ix(J), 0);
+  for (const JointObservation& o : observations) {
+    if (o.joint < 0 || o.joint >= J || o.view < 0 || o.view >= static_cast<int>(cameras.size())) {
+      continue;
+    }
+    for (int q = o.joint; q >= 0; q = parents_[ix(q)]) touched[ix(q)] = 1;
+  }
+  if (!touched[ix(order_.front())] && wt == 0) return SolveStats{};
+
+  auto skew = [](const Eigen::Vector3d& v) {
+    Eigen::Matrix3d m;
+    m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+    return m;
+  };
+  std::vector<Eigen::Vector3d> X(ix(J));
+  auto forward = [&](const Eigen::Vector3d& rr, const std::vector<Eigen::Vector3d>& uu) {
+    for (int j : order_) {
+      const int p = parents_[ix(j)];
+      X[ix(j)] = p < 0 ? rr : X[ix(p)] + L[ix(j)] * uu[ix(j)];
+    }
+  };
+  auto huber = [&](double e2) { return e2 <= a * a ? e2 : 2.0 * a * std::sqrt(e2) - a * a; };
+  auto cost = [&](const Eigen::Vector3d& rr, const std::vector<Eigen::Vector3d>& uu) {
+    forward(rr, uu);
+    double c = 0;
+    for (const JointObservation& o : observations) {
+      if (o.joint < 0 || o.joint >= J || o.view < 0 || o.view >= static_cast<int>(cameras.size())) {
+        continue;
+      }
+      double px[2];
+      project_generic(cameras[ix(o.view)], X[ix(o.joint)].data(), px);
+      const double w = options_.reprojection_weight * o.score;
+      const double e2 = w * w * ((px[0] - o.px.x()) * (px[0] - o.px.x()) +
+                                 (px[1] - o.px.y()) * (px[1] - o.px.y()));
+      c += 0.5 * huber(e2);
+    }
+    if (wt > 0) {
+      c += 0.5 * wt * wt * (rr - state.root_prev).squaredNorm();
+      for (int j = 0; j < J; ++j) {
+        if (parents_[ix(j)] < 0) continue;
+        c += 0.5 * wt * wt * L[ix(j)] * L[ix(j)] * (uu[ix(j)] - state.dir_prev[ix(j)]).squaredNorm();
+      }
+    }
+    return c;
+  };
+
+  Eigen::MatrixXd H(n, n);
+  Eigen::VectorXd g(n);
+  std::vector<int> path;
+  std::vector<Eigen::Matrix<double, 2, 3>> Jb;
+  double lambda = 1e-3;
+  double current = cost(r, u);
+  int it = 0;
+  for (; it < options_.max_iterations; ++it) {
+    forward(r, u);
+    H.setZero();
+    g.setZero();
+    for (const JointObservation& o : observations) {
+      if (o.joint < 0 || o.joint >= J || o.view < 0 || o.view >= static_cast<int>(cameras.size())) {
+        continue;
+      }
+      using Jet = ceres::Jet<double, 3>;
+      Jet Xj[3];
+      for (int k = 0; k < 3; ++k) Xj[k] = Jet(X[ix(o.joint)](k), k);
+      Jet pj[2];
+      project_generic(cameras[ix(o.view)], Xj, pj);
+      Eigen::Vector2d res(pj[0].a - o.px.x(), pj[1].a - o.px.y());
+      Eigen::Matrix<double, 2, 3> Jp;
+      Jp << pj[0].v[0], pj[0].v[1], pj[0].v[2], pj[1].v[0], pj[1].v[1], pj[1].v[2];
+      double w = options_.reprojection_weight * o.score;
+      const double e = w * res.norm();
+      if (e > a) w *= std::sqrt(a / e);  // IRLS weight of the Huber loss
+      res *= w;
+      Jp *= w;
+      // Blocks on the path root -> joint.
+      path.clear();
+      for (int q = o.joint; q >= 0; q = parents_[ix(q)]) path.push_back(q);
+      Jb.resize(path.size());
+      for (std::size_t i = 0; i < path.size(); ++i) {
+        const int q = path[i];
+        Jb[i] = parents_[ix(q)] < 0 ? Jp : Eigen::Matrix<double, 2, 3>(Jp * (-L[ix(q)] * skew(u[ix(q)])));
+      }
+      for (std::size_t i = 0; i < path.size(); ++i) {
+        const int bi = 3 * (parents_[ix(path[i])] < 0 ? 0 : block[ix(path[i])]);
+        g.segment<3>(bi) += Jb[i].transpose() * res;
+        for (std::size_t k = 0; k < path.size(); ++k) {
+          const int bk = 3 * (parents_[ix(path[k])] < 0 ? 0 : block[ix(path[k])]);
+          H.block<3, 3>(bi, bk) += Jb[i].transpose() * Jb[k];
+        }
+      }
+    }
+    if (wt > 0) {
+      H.block<3, 3>(0, 0) += wt * wt * Eigen::Matrix3d::Identity();
+      g.segment<3>(0) += wt * wt * (r - state.root_prev);
+      for (int j = 0; j < J; ++j) {
+        if (parents_[ix(j)] < 0) continue;
+        const int bj = 3 * block[ix(j)];
+        const Eigen::Matrix3d A = wt * L[ix(j)] * (-skew(u[ix(j)]));
+        const Eigen::Vector3d res = wt * L[ix(j)] * (u[ix(j)] - state.dir_prev[ix(j)]);
+        H.block<3, 3>(bj, bj) += A.transpose() * A;
+        g.segment<3>(bj) += A.transpose() * res;
+      }
+    }
+    // Untouched parameters are fixed: identity rows.
+    for (int j = 0; j < J; ++j) {
+      const int b = parents_[ix(j)] < 0 ? 0 : block[ix(j)];
+      if (!touched[ix(j)] && wt == 0) {
+        H.block(3 * b, 0, 3, n).setZero();
+        H.block(0, 3 * b, n, 3).setZero();
+        H.block<3, 3>(3 * b, 3 * b).setIdentity();
+        g.segment<3>(3 * b).setZero();
+      }
+    }
+    bool improved = false;
+    for (int tries = 0; tries < 6 && !improved; ++tries) {
+      Eigen::MatrixXd A = H;
+      for (int i = 0; i < n; ++i) A(i, i) += lambda * (H(i, i) + 1e-6);
+      const Eigen::VectorXd delta = -A.ldlt().solve(g);
+      if (!delta.allFinite()) {
+        lambda *= 10;
+        continue;
+      }
+      Eigen::Vector3d r2 = r + delta.segment<3>(0);
+      std::vector<Eigen::Vector3d> u2 = u;
+      for (int j = 0; j < J; ++j) {
+        if (parents_[ix(j)] < 0) continue;
+        const Eigen::Vector3d d = delta.segment<3>(3 * block[ix(j)]);
+        const double angle = d.norm();
+        if (angle > 1e-12) u2[ix(j)] = (Eigen::AngleAxisd(angle, d / angle) * u[ix(j)]).normalized();
+      }
+      const double c2 = cost(r2, u2);
+      if (c2 < current) {
+        const double rel = (current - c2) / std::max(current, 1e-12);
+        r = r2;
+        u = std::move(u2);
+        current = c2;
+        lambda = std::max(lambda * 0.3, 1e-7);
+        improved = true;
+        if (rel < 1e-6) it = options_.max_iterations;  // converged
+      } else {
+        lambda *= 10;
+      }
+    }
+    if (!improved) break;
+  }
+  return SolveStats{true, current, it};
+}
+
+SkeletonFitter::SolveStats SkeletonFitter::solve_ceres(const PersonFitState& state,
+                                                       std::span<const Camera> cameras,
+                                                       std::span<const JointObservation> observations,
+                                                       Eigen::Vector3d& r,
+                                                       std::vector<Eigen::Vector3d>& u) const {
+  const int J = topology_->joint_count();
+  const int root = order_.front();
+  ceres::Problem::Options popt;
+  popt.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(popt);
+  ceres::SphereManifold<3> sphere;
+  problem.AddParameterBlock(r.data(), 3);
+  for (int j = 0; j < J; ++j) {
+    if (parents_[ix(j)] < 0) continue;
+    problem.AddParameterBlock(u[ix(j)].data(), 3, &sphere);
+  }
+  std::vector<double*> blocks;
+  std::vector<double> lengths;
+  std::vector<char> observed(ix(J), 0);
+  for (const JointObservation& o : observations) {
+    if (o.joint < 0 || o.joint >= J || o.view < 0 || o.view >= static_cast<int>(cameras.size())) {
+      continue;
+    }
+    observed[ix(o.joint)] = 1;
+    blocks.assign(1, r.data());
+    lengths.clear();
+    std::vector<int> path;
+    for (int a = o.joint; parents_[ix(a)] >= 0; a = parents_[ix(a)]) path.push_back(a);
+    std::reverse(path.begin(), path.end());
+    for (int a : path) {
+      blocks.push_back(u[ix(a)].data());
+      lengths.push_back(state.bone_length_m[ix(a)]);
+    }
+    auto* cost = new ReprojectionCost(&cameras[ix(o.view)], o.px,
+                                      options_.reprojection_weight * o.score, lengths);
+    problem.AddResidualBlock(cost, new ceres::HuberLoss(options_.robust_loss_px), blocks);
+  }
+  const double wt = options_.temporal_weight_px_per_m;
+  if (state.has_previous && wt > 0) {
+    problem.AddResidualBlock(new AnchorCost(state.root_prev, wt), nullptr, r.data());
+    for (int j = 0; j < J; ++j) {
+      if (parents_[ix(j)] < 0) continue;
+      problem.AddResidualBlock(new AnchorCost(state.dir_prev[ix(j)], wt * state.bone_length_m[ix(j)]),
+                               nullptr, u[ix(j)].data());
+    }
+  }
+  // Bones that no residual touches are held constant (Ceres needs them determined).
+  std::vector<char> touched(ix(J), 0);
+  for (int j = 0; j < J; ++j) {
+    if (!observed[ix(j)]) continue;
+    for (int a = j; a >= 0; a = parents_[ix(a)]) touched[ix(a)] = 1;
+  }
+  for (int j = 0; j < J; ++j) {
+    if (parents_[ix(j)] >= 0 && !touched[ix(j)] && !(state.has_previous && wt > 0)) {
+      problem.SetParameterBlockConstant(u[ix(j)].data());
+    }
+  }
+  if (!touched[ix(root)] && !(state.has_previous && wt > 0)) return SolveStats{};
+
+  ceres::Solver::Options sopt;
+  sopt.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  sopt.max_num_iterations = options_.max_iterations;
+  sopt.num_threads = 1;
+  sopt.logging_type = ceres::SILENT;
+  sopt.minimizer_progress_to_stdout = false;
+  ceres::Solver::Summary summary;
+  ceres::Solve(sopt, &problem, &summary);
+  return SolveStats{true, summary.final_cost, static_cast<int>(summary.iterations.size())};
+
+}
+
+}  // namespace mocap::fit

@@ -1,0 +1,136 @@
+// Parametric skeleton fitting (paper §4.3), per person and frame, with Ceres.
+//
+// The skeleton is kinematic: a root position plus one unit direction per bone (the bone's
+// global orientation; Ceres' SphereManifold), joints by forward kinematics
+//     X_root = r,  X_child = X_parent + L_bone · u_bone,
+// with the bone lengths L fixed per person. The energy is
+//     Σ_obs ρ_huber(w_obs · ‖π_v(X_j) − p‖)                       2D reprojection (pixels)
+//   + Σ_bones ‖w_temporal · L · (u − u_prev)‖² + ‖w_temporal · (r − r_prev)‖²   smoothness
+// where w_obs is the detection score (times reprojection_weight). Bone lengths are hard, so
+// the bone-length prior is exact once learned; they are learned per person from its first
+// confident frames (both joints triangulated from >= confident_min_views views), as the median
+// of bone_learning_frames samples, then made left/right symmetric. Bones never measured
+// confidently take the topology's template length scaled to the person.
+//
+// Joint rotations: for each joint, the swing rotation taking its bone's rest direction (the
+// template T-pose, z up) to the fitted direction, expressed relative to its parent joint's
+// rotation; the root's is the torso's swing. Twist about a bone is not observable from joint
+// positions and is left at zero.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "runtime/core/error.h"
+#include "runtime/geometry/camera.h"
+
+namespace mocap {
+class SkeletonTopology;
+}
+
+namespace mocap::fit {
+
+// Which solver minimises the energy. kFast is a dense Levenberg–Marquardt on the bones' tangent
+// spaces with Huber reweighting (IRLS), written for this small problem (~0.1 ms per person);
+// kCeres solves the same energy with Ceres (SphereManifold, HuberLoss) and is the reference the
+// tests hold kFast to.
+enum class FitSolver { kFast, kCeres };
+
+struct FitOptions {
+  bool enabled = true;
+  FitSolver solver = FitSolver::kFast;
+  double reprojection_weight = 1.0;     // multiplies the detection score
+  double robust_loss_px = 8.0;          // Huber scale of the reprojection term
+  double temporal_weight_px_per_m = 40.0;  // smoothness: pixels of cost per metre of motion
+  int bone_learning_frames = 5;         // confident samples per bone before fitting starts
+  int confident_min_views = 3;          // a confident joint is triangulated from this many views
+  int max_iterations = 10;
+  // Samples whose length is off the running median by more than this fraction are ignored.
+  double bone_sample_tolerance = 0.3;
+  // World up direction (z up in Shelf and Qualisys/pose2sim frames).
+  Eigen::Vector3d up{0.0, 0.0, 1.0};
+
+  Status validate() const;
+};
+
+// One 2D observation of a joint.
+struct JointObservation {
+  int joint = -1;
+  int view = -1;
+  Eigen::Vector2d px = Eigen::Vector2d::Zero();
+  double score = 0;
+};
+
+// Per-person fitting state (bone lengths being learned, last fitted pose).
+struct PersonFitState {
+  std::vector<std::vector<double>> bone_samples_m;  // [joint (child of the bone)]
+  std::vector<double> bone_length_m;                // [joint]; 0 for the root
+  bool lengths_ready = false;
+  bool has_previous = false;
+  Eigen::Vector3d root_prev = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> dir_prev;            // [joint]
+};
+
+struct FitResult {
+  bool fitted = false;                   // false while bone lengths are still being learned
+  std::vector<Eigen::Vector3d> joints_m;  // [joint]
+  std::vector<Eigen::Quaterniond> rotations;  // [joint] local rotations
+  double final_cost = 0;
+  int iterations = 0;
+};
+
+class SkeletonFitter {
+ public:
+  // The topology must be a tree (parents()).
+  static Result<SkeletonFitter> create(const SkeletonTopology& topology, const FitOptions& options);
+
+  PersonFitState new_person() const;
+
+  // Adds bone-length samples from triangulated joints (valid[j], views_used[j]).
+  void learn(PersonFitState& state, std::span<const Eigen::Vector3d> joints_m,
+             const std::vector<bool>& valid, std::span<const int> views_used) const;
+
+  // Fits the skeleton. `init_m`/`init_valid` are the triangulated joints (initial guess).
+  // Returns fitted = false (and the input joints) until the bone lengths are learned.
+  FitResult fit(PersonFitState& state, std::span<const Camera> cameras,
+                std::span<const JointObservation> observations,
+                std::span<const Eigen::Vector3d> init_m, const std::vector<bool>& init_valid) const;
+
+  const FitOptions& options() const { return options_; }
+
+ private:
+  SkeletonFitter(const SkeletonTopology& topology, const FitOptions& options);
+  Eigen::Quaterniond rest_to(const Eigen::Vector3d& rest, const Eigen::Vector3d& dir) const;
+
+  struct SolveStats {
+    bool ok = false;
+    double final_cost = 0;
+    int iterations = 0;
+  };
+  // Minimise the energy over the root position r and bone directions u (in/out).
+  SolveStats solve_ceres(const PersonFitState& state, std::span<const Camera> cameras,
+                         std::span<const JointObservation> observations, Eigen::Vector3d& r,
+                         std::vector<Eigen::Vector3d>& u) const;
+  SolveStats solve_fast(const PersonFitState& state, std::span<const Camera> cameras,
+                        std::span<const JointObservation> observations, Eigen::Vector3d& r,
+                        std::vector<Eigen::Vector3d>& u) const;
+
+  const SkeletonTopology* topology_;
+  FitOptions options_;
+  std::vector<int> parents_;
+  std::vector<int> order_;                    // joints in BFS order (parents first)
+  std::vector<double> template_length_m_;     // [joint]
+  std::vector<Eigen::Vector3d> rest_dir_;     // [joint] T-pose bone direction (z up, x = left)
+  std::vector<int> mirror_;                   // [joint] l_/r_ counterpart or -1
+};
+
+// Template bone length (metres, adult ~1.75 m) and rest direction for a bone joint_a ->
+// joint_b by joint names; unknown names get 0.25 m pointing away from the root.
+double template_bone_length_m(std::string_view parent_name, std::string_view child_name);
+Eigen::Vector3d template_rest_direction(std::string_view parent_name, std::string_view child_name);
+
+}  // namespace mocap::fit

@@ -1,0 +1,577 @@
+// Limb-bundle parsing (clique search) and bundle Kruskal assembling on hand-made scenes: two
+// persons seen by three cameras, in a three-joint chain topology a - b - c.
+#include "runtime/assoc/bundles.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "runtime/skeleton/topology.h"
+
+namespace mocap::assoc {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr int kViews = 3;
+
+Camera ring_camera(double angle_rad, double radius_m, double height_m,
+                   const Eigen::Vector3d& target) {
+  const Eigen::Vector3d c(radius_m * std::cos(angle_rad), radius_m * std::sin(angle_rad),
+                          height_m);
+  const Eigen::Vector3d z = (target - c).normalized();
+  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d R;
+  R.row(0) = x.transpose();
+  R.row(1) = y.transpose();
+  R.row(2) = z.transpose();
+  Eigen::Matrix3d K;
+  K << 1000, 0, 500, 0, 1000, 500, 0, 0, 1;
+  return Camera(K, Distortion{}, 1000, 1000, R, -R * c);
+}
+
+const SkeletonTopology& chain_topology() {
+  static const SkeletonTopology topo =
+      SkeletonTopology::create("chain3", {"a", "b", "c"}, {{0, 1}, {1, 2}}).value();
+  return topo;
+}
+
+// Two persons in front of three cameras. In view v the candidate lists of every joint hold the
+// persons in order_[v]; affinities are 1 between the joints of one person and 0 otherwise.
+class Scene {
+ public:
+  Scene() {
+    const Eigen::Vector3d target(0, 0, 1);
+    for (int v = 0; v < kViews; ++v) {
+      cams_.push_back(ring_camera(2 * kPi * v / kViews + 0.3, 4.0, 1.5, target));
+    }
+    truth_ = {{Eigen::Vector3d(-0.5, 0.0, 1.4), Eigen::Vector3d(-0.5, 0.05, 1.1),
+               Eigen::Vector3d(-0.45, 0.1, 0.8)},
+              {Eigen::Vector3d(0.5, 0.3, 1.4), Eigen::Vector3d(0.55, 0.3, 1.1),
+               Eigen::Vector3d(0.5, 0.25, 0.8)}};
+    order_ = {{0, 1}, {1, 0}, {0, 1}};
+    det_.frame_id = 3;
+    det_.topology = &topo_;
+    for (int v = 0; v < kViews; ++v) {
+      ViewDetections vd;
+      vd.view_id = v;
+      vd.width_px = vd.height_px = 1000;
+      vd.candidates.resize(3);
+      for (int j = 0; j < 3; ++j) {
+        for (int p : order_[ix(v)]) {
+          const Eigen::Vector2d px = *cams_[ix(v)].project(truth_[ix(p)][ix(j)]);
+          vd.candidates[ix(j)].push_back(
+              JointCandidate{static_cast<float>(px.x()), static_cast<float>(px.y()), 0.9f});
+        }
+      }
+      for (int l = 0; l < 2; ++l) {
+        AffinityMatrix m(2, 2, 0.f);
+        for (int r = 0; r < 2; ++r) m.at(r, r) = 1.f;
+        vd.affinities.push_back(m);
+      }
+      det_.views.push_back(vd);
+    }
+  }
+
+  static std::size_t ix(int i) { return static_cast<std::size_t>(i); }
+
+  // Index of person p in view v's candidate lists.
+  int det_index(int view, int person) const {
+    const auto& o = order_[ix(view)];
+    return static_cast<int>(std::find(o.begin(), o.end(), person) - o.begin());
+  }
+  int person_of_index(int view, int index) const { return order_[ix(view)][ix(index)]; }
+
+  void set_affinity(int view, int limb, int person_a, int person_b, float value) {
+    det_.views[ix(view)].affinities[ix(limb)].at(det_index(view, person_a),
+                                                 det_index(view, person_b)) = value;
+  }
+  void shift_pixel(int view, int joint, int person, double dx_px) {
+    det_.views[ix(view)].candidates[ix(joint)][ix(det_index(view, person))].x_px +=
+        static_cast<float>(dx_px);
+  }
+
+  Status build(std::span<const TrackPose> tracks = {}, const GraphOptions& o = GraphOptions{}) {
+    return graph_.build(det_, cams_, tracks, o);
+  }
+
+  // Graph number of person p's candidate of `joint` in `view`.
+  int k_of(int joint, int view, int person) const {
+    const auto c = graph_.candidates(joint);
+    for (std::size_t k = 0; k < c.size(); ++k) {
+      if (c[k].view == view && c[k].index == det_index(view, person)) return static_cast<int>(k);
+    }
+    return -1;
+  }
+  // Person of graph candidate k of `joint`.
+  int person_of_k(int joint, int k) const {
+    const GraphCandidate& c = graph_.candidates(joint)[ix(k)];
+    return person_of_index(c.view, c.index);
+  }
+  // Index into limb_edges(limb) of the 2D limb joining person pa's joint_a and person pb's
+  // joint_b in `view`; -1 when there is none.
+  int edge_of(int limb, int view, int pa, int pb) const {
+    const Limb& L = topo_.limb(limb);
+    const int ka = k_of(L.joint_a, view, pa);
+    const int kb = k_of(L.joint_b, view, pb);
+    const auto e = graph_.limb_edges(limb);
+    for (std::size_t i = 0; i < e.size(); ++i) {
+      if (e[i].ka == ka && e[i].kb == kb) return static_cast<int>(i);
+    }
+    return -1;
+  }
+  int edge_of(int limb, int view, int person) const { return edge_of(limb, view, person, person); }
+
+  TrackPose track_of(int person, int id) const {
+    TrackPose t;
+    t.track_id = id;
+    t.joints_m = truth_[ix(person)];
+    t.valid.assign(3, true);
+    return t;
+  }
+
+  const SkeletonTopology& topo_ = chain_topology();
+  std::vector<Camera> cams_;
+  std::vector<std::vector<Eigen::Vector3d>> truth_;  // [person][joint]
+  std::vector<std::vector<int>> order_;              // [view] -> persons in candidate order
+  DetectionSet det_;
+  FrameGraph graph_;
+};
+
+class BundleTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(s_.build().ok());
+    // Precondition of every scene below: no matching edge between different persons.
+    for (int j = 0; j < 3; ++j) {
+      const int n = s_.graph_.candidate_count(j);
+      ASSERT_EQ(n, 2 * kViews);
+      for (int k1 = 0; k1 < n; ++k1) {
+        for (int k2 = 0; k2 < n; ++k2) {
+          if (s_.person_of_k(j, k1) != s_.person_of_k(j, k2)) {
+            ASSERT_EQ(s_.graph_.match(j, k1, k2), 0.f) << "scene has a cross-person match";
+          }
+        }
+      }
+    }
+    hier_ = limb_hierarchy_weights(s_.topo_);
+  }
+
+  // Every 2D limb of the bundle joins candidates of one person; returns that person.
+  int bundle_person(const Bundle& b) const {
+    const Limb& L = s_.topo_.limb(b.limb);
+    int person = -1;
+    std::set<int> views;
+    for (int m : b.edges) {
+      const LimbEdge& e = s_.graph_.limb_edges(b.limb)[static_cast<std::size_t>(m)];
+      EXPECT_TRUE(views.insert(e.view).second) << "two limbs of one view in a bundle";
+      const int pa = s_.person_of_k(L.joint_a, e.ka);
+      const int pb = s_.person_of_k(L.joint_b, e.kb);
+      EXPECT_EQ(pa, pb) << "mixed 2D limb in view " << e.view;
+      if (person < 0) person = pa;
+      EXPECT_EQ(pa, person) << "bundle mixes persons";
+    }
+    return person;
+  }
+
+  std::vector<Bundle> parse(int limb, const CliqueOptions& o, ParsingStats& stats) const {
+    std::vector<Bundle> out;
+    parse_limb_bundles(s_.graph_, s_.topo_, limb, hier_[static_cast<std::size_t>(limb)], o, out,
+                       stats);
+    return out;
+  }
+
+  Scene s_;
+  std::vector<double> hier_;
+  CliqueOptions opt_;
+};
+
+// ----------------------------------------------------------------------------- hierarchy
+
+TEST(LimbHierarchy, ChainAndBody19) {
+  const std::vector<double> chain = limb_hierarchy_weights(chain_topology());
+  ASSERT_EQ(chain.size(), 2u);
+  EXPECT_DOUBLE_EQ(chain[0], 1.0);
+  EXPECT_DOUBLE_EQ(chain[1], 0.0);
+
+  const SkeletonTopology& b = body19_topology();
+  const std::vector<double> w = limb_hierarchy_weights(b);
+  ASSERT_EQ(static_cast<int>(w.size()), b.limb_count());
+  auto at = [&](const char* ja, const char* jb) {
+    return w[static_cast<std::size_t>(b.find_limb(b.find_joint(ja), b.find_joint(jb)))];
+  };
+  EXPECT_DOUBLE_EQ(at("pelvis", "neck"), 1.0);
+  EXPECT_DOUBLE_EQ(at("pelvis", "l_hip"), 1.0);
+  EXPECT_NEAR(at("neck", "r_shoulder"), 2.0 / 3.0, 1e-12);
+  EXPECT_NEAR(at("r_hip", "r_knee"), 2.0 / 3.0, 1e-12);
+  EXPECT_NEAR(at("l_shoulder", "l_elbow"), 1.0 / 3.0, 1e-12);
+  EXPECT_NEAR(at("l_knee", "l_ankle"), 1.0 / 3.0, 1e-12);
+  EXPECT_DOUBLE_EQ(at("r_elbow", "r_wrist"), 0.0);
+  EXPECT_DOUBLE_EQ(at("l_ankle", "l_big_toe"), 0.0);
+
+  // Not a tree (a cycle): all 1.
+  const SkeletonTopology tri =
+      SkeletonTopology::create("tri", {"a", "b", "c"}, {{0, 1}, {1, 2}, {2, 0}}).value();
+  for (double x : limb_hierarchy_weights(tri)) EXPECT_DOUBLE_EQ(x, 1.0);
+}
+
+// ------------------------------------------------------------------------------- parsing
+
+TEST_F(BundleTest, CleanScenesGiveOneFullBundlePerPersonAndLimb) {
+  for (int limb = 0; limb < 2; ++limb) {
+    ParsingStats stats;
+    const std::vector<Bundle> bundles = parse(limb, opt_, stats);
+    ASSERT_EQ(bundles.size(), 2u) << "limb " << limb;
+    EXPECT_EQ(stats.clique_cap_hits, 0);
+    EXPECT_GE(stats.cliques_enumerated, 2);
+    std::set<int> persons;
+    for (const Bundle& b : bundles) {
+      EXPECT_EQ(b.limb, limb);
+      EXPECT_EQ(b.track, -1);
+      EXPECT_EQ(b.edges.size(), static_cast<std::size_t>(kViews));
+      const int p = bundle_person(b);
+      persons.insert(p);
+      // Exactly this person's limb in every view.
+      for (int v = 0; v < kViews; ++v) {
+        const int e = s_.edge_of(limb, v, p);
+        ASSERT_GE(e, 0);
+        EXPECT_NE(std::find(b.edges.begin(), b.edges.end(), e), b.edges.end())
+            << "person " << p << " view " << v;
+      }
+      EXPECT_NEAR(b.score,
+                  score_bundle(s_.graph_, s_.topo_, limb, hier_[static_cast<std::size_t>(limb)],
+                               opt_, -1, b.edges),
+                  1e-12);
+    }
+    EXPECT_EQ(persons, (std::set<int>{0, 1}));
+  }
+}
+
+TEST_F(BundleTest, FalseCrossPersonAffinityDoesNotMixBundles) {
+  // View 1: person 0's joint a looks strongly connected to person 1's joint b (stronger than
+  // its true limb).
+  s_.set_affinity(1, 0, 0, 1, 1.0f);
+  s_.set_affinity(1, 0, 0, 0, 0.6f);
+  ASSERT_TRUE(s_.build().ok());
+  ASSERT_GE(s_.edge_of(0, 1, 0, 1), 0) << "the false limb must be in the graph";
+  ParsingStats stats;
+  const std::vector<Bundle> bundles = parse(0, opt_, stats);
+  ASSERT_EQ(bundles.size(), 2u);
+  std::set<int> persons;
+  for (const Bundle& b : bundles) {
+    EXPECT_EQ(b.edges.size(), static_cast<std::size_t>(kViews));
+    persons.insert(bundle_person(b));
+    EXPECT_EQ(std::find(b.edges.begin(), b.edges.end(), s_.edge_of(0, 1, 0, 1)), b.edges.end());
+  }
+  EXPECT_EQ(persons, (std::set<int>{0, 1}));
+}
+
+TEST_F(BundleTest, PreviousFrameTrackJoinsItsBundle) {
+  // Track 0 is person 1, track 1 is person 0, track 2 is far from everyone.
+  std::vector<TrackPose> tracks = {s_.track_of(1, 20), s_.track_of(0, 21), s_.track_of(0, 22)};
+  for (auto& X : tracks[2].joints_m) X += Eigen::Vector3d(0, 0, 1.0);
+  ASSERT_TRUE(s_.build(tracks).ok());
+  for (int limb = 0; limb < 2; ++limb) {
+    ParsingStats stats;
+    const std::vector<Bundle> bundles = parse(limb, opt_, stats);
+    ASSERT_EQ(bundles.size(), 2u);
+    for (const Bundle& b : bundles) {
+      const int p = bundle_person(b);
+      EXPECT_EQ(b.track, p == 1 ? 0 : 1) << "limb " << limb << " person " << p;
+      EXPECT_EQ(b.edges.size(), static_cast<std::size_t>(kViews));
+      // The track raises the score.
+      const double without = score_bundle(s_.graph_, s_.topo_, limb,
+                                          hier_[static_cast<std::size_t>(limb)], opt_, -1, b.edges);
+      EXPECT_GT(b.score, without);
+    }
+  }
+}
+
+TEST_F(BundleTest, CliqueCapIsCountedAndStillYieldsBundles) {
+  CliqueOptions capped = opt_;
+  capped.max_cliques_per_limb = 1;
+  ParsingStats stats;
+  std::vector<Bundle> all;
+  for (int limb = 0; limb < 2; ++limb) {
+    const std::vector<Bundle> bundles = parse(limb, capped, stats);
+    EXPECT_GE(bundles.size(), 1u) << "limb " << limb;
+    for (const Bundle& b : bundles) {
+      EXPECT_EQ(b.edges.size(), static_cast<std::size_t>(kViews));
+      bundle_person(b);
+    }
+  }
+  EXPECT_EQ(stats.clique_cap_hits, 2);
+  EXPECT_EQ(stats.cliques_enumerated, 2);
+
+  // Exactly as many maximal cliques as the cap: no hit.
+  CliqueOptions two = opt_;
+  two.max_cliques_per_limb = 2;
+  ParsingStats stats2;
+  EXPECT_EQ(parse(0, two, stats2).size(), 2u);
+  EXPECT_EQ(stats2.clique_cap_hits, 0);
+}
+
+TEST_F(BundleTest, MinBundleScoreDropsWeakBundles) {
+  CliqueOptions strict = opt_;
+  strict.min_bundle_score = 2.0;  // scores are <= 1
+  ParsingStats stats;
+  EXPECT_TRUE(parse(0, strict, stats).empty());
+}
+
+TEST_F(BundleTest, MoreAgreeingViewsScoreHigher) {
+  const int limb = 0;
+  const double h = hier_[0];
+  std::vector<int> three;
+  for (int v = 0; v < kViews; ++v) three.push_back(s_.edge_of(limb, v, 0));
+  const std::vector<int> two = {three[0], three[1]};
+  const std::vector<int> one = {three[0]};
+  const double s3 = score_bundle(s_.graph_, s_.topo_, limb, h, opt_, -1, three);
+  const double s2 = score_bundle(s_.graph_, s_.topo_, limb, h, opt_, -1, two);
+  const double s1 = score_bundle(s_.graph_, s_.topo_, limb, h, opt_, -1, one);
+  EXPECT_GT(s3, s2);
+  EXPECT_GT(s2, s1);
+  EXPECT_EQ(score_bundle(s_.graph_, s_.topo_, limb, h, opt_, -1, {}), 0.0);
+}
+
+TEST_F(BundleTest, ScoreMatchesTheDocumentedFormula) {
+  // Two views of person 0's limb a-b with known affinities (exponent 1) and a 10 px error on
+  // joint b in view 1, so that the matching term is not trivially 1.
+  s_.set_affinity(0, 0, 0, 0, 0.64f);
+  s_.set_affinity(1, 0, 0, 0, 0.81f);
+  s_.shift_pixel(1, 1, 0, 10.0);
+  GraphOptions g;
+  g.affinity_exponent = 1.0;
+  std::vector<TrackPose> tracks = {s_.track_of(0, 5)};
+  tracks[0].joints_m[0] += Eigen::Vector3d(0.03, 0, 0);
+  ASSERT_TRUE(s_.build(tracks, g).ok());
+  const int limb = 0;
+  const std::vector<int> edges = {s_.edge_of(limb, 0, 0), s_.edge_of(limb, 1, 0)};
+  ASSERT_GE(edges[0], 0);
+  ASSERT_GE(edges[1], 0);
+  const FrameGraph& G = s_.graph_;
+  const int ka0 = s_.k_of(0, 0, 0), ka1 = s_.k_of(0, 1, 0);
+  const int kb0 = s_.k_of(1, 0, 0), kb1 = s_.k_of(1, 1, 0);
+  const double m_a = G.match(0, ka0, ka1);
+  const double m_b = G.match(1, kb0, kb1);
+  ASSERT_GT(m_a, 0.99);
+  ASSERT_GT(m_b, 0.3);
+  ASSERT_LT(m_b, 0.95);
+  const double e_match = 0.5 * (m_a + m_b);  // one pair of views
+  const double e_paf = 0.5 * (0.64 + 0.81);
+  const double e_view = 1.0 - std::exp(-0.5 * std::pow(2.0 / 1.5, 2));
+  const double h = 0.7;
+  const double wsum = 2.0 + 2.0 + 1.0 + 2.0 + 0.5;
+  const double expected = (2.0 * e_match + 1.0 * e_paf + 2.0 * e_view + 0.5 * h) / wsum;
+  EXPECT_NEAR(score_bundle(G, s_.topo_, limb, h, opt_, -1, edges), expected, 1e-6);
+
+  // With the track: E_track is the mean over the 2D limbs of the mean tracking probability of
+  // their two endpoints.
+  const double t0 = 0.5 * (double{G.track(0, 0, ka0)} + double{G.track(1, 0, kb0)});
+  const double t1 = 0.5 * (double{G.track(0, 0, ka1)} + double{G.track(1, 0, kb1)});
+  ASSERT_GT(t0, 0.5);
+  ASSERT_LT(t0, 0.99);
+  const double e_track = 0.5 * (t0 + t1);
+  const double with_track =
+      (2.0 * e_match + 2.0 * e_track + 1.0 * e_paf + 2.0 * e_view + 0.5 * h) / wsum;
+  EXPECT_NEAR(score_bundle(G, s_.topo_, limb, h, opt_, 0, edges), with_track, 1e-6);
+
+  // A single view: no matching term.
+  const double single =
+      (1.0 * 0.64 + 2.0 * (1.0 - std::exp(-0.5 * std::pow(1.0 / 1.5, 2))) + 0.5 * h) / wsum;
+  EXPECT_NEAR(score_bundle(G, s_.topo_, limb, h, opt_, -1, {edges[0]}), single, 1e-6);
+}
+
+// ---------------------------------------------------------------------------- assembling
+
+// No (joint, candidate) is assigned to two persons; returns the total assignment count.
+int check_exclusive(const std::vector<PersonAssignment>& persons, int joints, int views) {
+  std::set<std::pair<int, int>> seen;
+  int total = 0;
+  for (const PersonAssignment& p : persons) {
+    int count = 0;
+    for (int j = 0; j < joints; ++j) {
+      for (int v = 0; v < views; ++v) {
+        const int k = p.candidate(j, v, views);
+        if (k < 0) continue;
+        ++count;
+        EXPECT_TRUE(seen.insert({j, k}).second) << "joint " << j << " candidate " << k
+                                                << " owned by two persons";
+      }
+    }
+    EXPECT_EQ(count, p.assignment_count);
+    total += count;
+  }
+  return total;
+}
+
+TEST_F(BundleTest, AssemblingCleanBundlesGivesTwoCompletePersons) {
+  ParsingStats ps;
+  std::vector<Bundle> bundles = parse(0, opt_, ps);
+  for (Bundle& b : parse(1, opt_, ps)) bundles.push_back(std::move(b));
+  ASSERT_EQ(bundles.size(), 4u);
+  std::vector<PersonAssignment> persons;
+  AssemblyStats st;
+  assemble_persons(s_.graph_, s_.topo_, hier_, opt_, bundles, 5, persons, st);
+  ASSERT_EQ(persons.size(), 2u);
+  EXPECT_EQ(st.bundles_popped, 4);
+  EXPECT_EQ(st.bundles_split, 0);
+  EXPECT_EQ(st.limbs_dropped, 0);
+  EXPECT_EQ(check_exclusive(persons, 3, kViews), 18);
+  std::set<int> seen;
+  for (const PersonAssignment& p : persons) {
+    const int who = s_.person_of_k(0, p.candidate(0, 0, kViews));
+    seen.insert(who);
+    EXPECT_EQ(p.assignment_count, 9);
+    EXPECT_EQ(p.track, -1);
+    for (int j = 0; j < 3; ++j) {
+      for (int v = 0; v < kViews; ++v) {
+        EXPECT_EQ(p.candidate(j, v, kViews), s_.k_of(j, v, who))
+            << "person " << who << " joint " << j << " view " << v;
+      }
+    }
+    EXPECT_GT(p.score_sum, 0.0);
+  }
+  EXPECT_EQ(seen, (std::set<int>{0, 1}));
+}
+
+TEST_F(BundleTest, BundleOwnedByTwoPersonsIsSplit) {
+  // A false limb b-c in view 0 from person 0's b to person 1's c.
+  s_.set_affinity(0, 1, 0, 1, 0.9f);
+  ASSERT_TRUE(s_.build().ok());
+  const int false_edge = s_.edge_of(1, 0, 0, 1);
+  ASSERT_GE(false_edge, 0);
+  std::vector<Bundle> bundles;
+  bundles.push_back(Bundle{0, -1, {s_.edge_of(0, 0, 0), s_.edge_of(0, 1, 0), s_.edge_of(0, 2, 0)},
+                           10.0});
+  bundles.push_back(Bundle{0, -1, {s_.edge_of(0, 0, 1), s_.edge_of(0, 1, 1), s_.edge_of(0, 2, 1)},
+                           9.0});
+  // High-score limb b-c whose joint b is person 0's in views 0 and 2 but person 1's in view 1.
+  bundles.push_back(Bundle{1, -1, {s_.edge_of(1, 0, 0), s_.edge_of(1, 1, 1), s_.edge_of(1, 2, 0)},
+                           8.0});
+  // The false limb, on its own and weakest (popped after the split parts): contradicts person 0,
+  // who has c in view 0 by then.
+  bundles.push_back(Bundle{1, -1, {false_edge}, 0.01});
+  std::vector<PersonAssignment> persons;
+  AssemblyStats st;
+  assemble_persons(s_.graph_, s_.topo_, hier_, opt_, bundles, 5, persons, st);
+  EXPECT_GT(st.bundles_split, 0);
+  EXPECT_EQ(st.limbs_dropped, 1);
+  EXPECT_EQ(st.person_merges, 0);
+  ASSERT_EQ(persons.size(), 2u);
+  EXPECT_EQ(check_exclusive(persons, 3, kViews), 15);
+  for (const PersonAssignment& p : persons) {
+    const int who = s_.person_of_k(0, p.candidate(0, 0, kViews));
+    // Every assignment belongs to that person.
+    for (int j = 0; j < 3; ++j) {
+      for (int v = 0; v < kViews; ++v) {
+        const int k = p.candidate(j, v, kViews);
+        if (k < 0) continue;
+        EXPECT_EQ(s_.person_of_k(j, k), who) << "joint " << j << " view " << v;
+      }
+    }
+    for (int v = 0; v < kViews; ++v) {
+      EXPECT_EQ(p.candidate(0, v, kViews), s_.k_of(0, v, who));
+      EXPECT_EQ(p.candidate(1, v, kViews), s_.k_of(1, v, who));
+    }
+    if (who == 0) {
+      EXPECT_EQ(p.assignment_count, 8);
+      EXPECT_EQ(p.candidate(2, 0, kViews), s_.k_of(2, 0, 0));
+      EXPECT_EQ(p.candidate(2, 1, kViews), -1);
+      EXPECT_EQ(p.candidate(2, 2, kViews), s_.k_of(2, 2, 0));
+    } else {
+      EXPECT_EQ(p.assignment_count, 7);
+      EXPECT_EQ(p.candidate(2, 0, kViews), -1);  // the false limb was dropped
+      EXPECT_EQ(p.candidate(2, 1, kViews), s_.k_of(2, 1, 1));
+      EXPECT_EQ(p.candidate(2, 2, kViews), -1);
+    }
+  }
+}
+
+TEST_F(BundleTest, CompatiblePartialPersonsAreMerged) {
+  std::vector<Bundle> bundles;
+  bundles.push_back(Bundle{0, -1, {s_.edge_of(0, 0, 0), s_.edge_of(0, 1, 0)}, 10.0});  // A
+  bundles.push_back(Bundle{1, -1, {s_.edge_of(1, 2, 0)}, 9.0});                        // B
+  // Joins A (view 0) and B (joint b in view 2).
+  bundles.push_back(Bundle{0, -1, {s_.edge_of(0, 0, 0), s_.edge_of(0, 2, 0)}, 8.0});
+  std::vector<PersonAssignment> persons;
+  AssemblyStats st;
+  assemble_persons(s_.graph_, s_.topo_, hier_, opt_, bundles, 5, persons, st);
+  EXPECT_EQ(st.person_merges, 1);
+  EXPECT_EQ(st.bundles_split, 0);
+  ASSERT_EQ(persons.size(), 1u);
+  const PersonAssignment& p = persons[0];
+  EXPECT_EQ(p.assignment_count, 7);
+  EXPECT_EQ(check_exclusive(persons, 3, kViews), 7);
+  for (int v = 0; v < kViews; ++v) {
+    EXPECT_EQ(p.candidate(0, v, kViews), s_.k_of(0, v, 0));
+    EXPECT_EQ(p.candidate(1, v, kViews), s_.k_of(1, v, 0));
+    EXPECT_EQ(p.candidate(2, v, kViews), v == 2 ? s_.k_of(2, 2, 0) : -1);
+  }
+}
+
+TEST_F(BundleTest, IncompatiblePartialPersonsAreNotMerged) {
+  std::vector<Bundle> bundles;
+  bundles.push_back(Bundle{0, -1, {s_.edge_of(0, 0, 0), s_.edge_of(0, 1, 0)}, 10.0});  // P0
+  bundles.push_back(Bundle{0, -1, {s_.edge_of(0, 0, 1), s_.edge_of(0, 1, 1)}, 9.0});   // P1
+  // A wrong bundle: person 0's limb in view 0, person 1's in view 1 (owners disagree on the
+  // same slots, so no union is possible).
+  bundles.push_back(Bundle{0, -1, {s_.edge_of(0, 0, 0), s_.edge_of(0, 1, 1)}, 8.0});
+  std::vector<PersonAssignment> persons;
+  AssemblyStats st;
+  assemble_persons(s_.graph_, s_.topo_, hier_, opt_, bundles, 1, persons, st);
+  EXPECT_EQ(st.person_merges, 0);
+  ASSERT_EQ(persons.size(), 2u);
+  EXPECT_EQ(check_exclusive(persons, 3, kViews), 8);
+  for (const PersonAssignment& p : persons) {
+    const int who = s_.person_of_k(0, p.candidate(0, 0, kViews));
+    EXPECT_EQ(p.candidate(0, 1, kViews), s_.k_of(0, 1, who));
+  }
+}
+
+TEST_F(BundleTest, PersonsWithTooFewAssignmentsAreDiscardedUnlessTracked) {
+  const std::vector<Bundle> bundles = {
+      Bundle{0, -1, {s_.edge_of(0, 0, 0), s_.edge_of(0, 1, 0)}, 1.0}};  // 4 assignments
+  std::vector<PersonAssignment> persons;
+  AssemblyStats st;
+  assemble_persons(s_.graph_, s_.topo_, hier_, opt_, bundles, 5, persons, st);
+  EXPECT_TRUE(persons.empty());
+  assemble_persons(s_.graph_, s_.topo_, hier_, opt_, bundles, 4, persons, st);
+  ASSERT_EQ(persons.size(), 1u);
+  EXPECT_EQ(persons[0].assignment_count, 4);
+
+  // With a track a small person survives.
+  const std::vector<TrackPose> tracks = {s_.track_of(0, 9)};
+  ASSERT_TRUE(s_.build(tracks).ok());
+  const std::vector<Bundle> tracked = {Bundle{0, 0, {s_.edge_of(0, 0, 0)}, 1.0}};
+  assemble_persons(s_.graph_, s_.topo_, hier_, opt_, tracked, 5, persons, st);
+  ASSERT_EQ(persons.size(), 1u);
+  EXPECT_EQ(persons[0].track, 0);
+  EXPECT_EQ(persons[0].assignment_count, 2);
+}
+
+TEST_F(BundleTest, ParsedBundlesWithTracksAssembleIntoTrackedPersons) {
+  const std::vector<TrackPose> tracks = {s_.track_of(1, 20), s_.track_of(0, 21)};
+  ASSERT_TRUE(s_.build(tracks).ok());
+  ParsingStats ps;
+  std::vector<Bundle> bundles = parse(0, opt_, ps);
+  for (Bundle& b : parse(1, opt_, ps)) bundles.push_back(std::move(b));
+  std::vector<PersonAssignment> persons;
+  AssemblyStats st;
+  assemble_persons(s_.graph_, s_.topo_, hier_, opt_, bundles, 5, persons, st);
+  ASSERT_EQ(persons.size(), 2u);
+  EXPECT_EQ(check_exclusive(persons, 3, kViews), 18);
+  for (const PersonAssignment& p : persons) {
+    const int who = s_.person_of_k(0, p.candidate(0, 0, kViews));
+    EXPECT_EQ(p.track, who == 1 ? 0 : 1);
+  }
+}
+
+}  // namespace
+}  // namespace mocap::assoc

@@ -1,0 +1,352 @@
+// FrameGraph::build on hand-made detections: matching, tracking and parsing edges with known
+// probabilities, candidate filtering and errors.
+#include "runtime/assoc/graph.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "runtime/skeleton/topology.h"
+
+namespace mocap::assoc {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// Camera on a horizontal ring of radius_m at height_m, looking at `target`: f = 1000 px,
+// principal point at the centre of a 1000 x 1000 image, no distortion.
+Camera ring_camera(double angle_rad, double radius_m, double height_m,
+                   const Eigen::Vector3d& target) {
+  const Eigen::Vector3d c(radius_m * std::cos(angle_rad), radius_m * std::sin(angle_rad),
+                          height_m);
+  const Eigen::Vector3d z = (target - c).normalized();
+  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d R;
+  R.row(0) = x.transpose();
+  R.row(1) = y.transpose();
+  R.row(2) = z.transpose();
+  Eigen::Matrix3d K;
+  K << 1000, 0, 500, 0, 1000, 500, 0, 0, 1;
+  return Camera(K, Distortion{}, 1000, 1000, R, -R * c);
+}
+
+// Two joints "a" - "b", one limb.
+const SkeletonTopology& two_joint_topology() {
+  static const SkeletonTopology topo =
+      SkeletonTopology::create("pair", {"a", "b"}, {{0, 1}}).value();
+  return topo;
+}
+
+struct Cand {
+  Eigen::Vector2d px;
+  float score = 1.f;
+};
+
+// A view with the given candidates per joint and zero affinity matrices of the right shapes.
+ViewDetections make_view(int view_id, const SkeletonTopology& topo,
+                         const std::vector<std::vector<Cand>>& per_joint) {
+  ViewDetections v;
+  v.view_id = view_id;
+  v.width_px = 1000;
+  v.height_px = 1000;
+  v.candidates.resize(static_cast<std::size_t>(topo.joint_count()));
+  for (std::size_t j = 0; j < per_joint.size(); ++j) {
+    for (const Cand& c : per_joint[j]) {
+      v.candidates[j].push_back(JointCandidate{static_cast<float>(c.px.x()),
+                                               static_cast<float>(c.px.y()), c.score});
+    }
+  }
+  for (int l = 0; l < topo.limb_count(); ++l) {
+    const Limb& L = topo.limb(l);
+    v.affinities.emplace_back(
+        static_cast<int>(v.candidates[static_cast<std::size_t>(L.joint_a)].size()),
+        static_cast<int>(v.candidates[static_cast<std::size_t>(L.joint_b)].size()));
+  }
+  return v;
+}
+
+class GraphTest : public ::testing::Test {
+ protected:
+  GraphTest() {
+    const Eigen::Vector3d target(0, 0, 1);
+    cams_.push_back(ring_camera(0.0, 4.0, 1.5, target));
+    cams_.push_back(ring_camera(kPi / 2, 4.0, 1.5, target));
+    cams_.push_back(ring_camera(kPi * 1.2, 4.0, 1.5, target));
+  }
+
+  Eigen::Vector2d px(int view, const Eigen::Vector3d& X) const {
+    return *cams_[static_cast<std::size_t>(view)].project(X);
+  }
+
+  DetectionSet set(std::vector<ViewDetections> views) const {
+    DetectionSet d;
+    d.frame_id = 7;
+    d.topology = &two_joint_topology();
+    d.views = std::move(views);
+    return d;
+  }
+
+  std::vector<Camera> cams_;
+  const SkeletonTopology& topo_ = two_joint_topology();
+  GraphOptions opt_;
+};
+
+TEST_F(GraphTest, RaysThatMeetHaveMatchingProbabilityOne) {
+  const Eigen::Vector3d X(0.1, -0.2, 1.3);
+  const DetectionSet d = set({make_view(0, topo_, {{{px(0, X)}}, {}}),
+                              make_view(1, topo_, {{{px(1, X)}}, {}}),
+                              make_view(2, topo_, {{{px(2, X)}}, {}})});
+  FrameGraph g;
+  ASSERT_TRUE(g.build(d, cams_, {}, opt_).ok());
+  EXPECT_EQ(g.view_count(), 3);
+  EXPECT_EQ(g.joint_count(), 2);
+  ASSERT_EQ(g.candidate_count(0), 3);
+  EXPECT_EQ(g.candidate_count(1), 0);
+  for (int k1 = 0; k1 < 3; ++k1) {
+    EXPECT_EQ(g.match(0, k1, k1), 0.f);
+    for (int k2 = 0; k2 < 3; ++k2) {
+      if (k1 != k2) {
+        EXPECT_NEAR(g.match(0, k1, k2), 1.0, 1e-6) << k1 << "," << k2;
+      }
+    }
+  }
+  // Candidates carry their view, index, pixel and back-projected ray.
+  for (int k = 0; k < 3; ++k) {
+    const GraphCandidate& c = g.candidates(0)[static_cast<std::size_t>(k)];
+    EXPECT_EQ(c.view, k);
+    EXPECT_EQ(c.index, 0);
+    EXPECT_LT(point_ray_distance_m(X, c.ray), 1e-5);
+  }
+}
+
+TEST_F(GraphTest, MatchingProbabilityFallsLinearlyWithRayDistance) {
+  const Eigen::Vector3d X(0.0, 0.0, 1.0);
+  // View 1 sees a point 5 cm above X: its ray misses view 0's ray by ~5 cm.
+  const Eigen::Vector3d Y = X + Eigen::Vector3d(0, 0, 0.05);
+  const DetectionSet d =
+      set({make_view(0, topo_, {{{px(0, X)}}, {}}), make_view(1, topo_, {{{px(1, Y)}}, {}})});
+  FrameGraph g;
+  ASSERT_TRUE(g.build(d, cams_, {}, opt_).ok());
+  const Ray r0 = cams_[0].backproject(px(0, X));
+  const Ray r1 = cams_[1].backproject(px(1, Y));
+  const double dist = ray_ray_distance_m(r0, r1);
+  ASSERT_GT(dist, 0.03);
+  ASSERT_LT(dist, 0.05 + 1e-9);
+  const double expected = 1.0 - dist / opt_.max_epipolar_dist_m;
+  EXPECT_NEAR(g.match(0, 0, 1), expected, 1e-6);
+  EXPECT_NEAR(g.match(0, 1, 0), expected, 1e-6);
+
+  // A different normalisation scales the same distance.
+  GraphOptions wide = opt_;
+  wide.max_epipolar_dist_m = 0.5;
+  ASSERT_TRUE(g.build(d, cams_, {}, wide).ok());
+  EXPECT_NEAR(g.match(0, 0, 1), 1.0 - dist / 0.5, 1e-6);
+}
+
+TEST_F(GraphTest, RaysBeyondThresholdAndSameViewPairsHaveNoEdge) {
+  const Eigen::Vector3d X(0.0, 0.0, 1.0);
+  const Eigen::Vector3d far = X + Eigen::Vector3d(0, 0, 0.25);
+  // View 0: two candidates at the same pixel (same view: never matched). View 1: a point 25 cm
+  // away from X (beyond max_epipolar_dist_m = 0.15).
+  const DetectionSet d = set({make_view(0, topo_, {{{px(0, X)}, {px(0, X)}}, {}}),
+                              make_view(1, topo_, {{{px(1, far)}}, {}})});
+  FrameGraph g;
+  ASSERT_TRUE(g.build(d, cams_, {}, opt_).ok());
+  ASSERT_EQ(g.candidate_count(0), 3);
+  ASSERT_GT(ray_ray_distance_m(cams_[0].backproject(px(0, X)), cams_[1].backproject(px(1, far))),
+            opt_.max_epipolar_dist_m);
+  EXPECT_EQ(g.match(0, 0, 1), 0.f);  // same view
+  EXPECT_EQ(g.match(0, 1, 0), 0.f);
+  EXPECT_EQ(g.match(0, 0, 2), 0.f);  // too far apart
+  EXPECT_EQ(g.match(0, 1, 2), 0.f);
+}
+
+TEST_F(GraphTest, ClosestPointsNearerThanMinDepthGiveNoEdge) {
+  const Eigen::Vector3d X(0.0, 0.0, 1.0);
+  const DetectionSet d =
+      set({make_view(0, topo_, {{{px(0, X)}}, {}}), make_view(1, topo_, {{{px(1, X)}}, {}})});
+  FrameGraph g;
+  GraphOptions o = opt_;
+  o.min_depth_m = 3.0;  // X is ~4 m from both cameras
+  ASSERT_TRUE(g.build(d, cams_, {}, o).ok());
+  EXPECT_GT(g.match(0, 0, 1), 0.99f);
+  o.min_depth_m = 6.0;
+  ASSERT_TRUE(g.build(d, cams_, {}, o).ok());
+  EXPECT_EQ(g.match(0, 0, 1), 0.f);
+}
+
+TEST_F(GraphTest, TrackingProbabilityFallsLinearlyWithPointRayDistance) {
+  const Eigen::Vector3d X(0.2, 0.1, 1.1);
+  const DetectionSet d = set({make_view(0, topo_, {{{px(0, X)}}, {{px(0, X)}}}),
+                              make_view(1, topo_, {{{px(1, X)}}, {{px(1, X)}}})});
+  std::vector<TrackPose> tracks(3);
+  // Track 0: joint a exactly on the rays, joint b 10 cm above. Track 1: joint a 30 cm away
+  // (beyond max_track_dist_m = 0.2), joint b not valid. Track 2: joint a 5 cm to the side.
+  tracks[0].track_id = 10;
+  tracks[0].joints_m = {X, X + Eigen::Vector3d(0, 0, 0.1)};
+  tracks[0].valid = {true, true};
+  tracks[1].track_id = 11;
+  tracks[1].joints_m = {X + Eigen::Vector3d(0, 0, 0.3), X};
+  tracks[1].valid = {true, false};
+  tracks[2].track_id = 12;
+  tracks[2].joints_m = {X + Eigen::Vector3d(0.05, -0.03, 0.0), X};
+  tracks[2].valid = {true, false};
+  FrameGraph g;
+  ASSERT_TRUE(g.build(d, cams_, tracks, opt_).ok());
+  ASSERT_EQ(g.track_count(), 3);
+  ASSERT_EQ(g.candidate_count(0), 2);
+  ASSERT_EQ(g.candidate_count(1), 2);
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_NEAR(g.track(0, 0, k), 1.0, 1e-6);
+    const Ray& rb = g.candidates(1)[static_cast<std::size_t>(k)].ray;
+    const double db = point_ray_distance_m(tracks[0].joints_m[1], rb);
+    ASSERT_GT(db, 0.05);
+    EXPECT_NEAR(g.track(1, 0, k), 1.0 - db / opt_.max_track_dist_m, 1e-6);
+    EXPECT_EQ(g.track(0, 1, k), 0.f);  // 30 cm: beyond the threshold
+    EXPECT_EQ(g.track(1, 1, k), 0.f);  // not valid
+    EXPECT_EQ(g.track(1, 2, k), 0.f);
+    const Ray& ra = g.candidates(0)[static_cast<std::size_t>(k)].ray;
+    const double da = point_ray_distance_m(tracks[2].joints_m[0], ra);
+    EXPECT_NEAR(g.track(0, 2, k), 1.0 - da / opt_.max_track_dist_m, 1e-6);
+  }
+  EXPECT_TRUE(g.track_has_joint(0, 0));
+  EXPECT_TRUE(g.track_has_joint(0, 1));
+  EXPECT_TRUE(g.track_has_joint(1, 0));
+  EXPECT_FALSE(g.track_has_joint(1, 1));
+  EXPECT_FALSE(g.track_has_joint(2, 1));
+}
+
+TEST_F(GraphTest, ParsingEdgesKeepAffinityPowerAboveMinimum) {
+  const Eigen::Vector2d p(500, 500);
+  ViewDetections v = make_view(0, topo_, {{{p}, {p}, {p}}, {{p}, {p}}});
+  // Rows: candidates of a; columns: candidates of b.
+  v.affinities[0].at(0, 0) = 0.5f;    // 0.5^0.2 = 0.8706: kept
+  v.affinities[0].at(0, 1) = 0.001f;  // 0.001^0.2 = 0.2512 < 0.35: dropped
+  v.affinities[0].at(1, 0) = 0.0f;    // no edge
+  v.affinities[0].at(1, 1) = 1.0f;    // kept, 1
+  v.affinities[0].at(2, 0) = 0.01f;   // 0.01^0.2 = 0.3981: kept
+  v.affinities[0].at(2, 1) = 0.005f;  // 0.005^0.2 = 0.3466: dropped
+  const DetectionSet d = set({v});
+  FrameGraph g;
+  ASSERT_TRUE(g.build(d, cams_, {}, opt_).ok());
+  ASSERT_EQ(g.limb_count(), 1);
+  const auto edges = g.limb_edges(0);
+  ASSERT_EQ(edges.size(), 3u);
+  struct Want {
+    int ka, kb;
+    double p;
+  };
+  const Want want[] = {{0, 0, std::pow(0.5, 0.2)}, {1, 1, 1.0}, {2, 0, std::pow(0.01, 0.2)}};
+  for (const Want& w : want) {
+    bool found = false;
+    for (const LimbEdge& e : edges) {
+      if (e.ka == w.ka && e.kb == w.kb) {
+        found = true;
+        EXPECT_EQ(e.view, 0);
+        EXPECT_NEAR(e.p, w.p, 1e-6);
+      }
+    }
+    EXPECT_TRUE(found) << w.ka << "-" << w.kb;
+  }
+
+  // Exponent 1: the raw affinity is the probability; 0.3 < 0.35 is dropped.
+  GraphOptions lin = opt_;
+  lin.affinity_exponent = 1.0;
+  ViewDetections v2 = make_view(0, topo_, {{{p}}, {{p}, {p}}});
+  v2.affinities[0].at(0, 0) = 0.3f;
+  v2.affinities[0].at(0, 1) = 0.4f;
+  ASSERT_TRUE(g.build(set({v2}), cams_, {}, lin).ok());
+  ASSERT_EQ(g.limb_edges(0).size(), 1u);
+  EXPECT_EQ(g.limb_edges(0)[0].kb, 1);
+  EXPECT_FLOAT_EQ(g.limb_edges(0)[0].p, 0.4f);
+}
+
+TEST_F(GraphTest, LowScoreCandidatesAreSkippedAndIndicesKept) {
+  const Eigen::Vector3d A(0.0, 0.0, 1.2);
+  const Eigen::Vector3d B(0.0, 0.0, 0.8);
+  // View 1 is listed first: the graph orders candidates by view id.
+  ViewDetections v1 = make_view(
+      1, topo_, {{{px(1, A), 0.9f}, {px(1, A), 0.01f}, {px(1, A), 0.8f}}, {{px(1, B), 0.7f}}});
+  v1.affinities[0].at(0, 0) = 0.9f;
+  v1.affinities[0].at(1, 0) = 1.0f;  // from a skipped candidate: no edge
+  v1.affinities[0].at(2, 0) = 0.6f;
+  ViewDetections v0 = make_view(0, topo_, {{{px(0, A), 0.04f}}, {{px(0, B), 0.06f}}});
+  v0.affinities[0].at(0, 0) = 1.0f;  // joint a candidate is below 0.05: no edge
+  const DetectionSet d = set({v1, v0});
+  FrameGraph g;
+  ASSERT_TRUE(g.build(d, cams_, {}, opt_).ok());
+  // Joint a: view 0's only candidate is skipped; view 1 keeps indices 0 and 2.
+  ASSERT_EQ(g.candidate_count(0), 2);
+  EXPECT_EQ(g.candidates(0)[0].view, 1);
+  EXPECT_EQ(g.candidates(0)[0].index, 0);
+  EXPECT_FLOAT_EQ(g.candidates(0)[0].score, 0.9f);
+  EXPECT_EQ(g.candidates(0)[1].view, 1);
+  EXPECT_EQ(g.candidates(0)[1].index, 2);
+  // Joint b: both kept, view 0 first.
+  ASSERT_EQ(g.candidate_count(1), 2);
+  EXPECT_EQ(g.candidates(1)[0].view, 0);
+  EXPECT_EQ(g.candidates(1)[1].view, 1);
+  EXPECT_GT(g.match(1, 0, 1), 0.99f);
+  // Parsing edges: only view 1's (a0, b0) and (a2, b0), in graph numbering.
+  const auto edges = g.limb_edges(0);
+  ASSERT_EQ(edges.size(), 2u);
+  for (const LimbEdge& e : edges) {
+    EXPECT_EQ(e.view, 1);
+    EXPECT_EQ(e.kb, 1);
+    const int idx = g.candidates(0)[static_cast<std::size_t>(e.ka)].index;
+    EXPECT_NEAR(e.p, std::pow(idx == 0 ? 0.9 : 0.6, 0.2), 1e-6);
+  }
+
+  // Raising the threshold removes more.
+  GraphOptions strict = opt_;
+  strict.min_candidate_score = 0.85;
+  ASSERT_TRUE(g.build(d, cams_, {}, strict).ok());
+  EXPECT_EQ(g.candidate_count(0), 1);
+  EXPECT_EQ(g.candidate_count(1), 0);
+  EXPECT_EQ(g.limb_edges(0).size(), 0u);
+}
+
+TEST_F(GraphTest, ViewWithoutCameraIsAnErrorNamingFrameAndView) {
+  const Eigen::Vector3d X(0.0, 0.0, 1.0);
+  DetectionSet d = set({make_view(0, topo_, {{{px(0, X)}}, {}}),
+                        make_view(5, topo_, {{{px(1, X)}}, {}})});
+  FrameGraph g;
+  const Status s = g.build(d, cams_, {}, opt_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().code(), ErrorCode::kInvalidArgument);
+  EXPECT_NE(s.error().message().find("frame 7"), std::string::npos) << s.error().message();
+  EXPECT_NE(s.error().message().find("view 5"), std::string::npos) << s.error().message();
+
+  d.views[1].view_id = -1;
+  const Status s2 = g.build(d, cams_, {}, opt_);
+  ASSERT_FALSE(s2.ok());
+  EXPECT_NE(s2.error().message().find("view -1"), std::string::npos) << s2.error().message();
+}
+
+TEST_F(GraphTest, RebuildReusesStorageWithoutStaleEdges) {
+  const Eigen::Vector3d X(0.0, 0.0, 1.0);
+  ViewDetections v0 = make_view(0, topo_, {{{px(0, X)}, {px(0, X)}}, {{px(0, X)}}});
+  v0.affinities[0].at(0, 0) = 1.0f;
+  v0.affinities[0].at(1, 0) = 1.0f;
+  const DetectionSet big = set({v0, make_view(1, topo_, {{{px(1, X)}}, {{px(1, X)}}})});
+  const DetectionSet small = set({make_view(1, topo_, {{{px(1, X)}}, {}})});
+  FrameGraph g;
+  ASSERT_TRUE(g.build(big, cams_, {}, opt_).ok());
+  EXPECT_EQ(g.candidate_count(0), 3);
+  EXPECT_EQ(g.limb_edges(0).size(), 2u);
+  ASSERT_TRUE(g.build(small, cams_, {}, opt_).ok());
+  EXPECT_EQ(g.candidate_count(0), 1);
+  EXPECT_EQ(g.candidate_count(1), 0);
+  EXPECT_EQ(g.limb_edges(0).size(), 0u);
+  EXPECT_EQ(g.match(0, 0, 0), 0.f);
+  EXPECT_EQ(g.track_count(), 0);
+}
+
+}  // namespace
+}  // namespace mocap::assoc

@@ -1,0 +1,111 @@
+// mocap bench assoc --data DIR | --synthetic --views N --people P
+#include <algorithm>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "runtime/core/data_dir.h"
+#include "runtime/eval/shelf_sequence.h"
+#include "tools/common/cli.h"
+#include "tools/mocap/commands.h"
+
+namespace mocap::tools {
+namespace {
+
+struct Percentiles {
+  double median = 0, p90 = 0, p99 = 0, max = 0;
+};
+
+Percentiles percentiles(std::vector<double> v) {
+  Percentiles p;
+  if (v.empty()) return p;
+  std::sort(v.begin(), v.end());
+  auto at = [&](double q) {
+    const std::size_t i = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
+    return v[std::min(i, v.size() - 1)];
+  };
+  p.median = at(0.5);
+  p.p90 = at(0.9);
+  p.p99 = at(0.99);
+  p.max = v.back();
+  return p;
+}
+
+void print_row(const char* name, const Percentiles& p) {
+  std::printf("%-22s %9.3f %9.3f %9.3f %9.3f\n", name, p.median, p.p90, p.p99, p.max);
+}
+
+int bench_assoc(Args args) {
+  std::string data = (default_data_dir() / "shelf").string();
+  int repeat = 5;
+  bool synthetic = false;
+  bool no_fit = false;
+  int views = 5;
+  int people = 3;
+  cli::ArgParser p("mocap bench assoc",
+                   "Single-thread per-frame time of association (graph, limb-bundle parsing,\n"
+                   "assembling) and of reconstruction+fitting (triangulation, tracking, Ceres\n"
+                   "skeleton fit), over the Shelf sequence or the simulator: median, p90, p99 and\n"
+                   "max in milliseconds. Ends with assoc_fit_median_ms=X.XXX.");
+  p.option("--data", &data, "DIR", "Shelf folder (default: $MOCAP_DATA_DIR/shelf)");
+  p.option("--repeat", &repeat, "N", "run the sequence N times (default 5)");
+  p.flag("--synthetic", &synthetic, "use the scene simulator instead of Shelf");
+  p.option("--views", &views, "N", "simulator: number of cameras (default 5)");
+  p.option("--people", &people, "P", "simulator: number of people (default 3)");
+  p.flag("--no-fit", &no_fit, "skip the parametric skeleton fit (triangulated joints only)");
+  if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
+  if (repeat < 1) {
+    std::fprintf(stderr, "error: --repeat must be >= 1\n");
+    return 2;
+  }
+  std::vector<double> assoc;
+  std::vector<double> fit;
+  std::vector<double> total;
+  int frames = 0;
+  if (synthetic) {
+    std::fprintf(stderr,
+                 "error: --synthetic needs the scene simulator, which is not in this build yet\n");
+    return 2;
+  }
+  ShelfRunOptions opt;
+  opt.repeat = repeat;
+  opt.association.fit.enabled = !no_fit;
+  auto run = run_shelf_sequence(data, opt);
+  if (!run.ok()) {
+    std::fprintf(stderr, "error: %s\n", run.error().message().c_str());
+    return 1;
+  }
+  for (const ShelfFrameTiming& t : run->timings) {
+    assoc.push_back(t.association_ms);
+    fit.push_back(t.fitting_ms);
+    total.push_back(t.association_ms + t.fitting_ms);
+  }
+  frames = static_cast<int>(run->estimates.size());
+  std::printf("Shelf: %d frames x %d runs, %d views, single thread\n", frames, repeat,
+              run->views_used);
+  std::printf("%-22s %9s %9s %9s %9s\n", "stage (ms/frame)", "median", "p90", "p99", "max");
+  print_row("association", percentiles(assoc));
+  print_row("reconstruct+fit", percentiles(fit));
+  const Percentiles t = percentiles(total);
+  print_row("total", t);
+  std::printf("assoc_fit_median_ms=%.3f\n", t.median);
+  return 0;
+}
+
+}  // namespace
+
+int run_bench(Args args) {
+  if (args.empty() || args[0] == "--help" || args[0] == "-h") {
+    std::fputs(
+        "usage: mocap bench <what> [options]\n\nbenchmarks:\n"
+        "  assoc    association + fitting per frame (mocap bench assoc --help)\n",
+        args.empty() ? stderr : stdout);
+    return args.empty() ? 2 : 0;
+  }
+  if (args[0] == "assoc") return bench_assoc(args.subspan(1));
+  std::fprintf(stderr, "mocap bench: unknown benchmark '%s' (try: assoc)\n",
+               std::string(args[0]).c_str());
+  return 2;
+}
+
+}  // namespace mocap::tools
