@@ -1,11 +1,14 @@
 #include "runtime/assoc/bundles.h"
 
+#include <Eigen/Dense>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <queue>
 
 #include "runtime/core/log.h"
+#include "runtime/fit/skeleton_fitter.h"
 #include "runtime/skeleton/topology.h"
 
 MOCAP_LOG_CATEGORY(Assoc)
@@ -128,6 +131,28 @@ struct Scorer {
   const CliqueOptions& opt;
   std::span<const LimbEdge> edges;
   double weight_sum;
+  double template_length_m = 0;  // 0 = no plausibility check
+
+  // Least-squares 3D point of the given candidates' rays.
+  Eigen::Vector3d ray_point(int joint, const std::vector<int>& members, bool a_end) const {
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    for (int m : members) {
+      const LimbEdge& e = edges[ix(m)];
+      const Ray& r = graph.candidates(joint)[ix(a_end ? e.ka : e.kb)].ray;
+      const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - r.direction * r.direction.transpose();
+      A += P;
+      b += P * r.origin_m;
+    }
+    return A.ldlt().solve(b);
+  }
+  bool plausible(const std::vector<int>& members) const {
+    if (template_length_m <= 0 || members.size() < 2) return true;
+    const double len =
+        (ray_point(limb.joint_a, members, true) - ray_point(limb.joint_b, members, false)).norm();
+    return len >= opt.min_limb_length_ratio * template_length_m &&
+           len <= opt.max_limb_length_ratio * template_length_m;
+  }
 
   double pair_match(const LimbEdge& x, const LimbEdge& y) const {
     return 0.5 * (static_cast<double>(graph.match(limb.joint_a, x.ka, y.ka)) +
@@ -140,6 +165,7 @@ struct Scorer {
   double score(int track, const std::vector<int>& members) const {
     const int n = static_cast<int>(members.size());
     if (n == 0) return 0;
+    if (!plausible(members)) return -1.0;  // below every real score: pruning removes a view
     double paf = 0;
     double match = 0;
     double trk = 0;
@@ -226,7 +252,10 @@ double score_bundle(const FrameGraph& graph, const SkeletonTopology& topology, i
                     const std::vector<int>& edges) {
   const double wsum =
       options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
-  Scorer s{graph, topology.limb(limb), hierarchy_weight, options, graph.limb_edges(limb), wsum};
+  const Limb& L = topology.limb(limb);
+  Scorer s{graph, L, hierarchy_weight, options, graph.limb_edges(limb), wsum,
+           fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
+                                             topology.joint_name(L.joint_b))};
   return s.score(track, edges);
 }
 
@@ -285,7 +314,9 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
 
   const double wsum =
       options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
-  const Scorer scorer{graph, L, hierarchy_weight, options, edges, wsum};
+  const Scorer scorer{graph, L, hierarchy_weight, options, edges, wsum,
+                      fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
+                                                        topology.joint_name(L.joint_b))};
 
   // Candidate bundles: each maximal clique split into (track, 2D members), pruned.
   struct Cand {

@@ -227,6 +227,7 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
         rotations = std::move(fr.rotations);
         for (int j = 0; j < J; ++j) {
           tr.joints_m[ix(j)] = fr.joints_m[ix(j)];
+          if (!pts[ix(j)].valid) conf[ix(j)] = options_.fit.predicted_joint_confidence;
           if (pts[ix(j)].valid) {
             tr.joint_age[ix(j)] = 0;
           } else if (tr.joint_age[ix(j)] >= 0) {

@@ -38,6 +38,8 @@ Status CliqueOptions::validate() const {
               "at least one weight must be > 0");
   MOCAP_CHECK(view_welsch_c > 0, "clique.view_welsch_c", "must be > 0");
   MOCAP_CHECK(max_cliques_per_limb >= 1, "clique.max_cliques_per_limb", "must be >= 1");
+  MOCAP_CHECK(min_limb_length_ratio >= 0 && max_limb_length_ratio > min_limb_length_ratio,
+              "clique.min/max_limb_length_ratio", "need 0 <= min < max");
   return Status::Ok();
 }
 

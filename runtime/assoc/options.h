@@ -46,6 +46,11 @@ struct CliqueOptions {
   int max_cliques_per_limb = 4096;
   // Bundles below this score are not used.
   double min_bundle_score = 0.0;
+  // A bundle seen in >= 2 views is triangulated; when its 3D limb length falls outside
+  // [min, max] x the template length of that limb (known body limbs only), the bundle is
+  // implausible and pruned (two views can agree epipolarly on two different people).
+  double min_limb_length_ratio = 0.4;
+  double max_limb_length_ratio = 2.0;
 
   Status validate() const;
 };

@@ -159,6 +159,13 @@ double template_bone_length_m(std::string_view parent_name, std::string_view chi
   return b ? b->length_m : 0.25;
 }
 
+double known_template_bone_length_m(std::string_view joint_a, std::string_view joint_b) {
+  int side = 0;
+  if (const TemplateBone* b = find_template(joint_a, joint_b, &side)) return b->length_m;
+  if (const TemplateBone* b = find_template(joint_b, joint_a, &side)) return b->length_m;
+  return 0.0;
+}
+
 Eigen::Vector3d template_rest_direction(std::string_view parent_name, std::string_view child_name) {
   int side = 0;
   const TemplateBone* b = find_template(parent_name, child_name, &side);

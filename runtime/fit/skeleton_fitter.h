@@ -51,6 +51,10 @@ struct FitOptions {
   int max_iterations = 10;
   // Samples whose length is off the running median by more than this fraction are ignored.
   double bone_sample_tolerance = 0.3;
+  // Confidence reported for a joint the fitted skeleton places without a 2D observation this
+  // frame (predicted by the bone lengths and smoothness). Observed joints carry their detection
+  // score; 0 means no estimate at all.
+  float predicted_joint_confidence = 0.1f;
   // World up direction (z up in Shelf and Qualisys/pose2sim frames).
   Eigen::Vector3d up{0.0, 0.0, 1.0};
 
@@ -131,6 +135,8 @@ class SkeletonFitter {
 // Template bone length (metres, adult ~1.75 m) and rest direction for a bone joint_a ->
 // joint_b by joint names; unknown names get 0.25 m pointing away from the root.
 double template_bone_length_m(std::string_view parent_name, std::string_view child_name);
+// The template length when the bone is in the template table (either direction), else 0.
+double known_template_bone_length_m(std::string_view joint_a, std::string_view joint_b);
 Eigen::Vector3d template_rest_direction(std::string_view parent_name, std::string_view child_name);
 
 }  // namespace mocap::fit

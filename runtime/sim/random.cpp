@@ -58,8 +58,14 @@ int Rng::geometric(double p) {
   constexpr int kNever = std::numeric_limits<int>::max() / 2;
   if (!(p > 0.0)) return kNever;
   if (p >= 1.0) return 0;
+  return geometric_log(std::log1p(-p));
+}
+
+int Rng::geometric_log(double log_one_minus_p) {
+  constexpr int kNever = std::numeric_limits<int>::max() / 2;
+  if (!(log_one_minus_p < 0.0)) return kNever;
   const double u = 1.0 - uniform();  // (0, 1]
-  const double k = std::floor(std::log(u) / std::log1p(-p));
+  const double k = std::floor(std::log(u) / log_one_minus_p);
   return k < static_cast<double>(kNever) ? static_cast<int>(k) : kNever;
 }
 

@@ -40,6 +40,8 @@ class Rng {
   // Number of failures before the first success of a Bernoulli(p) sequence (geometric);
   // a large value when p <= 0.
   int geometric(double p);
+  // Same, with log(1 - p) precomputed by the caller (p in (0, 1), so the argument is < 0).
+  int geometric_log(double log_one_minus_p);
 
  private:
   std::mt19937_64 engine_;

@@ -201,8 +201,8 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
         if (target_front_[i]) target_px_[i] = *px;
       }
       const Vector2d& q = target_px_[i];
-      target_in_[i] = target_front_[i] && q.x() >= 0.0 && q.x() < width_px && q.y() >= 0.0 &&
-                      q.y() < height_px;
+      target_in_[i] =
+          target_front_[i] && q.x() >= 0.0 && q.x() < width_px && q.y() >= 0.0 && q.y() < height_px;
     }
   }
 
@@ -259,6 +259,7 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
   }
 
   // Limb affinities.
+  const double log_no_false_affinity = std::log1p(-kFalseAffinityProbability);
   for (int l = 0; l < topology.limb_count(); ++l) {
     const Limb& limb = topology.limb(l);
     const std::vector<Candidate>& ca = cands_[ix(limb.joint_a)];
@@ -272,8 +273,8 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
     // Occasional small affinities between unrelated candidates (skipping geometrically).
     if (noise.false_affinity_mean > 0.0) {
       const long long total = static_cast<long long>(rows) * cols;
-      for (long long k = rng_.geometric(kFalseAffinityProbability); k < total;
-           k += 1 + rng_.geometric(kFalseAffinityProbability)) {
+      for (long long k = rng_.geometric_log(log_no_false_affinity); k < total;
+           k += 1 + rng_.geometric_log(log_no_false_affinity)) {
         m.values[static_cast<std::size_t>(k)] =
             clamp_unit(noise.false_affinity_mean * rng_.uniform(0.5, 1.5));
       }
@@ -287,19 +288,32 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
       const double sigma = std::max(kConfusionMinSigma_px, kConfusionSigmaFraction * len_px);
       sigma_sq_[ix(p)] = sigma * sigma;
     }
-    // Support of person p's limb for a foreign end at `px` (p's own joint `joint`).
-    auto support = [&](int p, int joint, float x_px, float y_px) {
-      const std::size_t i = ix(p * J + joint);
-      if (!target_front_[i]) return 0.0;
-      const double dx = static_cast<double>(x_px) - target_px_[i].x();
-      const double dy = static_cast<double>(y_px) - target_px_[i].y();
-      const double d_sq = dx * dx + dy * dy;
-      const double sigma_sq = sigma_sq_[ix(p)];
-      if (d_sq > 9.0 * sigma_sq) return 0.0;
-      return std::exp(-0.5 * d_sq / sigma_sq);
+    // PAF confusion: the support of an owner's limb for a foreign end is a Gaussian of the
+    // foreign end's distance from the owner's own joint at that end. Row r looks at its
+    // owner's joint_b, column c at its owner's joint_a (both constant along the loops).
+    auto end_of = [&](const Candidate& cand, int joint, End& e) {
+      e.active = false;
+      if (cand.owner < 0) return;
+      const std::size_t i = ix(cand.owner * J + joint);
+      if (!target_front_[i]) return;
+      e.active = true;
+      e.px = target_px_[i];
+      e.sigma_sq = sigma_sq_[ix(cand.owner)];
     };
+    auto support = [](const End& e, const Candidate& foreign) {
+      if (!e.active) return 0.0;
+      const double dx = static_cast<double>(foreign.x_px) - e.px.x();
+      const double dy = static_cast<double>(foreign.y_px) - e.px.y();
+      const double d_sq = dx * dx + dy * dy;
+      if (d_sq > 9.0 * e.sigma_sq) return 0.0;
+      return std::exp(-0.5 * d_sq / e.sigma_sq);
+    };
+    col_ends_.resize(ix(cols));
+    for (int c = 0; c < cols; ++c) end_of(cb[ix(c)], limb.joint_a, col_ends_[ix(c)]);
     for (int r = 0; r < rows; ++r) {
       const Candidate& a = ca[ix(r)];
+      End row_end;
+      end_of(a, limb.joint_b, row_end);
       for (int c = 0; c < cols; ++c) {
         const Candidate& b = cb[ix(c)];
         if (a.owner >= 0 && a.owner == b.owner) {
@@ -308,9 +322,7 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
           m.at(r, c) = clamp_unit(v);
           continue;
         }
-        double s = 0.0;
-        if (a.owner >= 0) s = std::max(s, support(a.owner, limb.joint_b, b.x_px, b.y_px));
-        if (b.owner >= 0) s = std::max(s, support(b.owner, limb.joint_a, a.x_px, a.y_px));
+        const double s = std::max(support(row_end, b), support(col_ends_[ix(c)], a));
         if (s < kMinConfusionSupport) continue;
         const double v = s * (noise.true_affinity_mean + rng_.normal(0.0, noise.affinity_noise));
         m.at(r, c) = std::max(m.at(r, c), clamp_unit(v));
@@ -327,9 +339,8 @@ Status DetectionRenderer::render(const SkeletonSet& truth, const Calibration& ri
   const SkeletonTopology& body = body19_topology();
   if (truth.topology != nullptr && truth.topology != &body &&
       (truth.topology->name() != body.name() || truth.topology->joint_count() != kBodyJoints)) {
-    return Error(ErrorCode::kInvalidArgument,
-                 "render detections: ground truth is in topology '" + truth.topology->name() +
-                     "', expected body19");
+    return Error(ErrorCode::kInvalidArgument, "render detections: ground truth is in topology '" +
+                                                  truth.topology->name() + "', expected body19");
   }
   if (rig.cameras.empty()) {
     return Error(ErrorCode::kInvalidArgument, "render detections: the rig has no cameras");
@@ -356,20 +367,20 @@ Status DetectionRenderer::render(const SkeletonSet& truth, const Calibration& ri
     const PersonSkeleton& ps = truth.persons[ix(p)];
     auto who = [&] { return "render detections: frame " + std::to_string(truth.frame_id); };
     if (ps.person_id < 0) {
-      return Error(ErrorCode::kInvalidArgument,
-                   who() + ": person " + std::to_string(p) + " has id " +
-                       std::to_string(ps.person_id) + ", expected >= 0 (-1 marks false candidates)");
+      return Error(ErrorCode::kInvalidArgument, who() + ": person " + std::to_string(p) +
+                                                    " has id " + std::to_string(ps.person_id) +
+                                                    ", expected >= 0 (-1 marks false candidates)");
     }
     if (ps.joints_m.size() != ix(kBodyJoints)) {
-      return Error(ErrorCode::kInvalidArgument,
-                   who() + ": person " + std::to_string(ps.person_id) + " has " +
-                       std::to_string(ps.joints_m.size()) + " joints, expected 19 (body19)");
+      return Error(ErrorCode::kInvalidArgument, who() + ": person " + std::to_string(ps.person_id) +
+                                                    " has " + std::to_string(ps.joints_m.size()) +
+                                                    " joints, expected 19 (body19)");
     }
     for (const Vector3d& X : ps.joints_m) {
       if (!X.allFinite()) {
-        return Error(ErrorCode::kInvalidArgument, who() + ": person " +
-                                                      std::to_string(ps.person_id) +
-                                                      " has a non-finite joint");
+        return Error(
+            ErrorCode::kInvalidArgument,
+            who() + ": person " + std::to_string(ps.person_id) + " has a non-finite joint");
       }
     }
     person_ids_[ix(p)] = ps.person_id;

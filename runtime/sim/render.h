@@ -38,14 +38,14 @@ inline constexpr double kFalseScoreMax = 0.5;
 inline constexpr double kFalseAffinityProbability = 0.15;
 
 struct DetectionNoiseOptions {
-  double jitter_px = 2.0;                 // sd of the Gaussian pixel noise per axis, [0, 100]
-  double miss_rate = 0.05;                // probability a visible joint is not detected, [0, 1]
+  double jitter_px = 2.0;                   // sd of the Gaussian pixel noise per axis, [0, 100]
+  double miss_rate = 0.05;                  // probability a visible joint is not detected, [0, 1]
   double false_candidates_per_joint = 0.1;  // Poisson mean per view per joint, [0, 50]
-  double affinity_noise = 0.1;            // sd of the affinity noise, [0, 1]
-  double true_affinity_mean = 0.8;        // same-person limb affinity, [0, 1]
-  double false_affinity_mean = 0.05;      // mean of the occasional unrelated affinity, [0, 1]
+  double affinity_noise = 0.1;              // sd of the affinity noise, [0, 1]
+  double true_affinity_mean = 0.8;          // same-person limb affinity, [0, 1]
+  double false_affinity_mean = 0.05;        // mean of the occasional unrelated affinity, [0, 1]
   bool occlusion = true;
-  double occlusion_radius_px = 20;        // [0, 1000]
+  double occlusion_radius_px = 20;  // [0, 1000]
 
   // The error names the field.
   Status validate() const;
@@ -75,8 +75,8 @@ class DetectionRenderer {
 
  private:
   struct JointSource {
-    int body19 = -1;  // direct copy of this body19 joint
-    int eye_side = 0; // derived eye: +1 left, -1 right (from nose and that side's ear)
+    int body19 = -1;   // direct copy of this body19 joint
+    int eye_side = 0;  // derived eye: +1 left, -1 right (from nose and that side's ear)
   };
   struct Candidate {
     float x_px = 0;
@@ -99,6 +99,12 @@ class DetectionRenderer {
     bool ok = false;  // both ends in front of the camera
   };
 
+  struct End {  // an owner's own joint at one end of the current limb (PAF confusion)
+    bool active = false;
+    Eigen::Vector2d px = Eigen::Vector2d::Zero();
+    double sigma_sq = 1;
+  };
+
   void prepare_occluders(double radius_px);
   bool occluded(int person, const Eigen::Vector2d& px, double radius_px) const;
   void render_view(int view, const Camera& cam, const SkeletonTopology& topology,
@@ -106,7 +112,7 @@ class DetectionRenderer {
 
   const SkeletonTopology* prepared_ = nullptr;
   std::vector<JointSource> sources_;  // [detection joint]
-  int nose_ = -1;  // body19 joints the eyes are derived from
+  int nose_ = -1;                     // body19 joints the eyes are derived from
   int l_ear_ = -1;
   int r_ear_ = -1;
   // Per frame.
@@ -115,16 +121,17 @@ class DetectionRenderer {
   std::vector<Eigen::Vector3d> body_m_;    // [person * 19 + joint], body19 truth
   std::vector<Eigen::Vector3d> target_m_;  // [person * J + joint], detection joints
   // Per view.
-  std::vector<Eigen::Vector2d> body_px_;   // [person * 19 + joint]
+  std::vector<Eigen::Vector2d> body_px_;  // [person * 19 + joint]
   std::vector<char> body_ok_;
-  std::vector<Eigen::Vector2d> target_px_; // [person * J + joint]
-  std::vector<char> target_front_;         // projected in front of the camera
-  std::vector<char> target_in_;            // ... and inside the image
+  std::vector<Eigen::Vector2d> target_px_;  // [person * J + joint]
+  std::vector<char> target_front_;          // projected in front of the camera
+  std::vector<char> target_in_;             // ... and inside the image
   std::vector<PersonView> person_view_;
-  std::vector<Segment> segments_;          // [person * limbs + limb], body19 limbs
-  std::vector<int> occluder_begin_;        // [person] -> first entry in occluders_
-  std::vector<int> occluders_;             // closer persons overlapping each person
-  std::vector<double> sigma_sq_;           // [person], confusion width of the current limb
+  std::vector<Segment> segments_;              // [person * limbs + limb], body19 limbs
+  std::vector<int> occluder_begin_;            // [person] -> first entry in occluders_
+  std::vector<int> occluders_;                 // closer persons overlapping each person
+  std::vector<double> sigma_sq_;               // [person], confusion width of the current limb
+  std::vector<End> col_ends_;                  // [column of the current limb's matrix]
   std::vector<std::vector<Candidate>> cands_;  // [joint]
   Rng rng_;
 };

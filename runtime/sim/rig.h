@@ -13,12 +13,12 @@ namespace mocap::sim {
 inline constexpr double kRigTargetHeight_m = 1.0;
 
 struct RigOptions {
-  int views = 5;              // number of cameras, [2, 64]
-  double radius_m = 4.0;      // distance of each camera from the vertical axis through the origin
-  double height_m = 2.5;      // camera height above the floor
-  int width_px = 1032;        // image size
+  int views = 5;          // number of cameras, [2, 64]
+  double radius_m = 4.0;  // distance of each camera from the vertical axis through the origin
+  double height_m = 2.5;  // camera height above the floor
+  int width_px = 1032;    // image size
   int height_px = 776;
-  double focal_px = 1000;     // fx = fy; principal point at the image centre; no distortion
+  double focal_px = 1000;  // fx = fy; principal point at the image centre; no distortion
 
   // Ranges: views [2, 64], radius_m (0, 100], height_m [0.1, 50], width_px/height_px
   // [16, 16384], focal_px (0, 1e5]. The error names the field.

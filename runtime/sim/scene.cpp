@@ -40,8 +40,8 @@ enum Joint : int {
   kLBigToe = 18,
 };
 constexpr const char* kJointNames[Scene::kJointCount] = {
-    "pelvis",  "neck",    "r_hip",   "l_hip",   "nose",    "r_shoulder", "l_shoulder",
-    "r_knee",  "l_knee",  "r_ear",   "l_ear",   "r_elbow", "l_elbow",    "r_ankle",
+    "pelvis",  "neck",    "r_hip",   "l_hip",     "nose",     "r_shoulder", "l_shoulder",
+    "r_knee",  "l_knee",  "r_ear",   "l_ear",     "r_elbow",  "l_elbow",    "r_ankle",
     "l_ankle", "r_wrist", "l_wrist", "r_big_toe", "l_big_toe"};
 
 // Adult template (standing height kTemplateHeight_m), metres.
@@ -211,7 +211,8 @@ void Scene::setup() {
   if (options_.close_interaction) {
     std::vector<int> eligible;
     for (int i = 0; i < n; ++i) {
-      if (order[static_cast<std::size_t>(i)] != leaver) eligible.push_back(order[static_cast<std::size_t>(i)]);
+      if (order[static_cast<std::size_t>(i)] != leaver)
+        eligible.push_back(order[static_cast<std::size_t>(i)]);
     }
     const int pair_count = static_cast<int>(eligible.size()) >= 2
                                ? std::max(1, static_cast<int>(eligible.size()) / 4)
@@ -461,8 +462,8 @@ void Scene::steer_and_move() {
     p.gait_phase_rad =
         std::fmod(p.gait_phase_rad + 2.0 * kPi * p.speed_mps / stride_m * dt_s_, 2.0 * kPi);
     const double gesture_target = p.mode == Mode::kHold ? 1.0 : 0.0;
-    p.gesture += std::clamp(gesture_target - p.gesture, -dt_s_ / kGestureRamp_s,
-                            dt_s_ / kGestureRamp_s);
+    p.gesture +=
+        std::clamp(gesture_target - p.gesture, -dt_s_ / kGestureRamp_s, dt_s_ / kGestureRamp_s);
   }
 }
 
@@ -550,8 +551,7 @@ void Scene::update_pose(Person& p) const {
   // Rigid upper body: neck, shoulders and head in the leaning, counter-rotated torso frame.
   const Vector3d neck = torso_world(pelvis, Vector3d(0.0, 0.0, b.spine_m));
   J[kNeck] = neck;
-  J[kRShoulder] =
-      torso_world(neck, Vector3d(0.0, -b.shoulder_half_width_m, -b.shoulder_drop_m));
+  J[kRShoulder] = torso_world(neck, Vector3d(0.0, -b.shoulder_half_width_m, -b.shoulder_drop_m));
   J[kLShoulder] = torso_world(neck, Vector3d(0.0, b.shoulder_half_width_m, -b.shoulder_drop_m));
   J[kNose] = torso_world(neck, b.nose_m);
   J[kREar] = torso_world(neck, Vector3d(b.ear_m.x(), -b.ear_m.y(), b.ear_m.z()));

@@ -30,12 +30,12 @@ inline constexpr double kMeetDistance_m = 0.6;
 inline constexpr double kExitMargin_m = 0.5;
 
 struct SceneOptions {
-  int people = 3;                // [0, 64]
-  double area_radius_m = 2.5;    // (0.5, 50]; walking area: a disc around the origin
+  int people = 3;              // [0, 64]
+  double area_radius_m = 2.5;  // (0.5, 50]; walking area: a disc around the origin
   std::uint64_t seed = 1;
-  bool enter_leave = true;       // some persons enter late / from outside, one leaves
-  bool close_interaction = true; // some pairs meet at ~kMeetDistance_m
-  double frame_rate_hz = 25;     // (0, 1000]
+  bool enter_leave = true;        // some persons enter late / from outside, one leaves
+  bool close_interaction = true;  // some pairs meet at ~kMeetDistance_m
+  double frame_rate_hz = 25;      // (0, 1000]
 
   // The error names the field.
   Status validate() const;
@@ -43,13 +43,13 @@ struct SceneOptions {
 
 // What is fixed about a person from the start (drawn from the seed).
 struct PersonProfile {
-  int person_id = -1;            // stable, 0..people-1
-  double height_m = 0;           // standing height, floor to top of head
-  double walk_speed_mps = 0;     // preferred walking speed
-  int appear_frame = 0;          // first frame the person is in the scene
-  bool starts_outside = false;   // appears outside the area and walks in
-  int leave_frame = -1;          // frame from which the person walks out (-1: stays)
-  int partner = -1;              // close-interaction partner's id (-1: none)
+  int person_id = -1;           // stable, 0..people-1
+  double height_m = 0;          // standing height, floor to top of head
+  double walk_speed_mps = 0;    // preferred walking speed
+  int appear_frame = 0;         // first frame the person is in the scene
+  bool starts_outside = false;  // appears outside the area and walks in
+  int leave_frame = -1;         // frame from which the person walks out (-1: stays)
+  int partner = -1;             // close-interaction partner's id (-1: none)
 };
 
 class Scene {
