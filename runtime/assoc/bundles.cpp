@@ -1,6 +1,7 @@
 #include "runtime/assoc/bundles.h"
 
 #include <Eigen/Dense>
+#include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
@@ -133,27 +134,22 @@ struct Scorer {
   double weight_sum;
   double template_length_m = 0;  // 0 = no plausibility check
 
-  // Least-squares 3D point of the given candidates' rays.
-  Eigen::Vector3d ray_point(int joint, const std::vector<int>& members, bool a_end) const {
-    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    for (int m : members) {
-      const LimbEdge& e = edges[ix(m)];
-      const Ray& r = graph.candidates(joint)[ix(a_end ? e.ka : e.kb)].ray;
-      const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - r.direction * r.direction.transpose();
-      A += P;
-      b += P * r.origin_m;
-    }
-    return A.ldlt().solve(b);
-  }
-  bool plausible(const std::vector<int>& members) const {
-    if (template_length_m <= 0 || members.size() < 2) return true;
-    const double len =
-        (ray_point(limb.joint_a, members, true) - ray_point(limb.joint_b, members, false)).norm();
+  // Limb length from the least-squares 3D points of both endpoints' rays (normal equations
+  // accumulated by the caller: A = Σ I − ddᵀ, b = Σ (I − ddᵀ) o).
+  bool plausible_length(const Eigen::Matrix3d& Aa, const Eigen::Vector3d& ba,
+                        const Eigen::Matrix3d& Ab, const Eigen::Vector3d& bb) const {
+    bool ok_a = false;
+    bool ok_b = false;
+    Eigen::Matrix3d inv_a;
+    Eigen::Matrix3d inv_b;
+    double det = 0;
+    Aa.computeInverseAndDetWithCheck(inv_a, det, ok_a, 1e-12);
+    Ab.computeInverseAndDetWithCheck(inv_b, det, ok_b, 1e-12);
+    if (!ok_a || !ok_b) return true;  // degenerate geometry: no evidence either way
+    const double len = (inv_a * ba - inv_b * bb).norm();
     return len >= opt.min_limb_length_ratio * template_length_m &&
            len <= opt.max_limb_length_ratio * template_length_m;
   }
-
   double pair_match(const LimbEdge& x, const LimbEdge& y) const {
     return 0.5 * (static_cast<double>(graph.match(limb.joint_a, x.ka, y.ka)) +
                   static_cast<double>(graph.match(limb.joint_b, x.kb, y.kb)));
@@ -162,19 +158,35 @@ struct Scorer {
     return 0.5 * (static_cast<double>(graph.track(limb.joint_a, t, x.ka)) +
                   static_cast<double>(graph.track(limb.joint_b, t, x.kb)));
   }
+  static void add_ray(const Ray& r, Eigen::Matrix3d& A, Eigen::Vector3d& b) {
+    const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - r.direction * r.direction.transpose();
+    A += P;
+    b += P * r.origin_m;
+  }
+
   double score(int track, const std::vector<int>& members) const {
     const int n = static_cast<int>(members.size());
     if (n == 0) return 0;
-    if (!plausible(members)) return -1.0;  // below every real score: pruning removes a view
+    const bool check_length = template_length_m > 0 && n >= 2;
+    Eigen::Matrix3d Aa = Eigen::Matrix3d::Zero();
+    Eigen::Matrix3d Ab = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d ba = Eigen::Vector3d::Zero();
+    Eigen::Vector3d bb = Eigen::Vector3d::Zero();
     double paf = 0;
     double match = 0;
     double trk = 0;
     for (int i = 0; i < n; ++i) {
       const LimbEdge& x = edges[ix(members[ix(i)])];
+      if (check_length) {
+        add_ray(graph.candidates(limb.joint_a)[ix(x.ka)].ray, Aa, ba);
+        add_ray(graph.candidates(limb.joint_b)[ix(x.kb)].ray, Ab, bb);
+      }
       paf += static_cast<double>(x.p);
       for (int j = i + 1; j < n; ++j) match += pair_match(x, edges[ix(members[ix(j)])]);
       if (track >= 0) trk += track_match(track, x);
     }
+    // An implausible limb scores below every real bundle, so pruning drops a view from it.
+    if (check_length && !plausible_length(Aa, ba, Ab, bb)) return -1.0;
     const double e_paf = paf / n;
     const double e_match = n > 1 ? match / (0.5 * n * (n - 1)) : 0.0;
     const double e_track = track >= 0 ? trk / n : 0.0;

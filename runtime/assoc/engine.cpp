@@ -89,6 +89,13 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
     return s.error();
   }
   for (int j = 0; j < J; ++j) st.candidates += graph_.candidate_count(j);
+  st.candidates_dropped = graph_.candidates_dropped();
+  if (st.candidates_dropped > 0) {
+    MOCAP_LOG(Assoc, Warn) << where << ": " << st.candidates_dropped
+                           << " low-score candidates left out (more than "
+                           << options_.graph.max_candidates_per_view_joint
+                           << " per view and joint)";
+  }
   for (int l = 0; l < topology_.limb_count(); ++l) {
     st.limb_edges += static_cast<int>(graph_.limb_edges(l).size());
   }

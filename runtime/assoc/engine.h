@@ -28,6 +28,7 @@ namespace mocap::assoc {
 
 struct FrameStats {
   int candidates = 0;
+  int candidates_dropped = 0;  // over GraphOptions::max_candidates_per_view_joint
   int limb_edges = 0;
   ParsingStats parsing;
   int bundles = 0;

@@ -33,6 +33,7 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
   const int J = topo.joint_count();
   view_count_ = static_cast<int>(cameras.size());
   track_count_ = static_cast<int>(tracks.size());
+  candidates_dropped_ = 0;
   cands_.resize(idx(J));
   match_.resize(idx(J));
   track_.resize(idx(J));
@@ -62,7 +63,18 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
     for (const ViewDetections* v : views) {
       const Camera& cam = cameras[idx(v->view_id)];
       const auto& list = v->candidates[idx(j)];
-      for (int i = 0; i < static_cast<int>(list.size()); ++i) {
+      // Indices of the candidates kept: all, or the best max_candidates_per_view_joint.
+      order_scratch_.resize(list.size());
+      for (std::size_t i = 0; i < list.size(); ++i) order_scratch_[i] = static_cast<int>(i);
+      if (static_cast<int>(list.size()) > options.max_candidates_per_view_joint) {
+        const auto keep = static_cast<std::ptrdiff_t>(options.max_candidates_per_view_joint);
+        std::partial_sort(order_scratch_.begin(), order_scratch_.begin() + keep, order_scratch_.end(),
+                          [&](int a, int b) { return list[idx(a)].score > list[idx(b)].score; });
+        candidates_dropped_ += static_cast<int>(list.size()) - options.max_candidates_per_view_joint;
+        order_scratch_.resize(idx(options.max_candidates_per_view_joint));
+        std::sort(order_scratch_.begin(), order_scratch_.end());
+      }
+      for (int i : order_scratch_) {
         const JointCandidate& c = list[idx(i)];
         if (static_cast<double>(c.score) < options.min_candidate_score) continue;
         GraphCandidate g;

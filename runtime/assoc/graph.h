@@ -50,6 +50,8 @@ class FrameGraph {
   int joint_count() const { return static_cast<int>(cands_.size()); }
   int limb_count() const { return static_cast<int>(limb_edges_.size()); }
   int track_count() const { return track_count_; }
+  // Candidates left out by GraphOptions::max_candidates_per_view_joint in the last build().
+  int candidates_dropped() const { return candidates_dropped_; }
 
   std::span<const GraphCandidate> candidates(int joint) const { return cands_[idx(joint)]; }
   int candidate_count(int joint) const { return static_cast<int>(cands_[idx(joint)].size()); }
@@ -76,6 +78,8 @@ class FrameGraph {
 
   int view_count_ = 0;
   int track_count_ = 0;
+  int candidates_dropped_ = 0;
+  std::vector<int> order_scratch_;
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
   std::vector<std::vector<float>> match_;           // [joint][k1 * n + k2]
   std::vector<std::vector<float>> track_;           // [joint][t * n + k]

@@ -28,6 +28,8 @@ Status GraphOptions::validate() const {
   MOCAP_CHECK(min_candidate_score >= 0 && min_candidate_score < 1, "graph.min_candidate_score",
               "must be in [0, 1)");
   MOCAP_CHECK(min_depth_m >= 0, "graph.min_depth_m", "must be >= 0");
+  MOCAP_CHECK(max_candidates_per_view_joint >= 1 && max_candidates_per_view_joint <= 4096,
+              "graph.max_candidates_per_view_joint", "must be in [1, 4096]");
   return Status::Ok();
 }
 

@@ -23,6 +23,10 @@ struct GraphOptions {
   double min_affinity = 0.35;
   // Candidates whose heatmap score is below this are ignored.
   double min_candidate_score = 0.05;
+  // At most this many candidates per (view, joint) enter the graph, the best-scoring ones; the
+  // rest are counted in FrameStats::candidates_dropped. Bounds the work (the matching tables
+  // grow with the square of the candidates per joint) on pathological frames.
+  int max_candidates_per_view_joint = 40;
   // A matching edge also needs both rays' closest points in front of their cameras, at least
   // this far (metres).
   double min_depth_m = 0.1;

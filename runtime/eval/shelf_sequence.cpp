@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "runtime/assoc/adapt.h"
+#include "runtime/core/memory.h"
 #include "runtime/geometry/calibration.h"
 #include "runtime/io/shelf_detections.h"
 #include "runtime/skeleton/topology.h"
@@ -76,6 +77,7 @@ Result<ShelfRun> run_shelf_sequence(const std::filesystem::path& data_dir,
       run.estimates.push_back(std::move(*est));
       run.stats.push_back(st);
     }
+    run.rss_mb_after_repetition.push_back(static_cast<double>(current_rss_bytes()) / (1 << 20));
   }
   return run;
 }

@@ -32,6 +32,7 @@ struct ShelfRun {
   std::vector<ShelfFrameTiming> timings;      // per frame and repetition
   std::vector<assoc::FrameStats> stats;       // per frame (last repetition)
   int views_used = 0;
+  std::vector<double> rss_mb_after_repetition;  // resident memory after each repetition
 };
 
 // Loads <data>/calibration.json and <data>/detection/<v>.txt and runs the engine on body19.

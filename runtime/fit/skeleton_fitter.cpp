@@ -192,6 +192,15 @@ Status FitOptions::validate() const {
 Result<SkeletonFitter> SkeletonFitter::create(const SkeletonTopology& topology,
                                               const FitOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
+  if (topology.joint_count() > kMaxFitJoints) {
+    std::string msg = "skeleton fitting supports up to ";
+    msg += std::to_string(kMaxFitJoints);
+    msg += " joints; '";
+    msg += topology.name();
+    msg += "' has ";
+    msg += std::to_string(topology.joint_count());
+    return Error(ErrorCode::kUnsupported, std::move(msg));
+  }
   if (!topology.is_tree()) {
     return Error(ErrorCode::kInvalidArgument,
                  "skeleton fitting needs a tree topology; '" + topology.name() + "' is not one");
@@ -452,8 +461,14 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(const PersonFitState& stat
     return c;
   };
 
-  Eigen::MatrixXd H(n, n);
-  Eigen::VectorXd g(n);
+  // Stack storage up to kMaxFitJoints joints (no heap traffic per solve).
+  using Mat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxFitJoints,
+                            3 * kMaxFitJoints>;
+  using Vec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3 * kMaxFitJoints, 1>;
+  Mat H(n, n);
+  Mat A(n, n);
+  Vec g(n);
+  Eigen::LLT<Mat> llt(n);
   std::vector<int> path;
   std::vector<Eigen::Matrix<double, 2, 3>> Jb;
   double lambda = 1e-3;
@@ -503,10 +518,10 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(const PersonFitState& stat
       for (int j = 0; j < J; ++j) {
         if (parents_[ix(j)] < 0) continue;
         const int bj = 3 * block[ix(j)];
-        const Eigen::Matrix3d A = wt * L[ix(j)] * (-skew(u[ix(j)]));
+        const Eigen::Matrix3d Jt = wt * L[ix(j)] * (-skew(u[ix(j)]));
         const Eigen::Vector3d res = wt * L[ix(j)] * (u[ix(j)] - state.dir_prev[ix(j)]);
-        H.block<3, 3>(bj, bj) += A.transpose() * A;
-        g.segment<3>(bj) += A.transpose() * res;
+        H.block<3, 3>(bj, bj) += Jt.transpose() * Jt;
+        g.segment<3>(bj) += Jt.transpose() * res;
       }
     }
     // Untouched parameters are fixed: identity rows.
@@ -521,9 +536,14 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(const PersonFitState& stat
     }
     bool improved = false;
     for (int tries = 0; tries < 6 && !improved; ++tries) {
-      Eigen::MatrixXd A = H;
+      A = H;
       for (int i = 0; i < n; ++i) A(i, i) += lambda * (H(i, i) + 1e-6);
-      const Eigen::VectorXd delta = -A.ldlt().solve(g);
+      llt.compute(A);
+      if (llt.info() != Eigen::Success) {
+        lambda *= 10;
+        continue;
+      }
+      const Vec delta = -llt.solve(g);
       if (!delta.allFinite()) {
         lambda *= 10;
         continue;
@@ -544,7 +564,7 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(const PersonFitState& stat
         current = c2;
         lambda = std::max(lambda * 0.3, 1e-7);
         improved = true;
-        if (rel < 1e-6) it = options_.max_iterations;  // converged
+        if (rel < 1e-4) it = options_.max_iterations;  // converged
       } else {
         lambda *= 10;
       }

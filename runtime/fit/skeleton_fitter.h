@@ -40,6 +40,9 @@ namespace mocap::fit {
 // tests hold kFast to.
 enum class FitSolver { kFast, kCeres };
 
+// Largest skeleton the fitter accepts (joints), so its solver can keep its matrices on the stack.
+inline constexpr int kMaxFitJoints = 32;
+
 struct FitOptions {
   bool enabled = true;
   FitSolver solver = FitSolver::kFast;
@@ -48,7 +51,7 @@ struct FitOptions {
   double temporal_weight_px_per_m = 40.0;  // smoothness: pixels of cost per metre of motion
   int bone_learning_frames = 5;         // confident samples per bone before fitting starts
   int confident_min_views = 3;          // a confident joint is triangulated from this many views
-  int max_iterations = 10;
+  int max_iterations = 5;
   // Samples whose length is off the running median by more than this fraction are ignored.
   double bone_sample_tolerance = 0.3;
   // Confidence reported for a joint the fitted skeleton places without a 2D observation this

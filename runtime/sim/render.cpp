@@ -23,6 +23,8 @@ constexpr double kConfusionMinSigma_px = 4.0;
 constexpr double kConfusionSigmaFraction = 0.25;
 // Cross-person pairs with less support than this keep their unrelated value.
 constexpr double kMinConfusionSupport = 0.05;
+// Candidate storage reserved per joint beyond one per person (false candidates).
+constexpr std::size_t kSpareCandidates = 8;
 // Points closer to the camera plane than this are not rendered, metres.
 constexpr double kMinRenderDepth_m = 0.05;
 // Eyes: between nose and ear, slightly up.
@@ -122,6 +124,7 @@ void DetectionRenderer::prepare_occluders(double radius_px) {
   // Occluders of p: closer persons whose (radius-grown) box overlaps p's box.
   occluder_begin_.resize(ix(persons_) + 1);
   occluders_.clear();
+  occluders_.reserve(ix(persons_) * ix(persons_));
   for (int p = 0; p < persons_; ++p) {
     occluder_begin_[ix(p)] = static_cast<int>(occluders_.size());
     const PersonView& me = person_view_[ix(p)];
@@ -210,7 +213,13 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
   if (occlusion) prepare_occluders(noise.occlusion_radius_px);
 
   // True candidates: occlusion, misses, jitter.
-  for (int j = 0; j < J; ++j) cands_[ix(j)].clear();
+  // Room for every person plus a generous number of false candidates, so that storage stops
+  // growing after the first frames.
+  const std::size_t expected = ix(persons_) + kSpareCandidates;
+  for (int j = 0; j < J; ++j) {
+    cands_[ix(j)].clear();
+    cands_[ix(j)].reserve(expected);
+  }
   for (int p = 0; p < persons_; ++p) {
     for (int j = 0; j < J; ++j) {
       if (!target_in_[ix(p * J + j)]) continue;
@@ -250,6 +259,8 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
     }
     auto& out_list = vd.candidates[ix(j)];
     auto& out_truth = truth_person[ix(j)];
+    out_list.reserve(expected);
+    out_truth.reserve(expected);
     out_list.resize(list.size());
     out_truth.resize(list.size());
     for (std::size_t k = 0; k < list.size(); ++k) {
@@ -269,6 +280,7 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
     AffinityMatrix& m = vd.affinities[ix(l)];
     m.rows = rows;
     m.cols = cols;
+    m.values.reserve(expected * expected);
     m.values.assign(ix(rows * cols), 0.f);
     // Occasional small affinities between unrelated candidates (skipping geometrically).
     if (noise.false_affinity_mean > 0.0) {

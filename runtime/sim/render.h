@@ -58,8 +58,9 @@ struct RenderedFrame {
   std::vector<std::vector<std::vector<int>>> truth_person;
 };
 
-// Renders with reusable scratch storage: after the first few frames no allocation happens
-// when `out` is reused and the scene size does not grow.
+// Renders with reusable scratch storage: when `out` is reused, storage is sized for the
+// persons plus a few false candidates per joint, so frames after the first allocate nothing
+// unless the number of persons grows or a joint draws unusually many false candidates.
 class DetectionRenderer {
  public:
   // `truth` holds body19 skeletons (truth.topology is body19 or null), metres. `topology` is

@@ -88,6 +88,10 @@ int bench_assoc(Args args) {
   print_row("reconstruct+fit", percentiles(fit));
   const Percentiles t = percentiles(total);
   print_row("total", t);
+  if (!run->rss_mb_after_repetition.empty()) {
+    std::printf("resident memory after run 1: %.1f MB, after run %d: %.1f MB\n",
+                run->rss_mb_after_repetition.front(), repeat, run->rss_mb_after_repetition.back());
+  }
   std::printf("assoc_fit_median_ms=%.3f\n", t.median);
   return 0;
 }
