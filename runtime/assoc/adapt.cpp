@@ -39,6 +39,30 @@ Status remap_detections(const DetectionSet& in, const JointMapping& m,
                                                 " has no source limb carrying its affinities");
     }
   }
+  // Shapes of the input (values are adapted below, so DetectionSet::validate()'s [0, 1] ranges
+  // do not apply to raw detector output).
+  const SkeletonTopology& from = *m.from;
+  for (const ViewDetections& v : in.views) {
+    const std::string where =
+        "frame " + std::to_string(in.frame_id) + ", view " + std::to_string(v.view_id) + ": ";
+    if (static_cast<int>(v.candidates.size()) != from.joint_count() ||
+        static_cast<int>(v.affinities.size()) != from.limb_count()) {
+      return Error(ErrorCode::kInvalidArgument,
+                   where + "expected " + std::to_string(from.joint_count()) + " candidate lists and " +
+                       std::to_string(from.limb_count()) + " affinity matrices of " + from.name());
+    }
+    for (int l = 0; l < from.limb_count(); ++l) {
+      const AffinityMatrix& a = v.affinities[ix(l)];
+      const Limb& L = from.limb(l);
+      if (a.rows != static_cast<int>(v.candidates[ix(L.joint_a)].size()) ||
+          a.cols != static_cast<int>(v.candidates[ix(L.joint_b)].size()) ||
+          a.values.size() != static_cast<std::size_t>(a.rows) * static_cast<std::size_t>(a.cols)) {
+        return Error(ErrorCode::kInvalidArgument,
+                     where + "affinity matrix of limb " + std::to_string(l) +
+                         " does not match the candidate counts");
+      }
+    }
+  }
   out.frame_id = in.frame_id;
   out.timestamp_ns = in.timestamp_ns;
   out.topology = &to;

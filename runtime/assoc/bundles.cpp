@@ -198,8 +198,11 @@ struct Scorer {
   }
 };
 
-// Greedy pruning: drop the member whose removal raises the score most, while it does.
-double prune_clique(const Scorer& s, int& track, std::vector<int>& members) {
+// Greedy pruning: drop the member whose removal raises the score most, while it does. Dropped
+// 2D members are appended to `dropped` (they remain pairwise compatible, so the caller can
+// offer them as a clique of their own: nothing is lost by pruning).
+double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
+                    std::vector<int>& dropped) {
   double best = s.score(track, members);
   while (true) {
     double cand_best = best;
@@ -227,6 +230,7 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members) {
     if (drop == -1) {
       track = -1;
     } else {
+      dropped.push_back(members[ix(drop)]);
       members.erase(members.begin() + drop);
     }
     best = cand_best;
@@ -308,6 +312,12 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     }
   }
 
+  const double wsum =
+      options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
+  const Scorer scorer{graph, L, hierarchy_weight, options, edges, wsum,
+                      fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
+                                                        topology.joint_name(L.joint_b))};
+
   std::vector<std::vector<int>> maximal;
   BronKerbosch bk{cg, options.max_cliques_per_limb, maximal, {}, false};
   Bits p;
@@ -318,17 +328,36 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   bk.run(std::move(p), std::move(x));
   stats.cliques_enumerated += static_cast<long>(maximal.size());
   if (bk.capped) {
+    // Too many maximal cliques to enumerate (dense compatibility: many views and people):
+    // grow one clique greedily from every 2D limb instead, adding at each step the compatible
+    // node with the largest summed edge weight to the clique so far.
     ++stats.clique_cap_hits;
-    MOCAP_LOG(Assoc, Warn) << "limb " << limb << ": clique enumeration capped at "
-                           << options.max_cliques_per_limb << " maximal cliques (" << n
-                           << " nodes); raise clique.max_cliques_per_limb if this repeats";
+    MOCAP_LOG(Assoc, Debug) << "limb " << limb << ": more than " << options.max_cliques_per_limb
+                            << " maximal cliques (" << n << " nodes); greedy clique growth";
+    maximal.clear();
+    auto weight = [&](int a, int b) {
+      if (a >= n2d) return scorer.track_match(cg.track_of_node[ix(a - n2d)], edges[ix(b)]);
+      if (b >= n2d) return scorer.track_match(cg.track_of_node[ix(b - n2d)], edges[ix(a)]);
+      return scorer.pair_match(edges[ix(a)], edges[ix(b)]);
+    };
+    std::vector<double> acc(ix(n), 0.0);
+    for (int seed = 0; seed < n2d; ++seed) {
+      std::vector<int> members{seed};
+      Bits cand = cg.adj[ix(seed)];
+      for_each_bit(cand, [&](int y) { acc[ix(y)] = weight(seed, y); });
+      while (!cand.empty()) {
+        int best = -1;
+        for_each_bit(cand, [&](int y) {
+          if (best < 0 || acc[ix(y)] > acc[ix(best)]) best = y;
+        });
+        members.push_back(best);
+        const auto& nb = cg.adj[ix(best)].words();
+        for (std::size_t i = 0; i < nb.size(); ++i) cand.words()[i] &= nb[i];
+        for_each_bit(cand, [&](int y) { acc[ix(y)] += weight(best, y); });
+      }
+      maximal.push_back(std::move(members));
+    }
   }
-
-  const double wsum =
-      options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
-  const Scorer scorer{graph, L, hierarchy_weight, options, edges, wsum,
-                      fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
-                                                        topology.joint_name(L.joint_b))};
 
   // Candidate bundles: each maximal clique split into (track, 2D members), pruned.
   struct Cand {
@@ -349,12 +378,16 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   };
   auto cmp = [](const Cand& a, const Cand& b) { return a.score < b.score; };
   std::priority_queue<Cand, std::vector<Cand>, decltype(cmp)> queue(cmp);
-  for (auto& m : maximal) {
-    Cand c = make(std::move(m));
-    if (c.members.empty()) continue;
-    c.score = prune_clique(scorer, c.track, c.members);
-    queue.push(std::move(c));
-  }
+  // Prunes and queues a candidate, and queues what pruning removed as candidates of their own.
+  auto push_pruned = [&](Cand c) {
+    while (!c.members.empty()) {
+      std::vector<int> dropped;
+      c.score = prune_clique(scorer, c.track, c.members, dropped);
+      queue.push(std::move(c));
+      c = Cand{0, -1, std::move(dropped)};
+    }
+  };
+  for (auto& m : maximal) push_pruned(make(std::move(m)));
 
   // Take the best; removing its limbs kills every 2D limb sharing a candidate, and its track.
   std::vector<char> dead(ix(n2d), 0);
@@ -367,9 +400,7 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     if (stale) {
       if (c.track >= 0 && track_dead[ix(c.track)]) c.track = -1;
       std::erase_if(c.members, [&](int m) { return dead[ix(m)] != 0; });
-      if (c.members.empty()) continue;
-      c.score = prune_clique(scorer, c.track, c.members);
-      queue.push(std::move(c));
+      push_pruned(std::move(c));
       continue;
     }
     if (c.score < options.min_bundle_score) break;

@@ -122,8 +122,6 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
   const std::size_t old_tracks = tracks_.size();
   std::vector<char> claimed(old_tracks, 0);
   std::vector<Observation> obs;
-  std::vector<TriangulatedPoint> pts(ix(J));
-  std::vector<float> conf(ix(J));
   struct Output {
     std::size_t track;
     std::vector<int> candidate;
@@ -140,7 +138,11 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
   // Persons with more evidence first, so fragments do not steal tracks.
   std::sort(persons_.begin(), persons_.end(),
             [](const auto& a, const auto& b) { return a.assignment_count > b.assignment_count; });
-  for (const PersonAssignment& p : persons_) {
+  // Triangulates person p's joints into pts/conf; returns the number of valid joints.
+  auto triangulate_person = [&](const PersonAssignment& p, std::vector<TriangulatedPoint>& pts,
+                                std::vector<float>& conf) {
+    pts.resize(ix(J));
+    conf.resize(ix(J));
     int valid = 0;
     for (int j = 0; j < J; ++j) {
       obs.clear();
@@ -172,6 +174,59 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
             static_cast<float>(std::min(1.0, score_sum / static_cast<double>(obs.size())));
       }
     }
+    return valid;
+  };
+  const std::size_t P = persons_.size();
+  person_pts_.resize(P);
+  person_conf_.resize(P);
+  std::vector<int> person_valid(P);
+  for (std::size_t i = 0; i < P; ++i) {
+    person_valid[i] = triangulate_person(persons_[i], person_pts_[i], person_conf_[i]);
+  }
+
+  // One person split in two (e.g. tracking edges in only some views make the tracked views
+  // and the others separate bundles): merge persons whose 2D assignments do not contradict
+  // and whose 3D joints coincide.
+  std::vector<char> merged_away(P, 0);
+  for (std::size_t a = 0; a < P; ++a) {
+    if (merged_away[a]) continue;
+    for (std::size_t b = a + 1; b < P; ++b) {
+      if (merged_away[b]) continue;
+      PersonAssignment& pa = persons_[a];
+      const PersonAssignment& pb = persons_[b];
+      if (pa.track >= 0 && pb.track >= 0 && pa.track != pb.track) continue;
+      bool compatible = true;
+      for (std::size_t s = 0; s < pa.k.size() && compatible; ++s) {
+        compatible = !(pa.k[s] >= 0 && pb.k[s] >= 0 && pa.k[s] != pb.k[s]);
+      }
+      if (!compatible) continue;
+      double sum = 0;
+      int n = 0;
+      for (int j = 0; j < J; ++j) {
+        if (!person_pts_[a][ix(j)].valid || !person_pts_[b][ix(j)].valid) continue;
+        sum += (person_pts_[a][ix(j)].X_m - person_pts_[b][ix(j)].X_m).norm();
+        ++n;
+      }
+      if (n < 3 || sum / n > topt.fragment_merge_max_mean_dist_m) continue;
+      for (std::size_t s = 0; s < pa.k.size(); ++s) {
+        if (pa.k[s] < 0 && pb.k[s] >= 0) {
+          pa.k[s] = pb.k[s];
+          ++pa.assignment_count;
+        }
+      }
+      if (pa.track < 0) pa.track = pb.track;
+      merged_away[b] = 1;
+      ++st.fragments_merged;
+      person_valid[a] = triangulate_person(pa, person_pts_[a], person_conf_[a]);
+    }
+  }
+
+  for (std::size_t pi = 0; pi < P; ++pi) {
+    if (merged_away[pi]) continue;
+    const PersonAssignment& p = persons_[pi];
+    const std::vector<TriangulatedPoint>& pts = person_pts_[pi];
+    std::vector<float>& conf = person_conf_[pi];
+    const int valid = person_valid[pi];
     if (valid == 0) continue;
 
     // Which track: the one its bundles were attached to, else a close unclaimed one, else new.

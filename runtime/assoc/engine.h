@@ -15,6 +15,7 @@
 #include "runtime/assoc/bundles.h"
 #include "runtime/assoc/graph.h"
 #include "runtime/assoc/options.h"
+#include "runtime/assoc/triangulate.h"
 #include "runtime/core/error.h"
 #include "runtime/fit/skeleton_fitter.h"
 #include "runtime/geometry/camera.h"
@@ -33,6 +34,7 @@ struct FrameStats {
   ParsingStats parsing;
   int bundles = 0;
   AssemblyStats assembly;
+  int fragments_merged = 0;  // persons merged after triangulation (one person split in two)
   int persons = 0;  // persons output this frame
   int births = 0;
   int deaths = 0;
@@ -103,6 +105,8 @@ class Engine {
   std::vector<TrackPose> track_poses_;
   std::vector<Bundle> bundles_;
   std::vector<PersonAssignment> persons_;
+  std::vector<std::vector<TriangulatedPoint>> person_pts_;
+  std::vector<std::vector<float>> person_conf_;
 };
 
 }  // namespace mocap::assoc

@@ -51,6 +51,8 @@ Status TrackingOptions::validate() const {
   MOCAP_CHECK(min_joints_new_track >= 1, "tracking.min_joints_new_track", "must be >= 1");
   MOCAP_CHECK(max_missed_frames >= 0, "tracking.max_missed_frames", "must be >= 0");
   MOCAP_CHECK(reattach_max_mean_dist_m >= 0, "tracking.reattach_max_mean_dist_m", "must be >= 0");
+  MOCAP_CHECK(fragment_merge_max_mean_dist_m >= 0, "tracking.fragment_merge_max_mean_dist_m",
+              "must be >= 0");
   return Status::Ok();
 }
 

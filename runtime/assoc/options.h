@@ -45,9 +45,10 @@ struct CliqueOptions {
   double w_view = 2.0;
   double w_hier = 0.5;
   double view_welsch_c = 1.5;
-  // Bound on the work per limb type and frame: maximal cliques enumerated. Hitting it is
-  // counted in FrameStats::clique_cap_hits and logged, never silent.
-  int max_cliques_per_limb = 4096;
+  // Bound on the work per limb type and frame: maximal cliques enumerated exhaustively
+  // (Bron–Kerbosch). Past it the limb type switches to greedy clique growth from every 2D limb
+  // (linear in the nodes); each switch is counted in ParsingStats::clique_cap_hits.
+  int max_cliques_per_limb = 512;
   // Bundles below this score are not used.
   double min_bundle_score = 0.0;
   // A bundle seen in >= 2 views is triangulated; when its 3D limb length falls outside
@@ -69,6 +70,9 @@ struct TrackingOptions {
   // A person with no tracking edge can still continue a track whose last pose is this close
   // (mean distance over common joints, metres).
   double reattach_max_mean_dist_m = 0.35;
+  // Two assembled persons whose 2D assignments do not contradict and whose triangulated
+  // joints lie within this mean distance (over >= 3 common joints) are one person.
+  double fragment_merge_max_mean_dist_m = 0.15;
 
   Status validate() const;
 };

@@ -185,7 +185,10 @@ Status FitOptions::validate() const {
   if (confident_min_views < 2) return bad("fit.confident_min_views", "must be >= 2");
   if (max_iterations < 1) return bad("fit.max_iterations", "must be >= 1");
   if (!(bone_sample_tolerance > 0)) return bad("fit.bone_sample_tolerance", "must be > 0");
-  if (!(up.norm() > 0.5)) return bad("fit.up", "must be a non-zero direction");
+  if (!(up.norm() > 0.5) || !up.allFinite()) return bad("fit.up", "must be a non-zero direction");
+  if (!(predicted_joint_confidence >= 0.f && predicted_joint_confidence <= 1.f)) {
+    return bad("fit.predicted_joint_confidence", "must be in [0, 1]");
+  }
   return Status::Ok();
 }
 
@@ -229,7 +232,10 @@ SkeletonFitter::SkeletonFitter(const SkeletonTopology& topology, const FitOption
     const int p = parents_[ix(j)];
     if (p >= 0) {
       template_length_m_[ix(j)] = template_bone_length_m(topology.joint_name(p), topology.joint_name(j));
-      rest_dir_[ix(j)] = template_rest_direction(topology.joint_name(p), topology.joint_name(j));
+      // The template's rest pose is z-up; turn it to the configured world up.
+      rest_dir_[ix(j)] =
+          Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), options.up.normalized()) *
+          template_rest_direction(topology.joint_name(p), topology.joint_name(j));
     }
     std::string g;
     const int side = side_of(topology.joint_name(j), &g);

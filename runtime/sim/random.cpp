@@ -23,13 +23,15 @@ double Rng::normal() {
     has_spare_ = false;
     return spare_;
   }
-  // Marsaglia's polar method: two normals per accepted point, no trigonometry.
+  // Marsaglia's polar method: two normals per accepted point, no trigonometry. Both
+  // coordinates come from one 64-bit draw (32 bits each, ample for noise).
   double u = 0.0;
   double v = 0.0;
   double s = 0.0;
   do {
-    u = 2.0 * uniform() - 1.0;
-    v = 2.0 * uniform() - 1.0;
+    const std::uint64_t bits = engine_();
+    u = static_cast<double>(bits >> 32) * 0x1.0p-31 - 1.0;
+    v = static_cast<double>(bits & 0xFFFFFFFFULL) * 0x1.0p-31 - 1.0;
     s = u * u + v * v;
   } while (s >= 1.0 || s == 0.0);
   const double f = std::sqrt(-2.0 * std::log(s) / s);

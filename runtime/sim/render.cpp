@@ -269,6 +269,31 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
     }
   }
 
+  // Persons whose image boxes are far apart cannot confuse each other's limbs: the support
+  // below vanishes beyond 3 sigma, sigma is at most a quarter of the box diagonal, and
+  // candidates stray from their joints by jitter and occlusion displacement.
+  const double slack_px = 2.0 * noise.occlusion_radius_px + 6.0 * noise.jitter_px + 10.0;
+  near_.assign(ix(persons_) * ix(persons_), 0);
+  for (int p = 0; p < persons_; ++p) {
+    const PersonView& a = person_view_[ix(p)];
+    if (!a.any) continue;
+    const double reach_a = 3.0 * std::max(kConfusionMinSigma_px,
+                                          kConfusionSigmaFraction * (a.box_max - a.box_min).norm());
+    for (int q = p + 1; q < persons_; ++q) {
+      const PersonView& b = person_view_[ix(q)];
+      if (!b.any) continue;
+      const double reach_b =
+          3.0 *
+          std::max(kConfusionMinSigma_px, kConfusionSigmaFraction * (b.box_max - b.box_min).norm());
+      const double margin = std::max(reach_a, reach_b) + slack_px;
+      const bool apart =
+          a.box_max.x() + margin < b.box_min.x() || b.box_max.x() + margin < a.box_min.x() ||
+          a.box_max.y() + margin < b.box_min.y() || b.box_max.y() + margin < a.box_min.y();
+      near_[ix(p) * ix(persons_) + ix(q)] = apart ? 0 : 1;
+      near_[ix(q) * ix(persons_) + ix(p)] = apart ? 0 : 1;
+    }
+  }
+
   // Limb affinities.
   const double log_no_false_affinity = std::log1p(-kFalseAffinityProbability);
   for (int l = 0; l < topology.limb_count(); ++l) {
@@ -320,6 +345,7 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
       if (d_sq > 9.0 * e.sigma_sq) return 0.0;
       return std::exp(-0.5 * d_sq / e.sigma_sq);
     };
+    col_ends_.reserve(expected);
     col_ends_.resize(ix(cols));
     for (int c = 0; c < cols; ++c) end_of(cb[ix(c)], limb.joint_a, col_ends_[ix(c)]);
     for (int r = 0; r < rows; ++r) {
@@ -332,6 +358,9 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
           double v = noise.true_affinity_mean + rng_.normal(0.0, noise.affinity_noise);
           if (a.displaced || b.displaced) v *= kDisplacedFactor;
           m.at(r, c) = clamp_unit(v);
+          continue;
+        }
+        if (a.owner >= 0 && b.owner >= 0 && !near_[ix(a.owner) * ix(persons_) + ix(b.owner)]) {
           continue;
         }
         const double s = std::max(support(row_end, b), support(col_ends_[ix(c)], a));

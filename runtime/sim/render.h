@@ -132,6 +132,7 @@ class DetectionRenderer {
   std::vector<int> occluder_begin_;            // [person] -> first entry in occluders_
   std::vector<int> occluders_;                 // closer persons overlapping each person
   std::vector<double> sigma_sq_;               // [person], confusion width of the current limb
+  std::vector<char> near_;                     // [person * persons + person], boxes close in view
   std::vector<End> col_ends_;                  // [column of the current limb's matrix]
   std::vector<std::vector<Candidate>> cands_;  // [joint]
   Rng rng_;

@@ -326,7 +326,7 @@ void Scene::step() {
   for (int i = 0; i < n; ++i) {
     Person& p = persons_[static_cast<std::size_t>(i)];
     if (p.presence != Presence::kActive) continue;
-    if (!p.entered && p.pos_m.norm() < R - 0.3) p.entered = true;
+    if (!p.entered && p.pos_m.norm() < R - 0.05) p.entered = true;
     if (p.leaving && p.pos_m.norm() >= R + kExitMargin_m) {
       p.presence = Presence::kGone;
       continue;

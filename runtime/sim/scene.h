@@ -4,10 +4,13 @@
 // height 1.55-1.90 m), walks along smooth random paths inside a circular area (heading and
 // speed change smoothly, a walking gait swings legs and arms with a per-person phase), avoids
 // the others (pelvis separation kept above kMinSeparation_m) and stops now and then. With
-// `close_interaction`, some pairs meet face to face at ~kMeetDistance_m and raise a hand;
-// with `enter_leave`, some persons enter from outside the area (at the start or after a
-// delay) and one person leaves the scene. Everything is drawn from `seed`: the same options
-// give bit-identical ground truth on every run.
+// `close_interaction`, max(1, stayers / 4) pairs meet face to face at ~kMeetDistance_m
+// every 5-10 s and raise a hand. With `enter_leave` (and at least 2 people), max(1, people / 3)
+// persons enter from kExitMargin_m outside the area's edge, alternately at frame 0 and after
+// a 1-4 s delay, and one other person starts walking out 4-8 s in and vanishes on crossing
+// that line (never to return). Everything is drawn from `seed`: the same options give
+// bit-identical ground truth on every run of the same build (std::mt19937_64 and hand-written
+// transforms; no std:: distributions).
 #pragma once
 
 #include <Eigen/Core>
