@@ -22,8 +22,7 @@ constexpr double kPi = std::numbers::pi;
 // principal point at the centre of a 1000 x 1000 image, no distortion.
 Camera ring_camera(double angle_rad, double radius_m, double height_m,
                    const Eigen::Vector3d& target) {
-  const Eigen::Vector3d c(radius_m * std::cos(angle_rad), radius_m * std::sin(angle_rad),
-                          height_m);
+  const Eigen::Vector3d c(radius_m * std::cos(angle_rad), radius_m * std::sin(angle_rad), height_m);
   const Eigen::Vector3d z = (target - c).normalized();
   const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
   const Eigen::Vector3d y = z.cross(x);
@@ -58,8 +57,8 @@ ViewDetections make_view(int view_id, const SkeletonTopology& topo,
   v.candidates.resize(static_cast<std::size_t>(topo.joint_count()));
   for (std::size_t j = 0; j < per_joint.size(); ++j) {
     for (const Cand& c : per_joint[j]) {
-      v.candidates[j].push_back(JointCandidate{static_cast<float>(c.px.x()),
-                                               static_cast<float>(c.px.y()), c.score});
+      v.candidates[j].push_back(
+          JointCandidate{static_cast<float>(c.px.x()), static_cast<float>(c.px.y()), c.score});
     }
   }
   for (int l = 0; l < topo.limb_count(); ++l) {
@@ -99,9 +98,9 @@ class GraphTest : public ::testing::Test {
 
 TEST_F(GraphTest, RaysThatMeetHaveMatchingProbabilityOne) {
   const Eigen::Vector3d X(0.1, -0.2, 1.3);
-  const DetectionSet d = set({make_view(0, topo_, {{{px(0, X)}}, {}}),
-                              make_view(1, topo_, {{{px(1, X)}}, {}}),
-                              make_view(2, topo_, {{{px(2, X)}}, {}})});
+  const DetectionSet d =
+      set({make_view(0, topo_, {{{px(0, X)}}, {}}), make_view(1, topo_, {{{px(1, X)}}, {}}),
+           make_view(2, topo_, {{{px(2, X)}}, {}})});
   FrameGraph g;
   ASSERT_TRUE(g.build(d, cams_, {}, opt_).ok());
   EXPECT_EQ(g.view_count(), 3);
@@ -312,10 +311,37 @@ TEST_F(GraphTest, LowScoreCandidatesAreSkippedAndIndicesKept) {
   EXPECT_EQ(g.limb_edges(0).size(), 0u);
 }
 
+TEST_F(GraphTest, CandidateCapKeepsTheBestScoringInListOrder) {
+  const Eigen::Vector3d X(0.0, 0.0, 1.0);
+  const Eigen::Vector2d p = px(0, X);
+  // Scores 0.3, 0.9, 0.5, 0.8, 0.2 in view 0; cap 2 keeps indices 1 and 3.
+  ViewDetections v0 =
+      make_view(0, topo_, {{{p, 0.3f}, {p, 0.9f}, {p, 0.5f}, {p, 0.8f}, {p, 0.2f}}, {{p, 0.7f}}});
+  v0.affinities[0].at(2, 0) = 1.0f;  // from a dropped candidate
+  v0.affinities[0].at(3, 0) = 1.0f;
+  const DetectionSet d = set({v0, make_view(1, topo_, {{{px(1, X), 0.4f}}, {}})});
+  GraphOptions o = opt_;
+  o.max_candidates_per_view_joint = 2;
+  FrameGraph g;
+  ASSERT_TRUE(g.build(d, cams_, {}, o).ok());
+  EXPECT_EQ(g.candidates_dropped(), 3);
+  ASSERT_EQ(g.candidate_count(0), 3);
+  EXPECT_EQ(g.candidates(0)[0].index, 1);
+  EXPECT_EQ(g.candidates(0)[1].index, 3);
+  EXPECT_EQ(g.candidates(0)[2].view, 1);
+  ASSERT_EQ(g.limb_edges(0).size(), 1u);
+  EXPECT_EQ(g.limb_edges(0)[0].ka, 1);  // graph number of index 3
+  // Without the cap nothing is dropped.
+  ASSERT_TRUE(g.build(d, cams_, {}, opt_).ok());
+  EXPECT_EQ(g.candidates_dropped(), 0);
+  EXPECT_EQ(g.candidate_count(0), 6);
+  EXPECT_EQ(g.limb_edges(0).size(), 2u);
+}
+
 TEST_F(GraphTest, ViewWithoutCameraIsAnErrorNamingFrameAndView) {
   const Eigen::Vector3d X(0.0, 0.0, 1.0);
-  DetectionSet d = set({make_view(0, topo_, {{{px(0, X)}}, {}}),
-                        make_view(5, topo_, {{{px(1, X)}}, {}})});
+  DetectionSet d =
+      set({make_view(0, topo_, {{{px(0, X)}}, {}}), make_view(5, topo_, {{{px(1, X)}}, {}})});
   FrameGraph g;
   const Status s = g.build(d, cams_, {}, opt_);
   ASSERT_FALSE(s.ok());

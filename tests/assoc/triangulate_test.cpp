@@ -1,1 +1,137 @@
+// Consensus triangulation of one joint from hand-made observations.
+#include "runtime/assoc/triangulate.h"
+
 #include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+namespace mocap::assoc {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+Camera ring_camera(double angle_rad, double radius_m, double height_m,
+                   const Eigen::Vector3d& target) {
+  const Eigen::Vector3d c(radius_m * std::cos(angle_rad), radius_m * std::sin(angle_rad), height_m);
+  const Eigen::Vector3d z = (target - c).normalized();
+  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d R;
+  R.row(0) = x.transpose();
+  R.row(1) = y.transpose();
+  R.row(2) = z.transpose();
+  Eigen::Matrix3d K;
+  K << 1000, 0, 500, 0, 1000, 500, 0, 0, 1;
+  return Camera(K, Distortion{}, 1000, 1000, R, -R * c);
+}
+
+class TriangulateTest : public ::testing::Test {
+ protected:
+  TriangulateTest() {
+    for (int v = 0; v < 4; ++v) {
+      cams_.push_back(ring_camera(kPi / 2 * v + 0.4, 4.0, 1.0 + 0.4 * v, Eigen::Vector3d(0, 0, 1)));
+    }
+  }
+
+  Observation obs(int view, const Eigen::Vector3d& X, Eigen::Vector2d offset_px = {0, 0},
+                  double weight = 1.0) const {
+    const Camera& cam = cams_[static_cast<std::size_t>(view)];
+    Observation o;
+    o.view = view;
+    o.px = *cam.project(X) + offset_px;
+    o.ray = cam.backproject(o.px);
+    o.weight = weight;
+    return o;
+  }
+
+  std::vector<Camera> cams_;
+  TriangulationOptions opt_;
+  const Eigen::Vector3d X_{0.3, -0.25, 1.35};
+};
+
+TEST_F(TriangulateTest, ExactFromTwoViews) {
+  const std::vector<Observation> o = {obs(1, X_), obs(3, X_)};
+  const TriangulatedPoint p = triangulate(o, cams_, opt_);
+  ASSERT_TRUE(p.valid);
+  EXPECT_LT((p.X_m - X_).norm(), 1e-9);
+  EXPECT_EQ(p.views_used, 2);
+  EXPECT_EQ(p.view_mask, (1u << 1) | (1u << 3));
+  EXPECT_LT(p.max_reprojection_error_px, 1e-6);
+}
+
+TEST_F(TriangulateTest, ExactFromFourViews) {
+  const std::vector<Observation> o = {obs(0, X_, {0, 0}, 0.9), obs(1, X_, {0, 0}, 0.5),
+                                      obs(2, X_, {0, 0}, 0.7), obs(3, X_, {0, 0}, 1.0)};
+  const TriangulatedPoint p = triangulate(o, cams_, opt_);
+  ASSERT_TRUE(p.valid);
+  EXPECT_LT((p.X_m - X_).norm(), 1e-9);
+  EXPECT_EQ(p.views_used, 4);
+  EXPECT_EQ(p.view_mask, 0xFu);
+  EXPECT_LT(p.max_reprojection_error_px, 1e-6);
+}
+
+TEST_F(TriangulateTest, OutlierViewIsRejected) {
+  for (int bad = 0; bad < 4; ++bad) {
+    std::vector<Observation> o;
+    for (int v = 0; v < 4; ++v) {
+      o.push_back(obs(v, X_, v == bad ? Eigen::Vector2d(100, 0) : Eigen::Vector2d(0, 0)));
+    }
+    const TriangulatedPoint p = triangulate(o, cams_, opt_);
+    ASSERT_TRUE(p.valid) << "outlier in view " << bad;
+    EXPECT_EQ(p.views_used, 3);
+    EXPECT_EQ(p.view_mask, 0xFu & ~(1u << bad)) << "outlier in view " << bad;
+    EXPECT_LT((p.X_m - X_).norm(), 1e-9);
+    EXPECT_LT(p.max_reprojection_error_px, 1e-6);
+  }
+}
+
+TEST_F(TriangulateTest, OutlierWithHighestWeightIsStillRejected) {
+  std::vector<Observation> o = {obs(0, X_, {0, 0}, 0.5), obs(1, X_, {0, -100}, 1.0),
+                                obs(2, X_, {0, 0}, 0.5), obs(3, X_, {0, 0}, 0.5)};
+  const TriangulatedPoint p = triangulate(o, cams_, opt_);
+  ASSERT_TRUE(p.valid);
+  EXPECT_EQ(p.view_mask, 0b1101u);
+  EXPECT_LT((p.X_m - X_).norm(), 1e-9);
+}
+
+TEST_F(TriangulateTest, SmallNoiseStaysWithinThreshold) {
+  const std::vector<Observation> o = {obs(0, X_, {1.5, -0.5}), obs(1, X_, {-1, 1}),
+                                      obs(2, X_, {0.5, 0.5}), obs(3, X_, {-0.5, -1.5})};
+  const TriangulatedPoint p = triangulate(o, cams_, opt_);
+  ASSERT_TRUE(p.valid);
+  EXPECT_EQ(p.views_used, 4);
+  EXPECT_LT((p.X_m - X_).norm(), 0.01);
+  EXPECT_GT(p.max_reprojection_error_px, 0.0);
+  EXPECT_LT(p.max_reprojection_error_px, 3.0);
+}
+
+TEST_F(TriangulateTest, TooFewViewsIsInvalid) {
+  EXPECT_FALSE(triangulate(std::vector<Observation>{}, cams_, opt_).valid);
+  const std::vector<Observation> one = {obs(2, X_)};
+  const TriangulatedPoint p1 = triangulate(one, cams_, opt_);
+  EXPECT_FALSE(p1.valid);
+  EXPECT_EQ(p1.views_used, 0);
+  EXPECT_EQ(p1.view_mask, 0u);
+
+  TriangulationOptions three = opt_;
+  three.min_views = 3;
+  const std::vector<Observation> two = {obs(0, X_), obs(2, X_)};
+  EXPECT_FALSE(triangulate(two, cams_, three).valid);
+  // Three views of which one is an outlier: only two agree.
+  const std::vector<Observation> two_agree = {obs(0, X_), obs(1, X_, {100, 100}), obs(2, X_)};
+  EXPECT_FALSE(triangulate(two_agree, cams_, three).valid);
+  EXPECT_TRUE(triangulate(two_agree, cams_, opt_).valid);
+}
+
+TEST_F(TriangulateTest, TwoDisagreeingViewsAreInvalid) {
+  // View 1 sees a point 1 m above: the least-squares point reprojects far from both.
+  const std::vector<Observation> o = {obs(0, X_), obs(1, X_ + Eigen::Vector3d(0, 0, 1.0))};
+  ASSERT_GT(ray_ray_distance_m(o[0].ray, o[1].ray), 0.3);
+  EXPECT_FALSE(triangulate(o, cams_, opt_).valid);
+}
+
+}  // namespace
+}  // namespace mocap::assoc

@@ -24,8 +24,8 @@ constexpr double kMatchMaxPelvisDist_m = 0.5;
 
 struct EndToEndStats {
   int frames_scored = 0;
-  int count_correct = 0;     // frames where #output persons == #ground-truth persons
-  double mpjpe_m = 0;        // over matched persons, joints with confidence > 0
+  int count_correct = 0;  // frames where #output persons == #ground-truth persons
+  double mpjpe_m = 0;     // over matched persons, joints with confidence > 0
   long joints_scored = 0;
   int id_switches = 0;       // a ground-truth person matched to a different track id
   int missed = 0;            // ground-truth persons without a match (summed over frames)
@@ -78,7 +78,8 @@ EndToEndStats run_end_to_end(const RigOptions& rig, const SceneOptions& scene,
     for (int g = 0; g < rows; ++g) {
       for (int o = 0; o < cols; ++o) {
         cost[static_cast<std::size_t>(g * cols + o)] =
-            (gt[static_cast<std::size_t>(g)].joints_m[0] - out[static_cast<std::size_t>(o)].joints_m[0])
+            (gt[static_cast<std::size_t>(g)].joints_m[0] -
+             out[static_cast<std::size_t>(o)].joints_m[0])
                 .norm();
       }
     }

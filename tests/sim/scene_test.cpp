@@ -210,8 +210,7 @@ TEST(SimScene, PeopleCountFollowsEnteringAndLeaving) {
         }
         // Only the leaver ever leaves, and never before its leave frame.
         if (f > prof.appear_frame && (prof.leave_frame < 0 || f <= prof.leave_frame)) {
-          EXPECT_TRUE(present) << "seed " << seed << " person " << prof.person_id << " frame "
-                               << f;
+          EXPECT_TRUE(present) << "seed " << seed << " person " << prof.person_id << " frame " << f;
         }
         if (!present && f > prof.appear_frame) gone.insert(prof.person_id);
         if (gone.count(prof.person_id)) {

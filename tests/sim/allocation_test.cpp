@@ -1,0 +1,50 @@
+// Steady-state rendering allocates nothing: this file replaces the global operator new of the
+// sim_test binary with a counting one (counting only while a test asks for it).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include "runtime/sim/simulator.h"
+#include "runtime/skeleton/topology.h"
+
+namespace {
+std::atomic<long> g_allocations{0};
+std::atomic<bool> g_counting{false};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (g_counting.load(std::memory_order_relaxed)) {
+    g_allocations.fetch_add(1, std::memory_order_relaxed);
+  }
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace mocap::sim {
+namespace {
+
+TEST(SimAllocation, WarmedUpSimulatorRendersWithoutAllocating) {
+  RigOptions rig;
+  rig.views = 12;
+  SceneOptions scene;
+  scene.people = 10;
+  scene.enter_leave = false;
+  Result<Simulator> sim = Simulator::create(rig, scene, DetectionNoiseOptions{}, body19_topology());
+  ASSERT_TRUE(sim.ok());
+  RenderedFrame out;
+  for (int f = 0; f < 50; ++f) ASSERT_TRUE(sim->next(out).ok());
+  g_allocations = 0;
+  g_counting = true;
+  bool ok = true;
+  for (int f = 0; f < 200; ++f) ok = ok && sim->next(out).ok();
+  g_counting = false;
+  EXPECT_TRUE(ok);
+  EXPECT_EQ(g_allocations.load(), 0);
+}
+
+}  // namespace
+}  // namespace mocap::sim
