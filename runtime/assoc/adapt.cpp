@@ -48,8 +48,9 @@ Status remap_detections(const DetectionSet& in, const JointMapping& m,
     if (static_cast<int>(v.candidates.size()) != from.joint_count() ||
         static_cast<int>(v.affinities.size()) != from.limb_count()) {
       return Error(ErrorCode::kInvalidArgument,
-                   where + "expected " + std::to_string(from.joint_count()) + " candidate lists and " +
-                       std::to_string(from.limb_count()) + " affinity matrices of " + from.name());
+                   where + "expected " + std::to_string(from.joint_count()) +
+                       " candidate lists and " + std::to_string(from.limb_count()) +
+                       " affinity matrices of " + from.name());
     }
     for (int l = 0; l < from.limb_count(); ++l) {
       const AffinityMatrix& a = v.affinities[ix(l)];
@@ -57,9 +58,9 @@ Status remap_detections(const DetectionSet& in, const JointMapping& m,
       if (a.rows != static_cast<int>(v.candidates[ix(L.joint_a)].size()) ||
           a.cols != static_cast<int>(v.candidates[ix(L.joint_b)].size()) ||
           a.values.size() != static_cast<std::size_t>(a.rows) * static_cast<std::size_t>(a.cols)) {
-        return Error(ErrorCode::kInvalidArgument,
-                     where + "affinity matrix of limb " + std::to_string(l) +
-                         " does not match the candidate counts");
+        return Error(ErrorCode::kInvalidArgument, where + "affinity matrix of limb " +
+                                                      std::to_string(l) +
+                                                      " does not match the candidate counts");
       }
     }
   }

@@ -269,7 +269,12 @@ double score_bundle(const FrameGraph& graph, const SkeletonTopology& topology, i
   const double wsum =
       options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
   const Limb& L = topology.limb(limb);
-  Scorer s{graph, L, hierarchy_weight, options, graph.limb_edges(limb), wsum,
+  Scorer s{graph,
+           L,
+           hierarchy_weight,
+           options,
+           graph.limb_edges(limb),
+           wsum,
            fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
                                              topology.joint_name(L.joint_b))};
   return s.score(track, edges);
@@ -314,7 +319,12 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
 
   const double wsum =
       options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
-  const Scorer scorer{graph, L, hierarchy_weight, options, edges, wsum,
+  const Scorer scorer{graph,
+                      L,
+                      hierarchy_weight,
+                      options,
+                      edges,
+                      wsum,
                       fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
                                                         topology.joint_name(L.joint_b))};
 

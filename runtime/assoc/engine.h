@@ -35,7 +35,7 @@ struct FrameStats {
   int bundles = 0;
   AssemblyStats assembly;
   int fragments_merged = 0;  // persons merged after triangulation (one person split in two)
-  int persons = 0;  // persons output this frame
+  int persons = 0;           // persons output this frame
   int births = 0;
   int deaths = 0;
   int tracks = 0;  // live tracks after this frame

@@ -68,9 +68,11 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
       for (std::size_t i = 0; i < list.size(); ++i) order_scratch_[i] = static_cast<int>(i);
       if (static_cast<int>(list.size()) > options.max_candidates_per_view_joint) {
         const auto keep = static_cast<std::ptrdiff_t>(options.max_candidates_per_view_joint);
-        std::partial_sort(order_scratch_.begin(), order_scratch_.begin() + keep, order_scratch_.end(),
+        std::partial_sort(order_scratch_.begin(), order_scratch_.begin() + keep,
+                          order_scratch_.end(),
                           [&](int a, int b) { return list[idx(a)].score > list[idx(b)].score; });
-        candidates_dropped_ += static_cast<int>(list.size()) - options.max_candidates_per_view_joint;
+        candidates_dropped_ +=
+            static_cast<int>(list.size()) - options.max_candidates_per_view_joint;
         order_scratch_.resize(idx(options.max_candidates_per_view_joint));
         std::sort(order_scratch_.begin(), order_scratch_.end());
       }

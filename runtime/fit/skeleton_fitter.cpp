@@ -22,18 +22,18 @@ struct TemplateBone {
   const char* parent;  // "x_" = either side (the child has the same side)
   const char* child;
   double length_m;
-  double dx, dy, dz;   // rest direction in the body frame: x = person's left, y forward, z up;
-                       // dx is given for the left side and mirrored for the right
+  double dx, dy, dz;  // rest direction in the body frame: x = person's left, y forward, z up;
+                      // dx is given for the left side and mirrored for the right
 };
 
 // Adult of ~1.75 m in a T-pose.
 constexpr TemplateBone kTemplate[] = {
-    {"pelvis", "neck", 0.50, 0, 0, 1},          {"pelvis", "x_hip", 0.10, 1, 0, 0},
-    {"neck", "nose", 0.20, 0, 0.3, 1},          {"neck", "x_shoulder", 0.18, 1, 0, 0},
-    {"x_hip", "x_knee", 0.42, 0, 0, -1},        {"x_knee", "x_ankle", 0.41, 0, 0, -1},
-    {"x_shoulder", "x_ear", 0.20, -0.35, 0, 1}, {"x_shoulder", "x_elbow", 0.29, 1, 0, 0},
-    {"x_elbow", "x_wrist", 0.26, 1, 0, 0},      {"x_ankle", "x_big_toe", 0.16, 0, 1, -0.3},
-    {"nose", "x_eye", 0.04, 1, 0.5, 0.5},       {"x_eye", "x_ear", 0.08, 1, -1, 0},
+    {"pelvis", "neck", 0.50, 0, 0, 1},           {"pelvis", "x_hip", 0.10, 1, 0, 0},
+    {"neck", "nose", 0.20, 0, 0.3, 1},           {"neck", "x_shoulder", 0.18, 1, 0, 0},
+    {"x_hip", "x_knee", 0.42, 0, 0, -1},         {"x_knee", "x_ankle", 0.41, 0, 0, -1},
+    {"x_shoulder", "x_ear", 0.20, -0.35, 0, 1},  {"x_shoulder", "x_elbow", 0.29, 1, 0, 0},
+    {"x_elbow", "x_wrist", 0.26, 1, 0, 0},       {"x_ankle", "x_big_toe", 0.16, 0, 1, -0.3},
+    {"nose", "x_eye", 0.04, 1, 0.5, 0.5},        {"x_eye", "x_ear", 0.08, 1, -1, 0},
     {"nose", "x_shoulder", 0.25, 0.6, -0.2, -1}, {"x_shoulder", "x_hip", 0.50, 0, 0, -1},
 };
 
@@ -231,7 +231,8 @@ SkeletonFitter::SkeletonFitter(const SkeletonTopology& topology, const FitOption
   for (int j = 0; j < J; ++j) {
     const int p = parents_[ix(j)];
     if (p >= 0) {
-      template_length_m_[ix(j)] = template_bone_length_m(topology.joint_name(p), topology.joint_name(j));
+      template_length_m_[ix(j)] =
+          template_bone_length_m(topology.joint_name(p), topology.joint_name(j));
       // The template's rest pose is z-up; turn it to the configured world up.
       rest_dir_[ix(j)] =
           Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), options.up.normalized()) *
@@ -270,8 +271,8 @@ void SkeletonFitter::learn(PersonFitState& state, std::span<const Eigen::Vector3
       const double len = (joints_m[ix(j)] - joints_m[ix(p)]).norm();
       const double ref = samples.empty() ? template_length_m_[ix(j)] : median(samples);
       // The first sample is checked loosely against the template, later ones against the median.
-      const double tol = samples.empty() ? 2.0 * options_.bone_sample_tolerance
-                                         : options_.bone_sample_tolerance;
+      const double tol =
+          samples.empty() ? 2.0 * options_.bone_sample_tolerance : options_.bone_sample_tolerance;
       if (std::abs(len - ref) <= tol * ref) samples.push_back(len);
     }
     if (static_cast<int>(samples.size()) < options_.bone_learning_frames) all = false;
@@ -398,16 +399,14 @@ FitResult SkeletonFitter::fit(PersonFitState& state, std::span<const Camera> cam
   return out;
 }
 
-
 // Energy (same as the Ceres formulation): ½Σρ(‖w(π(X_j) − p)‖²) with Huber ρ of scale a, plus
 // ½‖w_t(r − r_prev)‖² + ½Σ‖w_t L_b (u_b − u_b_prev)‖². Parameters: root (3) and one rotation
 // vector per bone acting on its current direction (u ← exp(δ) u, ∂u/∂δ = −[u]×). Huber is
 // handled by iteratively reweighted least squares; steps by Levenberg–Marquardt.
-SkeletonFitter::SolveStats SkeletonFitter::solve_fast(const PersonFitState& state,
-                                                      std::span<const Camera> cameras,
-                                                      std::span<const JointObservation> observations,
-                                                      Eigen::Vector3d& r,
-                                                      std::vector<Eigen::Vector3d>& u) const {
+SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
+    const PersonFitState& state, std::span<const Camera> cameras,
+    std::span<const JointObservation> observations, Eigen::Vector3d& r,
+    std::vector<Eigen::Vector3d>& u) const {
   const int J = topology_->joint_count();
   // Parameter block of each joint's bone: 0 = root, 1 + slot for bones.
   std::vector<int> block(ix(J), -1);
@@ -453,15 +452,17 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(const PersonFitState& stat
       double px[2];
       project_generic(cameras[ix(o.view)], X[ix(o.joint)].data(), px);
       const double w = options_.reprojection_weight * o.score;
-      const double e2 = w * w * ((px[0] - o.px.x()) * (px[0] - o.px.x()) +
-                                 (px[1] - o.px.y()) * (px[1] - o.px.y()));
+      const double e2 =
+          w * w *
+          ((px[0] - o.px.x()) * (px[0] - o.px.x()) + (px[1] - o.px.y()) * (px[1] - o.px.y()));
       c += 0.5 * huber(e2);
     }
     if (wt > 0) {
       c += 0.5 * wt * wt * (rr - state.root_prev).squaredNorm();
       for (int j = 0; j < J; ++j) {
         if (parents_[ix(j)] < 0) continue;
-        c += 0.5 * wt * wt * L[ix(j)] * L[ix(j)] * (uu[ix(j)] - state.dir_prev[ix(j)]).squaredNorm();
+        c +=
+            0.5 * wt * wt * L[ix(j)] * L[ix(j)] * (uu[ix(j)] - state.dir_prev[ix(j)]).squaredNorm();
       }
     }
     return c;
@@ -507,7 +508,9 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(const PersonFitState& stat
       Jb.resize(path.size());
       for (std::size_t i = 0; i < path.size(); ++i) {
         const int q = path[i];
-        Jb[i] = parents_[ix(q)] < 0 ? Jp : Eigen::Matrix<double, 2, 3>(Jp * (-L[ix(q)] * skew(u[ix(q)])));
+        Jb[i] = parents_[ix(q)] < 0
+                    ? Jp
+                    : Eigen::Matrix<double, 2, 3>(Jp * (-L[ix(q)] * skew(u[ix(q)])));
       }
       for (std::size_t i = 0; i < path.size(); ++i) {
         const int bi = 3 * (parents_[ix(path[i])] < 0 ? 0 : block[ix(path[i])]);
@@ -560,7 +563,8 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(const PersonFitState& stat
         if (parents_[ix(j)] < 0) continue;
         const Eigen::Vector3d d = delta.segment<3>(3 * block[ix(j)]);
         const double angle = d.norm();
-        if (angle > 1e-12) u2[ix(j)] = (Eigen::AngleAxisd(angle, d / angle) * u[ix(j)]).normalized();
+        if (angle > 1e-12)
+          u2[ix(j)] = (Eigen::AngleAxisd(angle, d / angle) * u[ix(j)]).normalized();
       }
       const double c2 = cost(r2, u2);
       if (c2 < current) {
@@ -580,11 +584,10 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(const PersonFitState& stat
   return SolveStats{true, current, it};
 }
 
-SkeletonFitter::SolveStats SkeletonFitter::solve_ceres(const PersonFitState& state,
-                                                       std::span<const Camera> cameras,
-                                                       std::span<const JointObservation> observations,
-                                                       Eigen::Vector3d& r,
-                                                       std::vector<Eigen::Vector3d>& u) const {
+SkeletonFitter::SolveStats SkeletonFitter::solve_ceres(
+    const PersonFitState& state, std::span<const Camera> cameras,
+    std::span<const JointObservation> observations, Eigen::Vector3d& r,
+    std::vector<Eigen::Vector3d>& u) const {
   const int J = topology_->joint_count();
   const int root = order_.front();
   ceres::Problem::Options popt;
@@ -622,8 +625,9 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_ceres(const PersonFitState& sta
     problem.AddResidualBlock(new AnchorCost(state.root_prev, wt), nullptr, r.data());
     for (int j = 0; j < J; ++j) {
       if (parents_[ix(j)] < 0) continue;
-      problem.AddResidualBlock(new AnchorCost(state.dir_prev[ix(j)], wt * state.bone_length_m[ix(j)]),
-                               nullptr, u[ix(j)].data());
+      problem.AddResidualBlock(
+          new AnchorCost(state.dir_prev[ix(j)], wt * state.bone_length_m[ix(j)]), nullptr,
+          u[ix(j)].data());
     }
   }
   // Bones that no residual touches are held constant (Ceres needs them determined).
@@ -648,7 +652,6 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_ceres(const PersonFitState& sta
   ceres::Solver::Summary summary;
   ceres::Solve(sopt, &problem, &summary);
   return SolveStats{true, summary.final_cost, static_cast<int>(summary.iterations.size())};
-
 }
 
 }  // namespace mocap::fit

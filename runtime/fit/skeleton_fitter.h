@@ -46,11 +46,11 @@ inline constexpr int kMaxFitJoints = 32;
 struct FitOptions {
   bool enabled = true;
   FitSolver solver = FitSolver::kFast;
-  double reprojection_weight = 1.0;     // multiplies the detection score
-  double robust_loss_px = 8.0;          // Huber scale of the reprojection term
+  double reprojection_weight = 1.0;        // multiplies the detection score
+  double robust_loss_px = 8.0;             // Huber scale of the reprojection term
   double temporal_weight_px_per_m = 40.0;  // smoothness: pixels of cost per metre of motion
-  int bone_learning_frames = 5;         // confident samples per bone before fitting starts
-  int confident_min_views = 3;          // a confident joint is triangulated from this many views
+  int bone_learning_frames = 5;            // confident samples per bone before fitting starts
+  int confident_min_views = 3;             // a confident joint is triangulated from this many views
   int max_iterations = 5;
   // Samples whose length is off the running median by more than this fraction are ignored.
   double bone_sample_tolerance = 0.3;
@@ -79,12 +79,12 @@ struct PersonFitState {
   bool lengths_ready = false;
   bool has_previous = false;
   Eigen::Vector3d root_prev = Eigen::Vector3d::Zero();
-  std::vector<Eigen::Vector3d> dir_prev;            // [joint]
+  std::vector<Eigen::Vector3d> dir_prev;  // [joint]
 };
 
 struct FitResult {
-  bool fitted = false;                   // false while bone lengths are still being learned
-  std::vector<Eigen::Vector3d> joints_m;  // [joint]
+  bool fitted = false;                        // false while bone lengths are still being learned
+  std::vector<Eigen::Vector3d> joints_m;      // [joint]
   std::vector<Eigen::Quaterniond> rotations;  // [joint] local rotations
   double final_cost = 0;
   int iterations = 0;
@@ -129,10 +129,10 @@ class SkeletonFitter {
   const SkeletonTopology* topology_;
   FitOptions options_;
   std::vector<int> parents_;
-  std::vector<int> order_;                    // joints in BFS order (parents first)
-  std::vector<double> template_length_m_;     // [joint]
-  std::vector<Eigen::Vector3d> rest_dir_;     // [joint] T-pose bone direction (z up, x = left)
-  std::vector<int> mirror_;                   // [joint] l_/r_ counterpart or -1
+  std::vector<int> order_;                 // joints in BFS order (parents first)
+  std::vector<double> template_length_m_;  // [joint]
+  std::vector<Eigen::Vector3d> rest_dir_;  // [joint] T-pose bone direction (z up, x = left)
+  std::vector<int> mirror_;                // [joint] l_/r_ counterpart or -1
 };
 
 // Template bone length (metres, adult ~1.75 m) and rest direction for a bone joint_a ->

@@ -51,7 +51,8 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   sim::RigOptions rig;
   rig.views = views;
   rig.radius_m = scene.area_radius_m + 2.5;
-  auto simulator = sim::Simulator::create(rig, scene, sim::DetectionNoiseOptions{}, body19_topology());
+  auto simulator =
+      sim::Simulator::create(rig, scene, sim::DetectionNoiseOptions{}, body19_topology());
   if (!simulator.ok()) {
     std::fprintf(stderr, "error: %s\n", simulator.error().message().c_str());
     return 1;

@@ -1,0 +1,60 @@
+// Shelf regression: the whole sequence through the engine, scored by strict PCP.
+//
+// The target is avg PCP >= 98.6 (A1-A3); what the engine measures today is asserted
+// here as a floor so a regression fails the suite. Raise kFloor as the engine improves.
+#include <gtest/gtest.h>
+
+#include "runtime/eval/shelf_pcp.h"
+#include "runtime/eval/shelf_sequence.h"
+#include "runtime/io/shelf_gt.h"
+#include "tests/support/data.h"
+
+namespace mocap {
+namespace {
+
+constexpr double kFloorAllViews = 95.5;   // measured 95.71 (5 views)
+constexpr double kFloorThreeViews = 89.0;  // measured 89.9-91.8 over the 3-view subsets tried
+
+PcpReport run(const std::filesystem::path& dir, std::vector<int> views) {
+  ShelfRunOptions opt;
+  opt.views = std::move(views);
+  auto r = run_shelf_sequence(dir, opt);
+  EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.error().message());
+  auto gt = load_shelf_gt(dir / "gt.txt");
+  EXPECT_TRUE(gt.ok());
+  if (!r.ok() || !gt.ok()) return {};
+  auto rep = evaluate_shelf_pcp(*gt, r->estimates);
+  EXPECT_TRUE(rep.ok());
+  return rep.ok() ? *rep : PcpReport{};
+}
+
+TEST(ShelfRegression, AllViewsStrictPcpAndNoIdSwitches) {
+  MOCAP_REQUIRE_DATA(dir, "shelf");
+  const PcpReport rep = run(dir, {});
+  EXPECT_GE(rep.avg_pcp, kFloorAllViews) << format_report(rep);
+  for (const ActorPcp& a : rep.actors) {
+    EXPECT_EQ(a.unmatched_frames, 0) << a.name;
+    EXPECT_EQ(a.id_switches, 0) << a.name;
+  }
+}
+
+TEST(ShelfRegression, ThreeViewSubsetsDoNotCollapse) {
+  MOCAP_REQUIRE_DATA(dir, "shelf");
+  for (const std::vector<int>& views :
+       {std::vector<int>{0, 1, 2}, std::vector<int>{0, 2, 4}, std::vector<int>{2, 3, 4}}) {
+    const PcpReport rep = run(dir, views);
+    EXPECT_GE(rep.avg_pcp, kFloorThreeViews) << "views " << views[0] << views[1] << views[2];
+  }
+}
+
+TEST(ShelfRegression, UnknownViewIsAClearError) {
+  MOCAP_REQUIRE_DATA(dir, "shelf");
+  ShelfRunOptions opt;
+  opt.views = {0, 7};
+  auto r = run_shelf_sequence(dir, opt);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message().find("view 7"), std::string::npos) << r.error().message();
+}
+
+}  // namespace
+}  // namespace mocap
