@@ -187,9 +187,16 @@ struct Scorer {
     }
     // An implausible limb scores below every real bundle, so pruning drops a view from it.
     if (check_length && !plausible_length(Aa, ba, Ab, bb)) return -1.0;
+    return combine(n, paf, match, track >= 0, trk);
+  }
+
+  // The documented score from the clique's sums (n 2D limbs, Σ parsing, Σ pairwise matching,
+  // Σ tracking).
+  double combine(int n, double paf, double match, bool has_track, double trk) const {
+    if (n == 0) return 0;
     const double e_paf = paf / n;
     const double e_match = n > 1 ? match / (0.5 * n * (n - 1)) : 0.0;
-    const double e_track = track >= 0 ? trk / n : 0.0;
+    const double e_track = has_track ? trk / n : 0.0;
     const double r = n / opt.view_welsch_c;
     const double e_view = 1.0 - std::exp(-0.5 * r * r);
     return (opt.w_match * e_match + opt.w_track * e_track + opt.w_paf * e_paf +
@@ -200,41 +207,123 @@ struct Scorer {
 
 // Greedy pruning: drop the member whose removal raises the score most, while it does. Dropped
 // 2D members are appended to `dropped` (they remain pairwise compatible, so the caller can
-// offer them as a clique of their own: nothing is lost by pruning).
+// offer them as a clique of their own: nothing is lost by pruning). Incremental: the clique's
+// sums (parsing, pairwise matching per member, tracking, ray normal equations) are kept, so
+// each candidate removal is scored in O(1) and each step costs O(k) for k members.
 double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
                     std::vector<int>& dropped) {
-  double best = s.score(track, members);
+  const int k = static_cast<int>(members.size());
+  if (k == 0) return 0;
+  const Limb& L = s.limb;
+  // Per-thread scratch: no allocation per call once warmed up.
+  thread_local std::vector<double> row;  // Σ_j pair(i, j)
+  thread_local std::vector<double> trk;
+  thread_local std::vector<Eigen::Matrix3d> Pa, Pb;
+  thread_local std::vector<Eigen::Vector3d> qa, qb;
+  thread_local std::vector<char> alive;
+  row.assign(ix(k), 0.0);
+  trk.assign(ix(k), 0.0);
+  Pa.resize(ix(k));
+  Pb.resize(ix(k));
+  qa.resize(ix(k));
+  qb.resize(ix(k));
+  alive.assign(ix(k), 1);
+  double paf = 0, match = 0, tsum = 0;
+  Eigen::Matrix3d Aa = Eigen::Matrix3d::Zero(), Ab = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d ba = Eigen::Vector3d::Zero(), bb = Eigen::Vector3d::Zero();
+  const bool check_length = s.template_length_m > 0;
+  for (int i = 0; i < k; ++i) {
+    const LimbEdge& x = s.edges[ix(members[ix(i)])];
+    paf += static_cast<double>(x.p);
+    for (int j = i + 1; j < k; ++j) {
+      const double w = s.pair_match(x, s.edges[ix(members[ix(j)])]);
+      row[ix(i)] += w;
+      row[ix(j)] += w;
+      match += w;
+    }
+    if (track >= 0) {
+      trk[ix(i)] = s.track_match(track, x);
+      tsum += trk[ix(i)];
+    }
+    if (check_length) {
+      Pa[ix(i)].setZero();
+      Pb[ix(i)].setZero();
+      qa[ix(i)].setZero();
+      qb[ix(i)].setZero();
+      Scorer::add_ray(s.graph.candidates(L.joint_a)[ix(x.ka)].ray, Pa[ix(i)], qa[ix(i)]);
+      Scorer::add_ray(s.graph.candidates(L.joint_b)[ix(x.kb)].ray, Pb[ix(i)], qb[ix(i)]);
+      Aa += Pa[ix(i)];
+      Ab += Pb[ix(i)];
+      ba += qa[ix(i)];
+      bb += qb[ix(i)];
+    }
+  }
+  int n = k;
+  auto eval = [&](int n2, double paf2, double match2, bool has_track, double t2,
+                  const Eigen::Matrix3d& A2a, const Eigen::Vector3d& b2a,
+                  const Eigen::Matrix3d& A2b, const Eigen::Vector3d& b2b) {
+    if (check_length && n2 >= 2 && !s.plausible_length(A2a, b2a, A2b, b2b)) return -1.0;
+    return s.combine(n2, paf2, match2, has_track, t2);
+  };
+  double best = eval(n, paf, match, track >= 0, tsum, Aa, ba, Ab, bb);
   while (true) {
     double cand_best = best;
     int drop = -2;  // -1 = drop the track, i >= 0 = drop members[i]
     if (track >= 0) {
-      const double sc = s.score(-1, members);
+      const double sc = eval(n, paf, match, false, 0.0, Aa, ba, Ab, bb);
       if (sc > cand_best) {
         cand_best = sc;
         drop = -1;
       }
     }
-    if (members.size() > 1) {
-      std::vector<int> tmp;
-      for (std::size_t i = 0; i < members.size(); ++i) {
-        tmp.assign(members.begin(), members.end());
-        tmp.erase(tmp.begin() + static_cast<std::ptrdiff_t>(i));
-        const double sc = s.score(track, tmp);
+    if (n > 1) {
+      for (int i = 0; i < k; ++i) {
+        if (!alive[ix(i)]) continue;
+        const LimbEdge& x = s.edges[ix(members[ix(i)])];
+        const double sc =
+            check_length
+                ? eval(n - 1, paf - static_cast<double>(x.p), match - row[ix(i)], track >= 0,
+                       tsum - trk[ix(i)], Aa - Pa[ix(i)], ba - qa[ix(i)], Ab - Pb[ix(i)],
+                       bb - qb[ix(i)])
+                : eval(n - 1, paf - static_cast<double>(x.p), match - row[ix(i)], track >= 0,
+                       tsum - trk[ix(i)], Aa, ba, Ab, bb);
         if (sc > cand_best) {
           cand_best = sc;
-          drop = static_cast<int>(i);
+          drop = i;
         }
       }
     }
-    if (drop == -2) return best;
+    if (drop == -2) break;
     if (drop == -1) {
       track = -1;
+      tsum = 0;
     } else {
+      const LimbEdge& x = s.edges[ix(members[ix(drop)])];
+      alive[ix(drop)] = 0;
+      --n;
+      paf -= static_cast<double>(x.p);
+      match -= row[ix(drop)];
+      tsum -= trk[ix(drop)];
+      if (check_length) {
+        Aa -= Pa[ix(drop)];
+        ba -= qa[ix(drop)];
+        Ab -= Pb[ix(drop)];
+        bb -= qb[ix(drop)];
+      }
+      for (int j = 0; j < k; ++j) {
+        if (alive[ix(j)]) row[ix(j)] -= s.pair_match(x, s.edges[ix(members[ix(j)])]);
+      }
       dropped.push_back(members[ix(drop)]);
-      members.erase(members.begin() + drop);
     }
     best = cand_best;
   }
+  std::vector<int> kept;
+  kept.reserve(ix(n));
+  for (int i = 0; i < k; ++i) {
+    if (alive[ix(i)]) kept.push_back(members[ix(i)]);
+  }
+  members = std::move(kept);
+  return best;
 }
 
 }  // namespace
@@ -351,7 +440,14 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
       return scorer.pair_match(edges[ix(a)], edges[ix(b)]);
     };
     std::vector<double> acc(ix(n), 0.0);
-    for (int seed = 0; seed < n2d; ++seed) {
+    // Seeds by parsing score; a seed already inside a grown clique would mostly regrow it.
+    std::vector<int> seeds(ix(n2d));
+    for (int i = 0; i < n2d; ++i) seeds[ix(i)] = i;
+    std::sort(seeds.begin(), seeds.end(),
+              [&](int a, int b) { return edges[ix(a)].p > edges[ix(b)].p; });
+    std::vector<char> covered(ix(n2d), 0);
+    for (int seed : seeds) {
+      if (covered[ix(seed)]) continue;
       std::vector<int> members{seed};
       Bits cand = cg.adj[ix(seed)];
       for_each_bit(cand, [&](int y) { acc[ix(y)] = weight(seed, y); });
@@ -364,6 +460,9 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
         const auto& nb = cg.adj[ix(best)].words();
         for (std::size_t i = 0; i < nb.size(); ++i) cand.words()[i] &= nb[i];
         for_each_bit(cand, [&](int y) { acc[ix(y)] += weight(best, y); });
+      }
+      for (int m : members) {
+        if (m < n2d) covered[ix(m)] = 1;
       }
       maximal.push_back(std::move(members));
     }

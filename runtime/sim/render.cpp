@@ -248,8 +248,9 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
     std::vector<Candidate>& list = cands_[ix(j)];
     const int false_count = rng_.poisson(noise.false_candidates_per_joint);
     for (int k = 0; k < false_count; ++k) {
-      const double x = rng_.uniform(0.0, width_px);
-      const double y = rng_.uniform(0.0, height_px);
+      // (Clamped like the true candidates: a float may round up to the image edge.)
+      const double x = std::min(rng_.uniform(0.0, width_px), width_px - 1e-3);
+      const double y = std::min(rng_.uniform(0.0, height_px), height_px - 1e-3);
       const double score = rng_.uniform(kFalseScoreMin, kFalseScoreMax);
       list.push_back(Candidate{static_cast<float>(x), static_cast<float>(y),
                                static_cast<float>(score), -1, false});
