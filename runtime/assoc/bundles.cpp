@@ -280,13 +280,12 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
       for (int i = 0; i < k; ++i) {
         if (!alive[ix(i)]) continue;
         const LimbEdge& x = s.edges[ix(members[ix(i)])];
-        const double sc =
-            check_length
-                ? eval(n - 1, paf - static_cast<double>(x.p), match - row[ix(i)], track >= 0,
-                       tsum - trk[ix(i)], Aa - Pa[ix(i)], ba - qa[ix(i)], Ab - Pb[ix(i)],
-                       bb - qb[ix(i)])
-                : eval(n - 1, paf - static_cast<double>(x.p), match - row[ix(i)], track >= 0,
-                       tsum - trk[ix(i)], Aa, ba, Ab, bb);
+        const double sc = check_length
+                              ? eval(n - 1, paf - static_cast<double>(x.p), match - row[ix(i)],
+                                     track >= 0, tsum - trk[ix(i)], Aa - Pa[ix(i)], ba - qa[ix(i)],
+                                     Ab - Pb[ix(i)], bb - qb[ix(i)])
+                              : eval(n - 1, paf - static_cast<double>(x.p), match - row[ix(i)],
+                                     track >= 0, tsum - trk[ix(i)], Aa, ba, Ab, bb);
         if (sc > cand_best) {
           cand_best = sc;
           drop = i;

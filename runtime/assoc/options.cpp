@@ -60,6 +60,7 @@ Status TriangulationOptions::validate() const {
   MOCAP_CHECK(min_views >= 2, "triangulation.min_views", "must be >= 2");
   MOCAP_CHECK(max_reprojection_error_px > 0, "triangulation.max_reprojection_error_px",
               "must be > 0");
+  MOCAP_CHECK(proposal_views >= 2, "triangulation.proposal_views", "must be >= 2");
   return Status::Ok();
 }
 

@@ -82,6 +82,8 @@ struct TriangulationOptions {
   int min_views = 2;
   // Views whose reprojection error exceeds this are dropped one at a time (worst first).
   double max_reprojection_error_px = 25.0;
+  // Consensus proposals come from pairs of the this-many highest-score views.
+  int proposal_views = 6;
 
   Status validate() const;
 };
