@@ -493,38 +493,5 @@ TEST(SimRender, RejectsWhatItCannotRender) {
   EXPECT_THAT(r.error().message(), HasSubstr("no cameras"));
 }
 
-TEST(SimRender, TwelveViewsTenPeopleTiming) {
-  const Calibration rig = ring(12);
-  SceneOptions opt;
-  opt.people = 10;
-  opt.enter_leave = false;
-  Result<Scene> scene = Scene::create(opt);
-  ASSERT_TRUE(scene.ok());
-  DetectionRenderer renderer;
-  RenderedFrame out;
-  std::vector<SkeletonSet> truths(40);
-  for (SkeletonSet& t : truths) {
-    scene->step();
-    scene->ground_truth(t);
-  }
-  // Processor time (robust against other processes), best mean of a few batches.
-  double best_ms = std::numeric_limits<double>::infinity();
-  std::uint64_t seed = 0;
-  for (int batch = 0; batch < 6; ++batch) {
-    const std::clock_t c0 = std::clock();
-    for (const SkeletonSet& t : truths) {
-      ASSERT_TRUE(renderer.render(t, rig, body19_topology(), {}, seed++, out).ok());
-    }
-    const double ms = 1000.0 * static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC;
-    if (batch > 0) best_ms = std::min(best_ms, ms / static_cast<double>(truths.size()));
-  }
-  std::printf("render 12 views x 10 people: %.3f ms per frame (processor time)\n", best_ms);
-  RecordProperty("render_ms_12v_10p", std::to_string(best_ms));
-  // The budget holds for optimised, uninstrumented builds.
-#if defined(NDEBUG) && !defined(__SANITIZE_ADDRESS__) && !defined(MOCAP_SIM_TEST_ASAN)
-  EXPECT_LT(best_ms, 1.0);
-#endif
-}
-
 }  // namespace
 }  // namespace mocap::sim
