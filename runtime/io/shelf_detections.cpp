@@ -19,22 +19,6 @@ namespace {
 using io::ScanStatus;
 using io::TextScanner;
 
-std::string describe(ScanStatus status, const TextScanner& scan) {
-  switch (status) {
-    case ScanStatus::kOk:
-      return "ok";
-    case ScanStatus::kEnd:
-      return "unexpected end of file (truncated?)";
-    case ScanStatus::kNotNumber:
-      return "expected a number, got " + scan.last_token_for_message();
-    case ScanStatus::kOutOfRange:
-      return "number out of range: " + scan.last_token_for_message();
-    case ScanStatus::kNonFinite:
-      return "non-finite value " + scan.last_token_for_message();
-  }
-  return "unknown scan status";
-}
-
 // Where in the file the parser is, formatted only when an error is reported.
 struct Place {
   enum Kind { kHeader, kJoint, kLimb, kTrailer } kind = kHeader;
@@ -124,7 +108,7 @@ std::optional<int> ViewParser::read_count(std::int64_t max, Place place, std::st
     return std::nullopt;
   }
   if (st != ScanStatus::kOk) {
-    *error = fail(place, std::string(what) + ": " + describe(st, scan_));
+    *error = fail(place, std::string(what) + ": " + io::describe(st, scan_));
     return std::nullopt;
   }
   if (n < 0) {
@@ -154,7 +138,7 @@ std::optional<Error> ViewParser::parse_joint(int j, std::vector<JointCandidate>&
       const ScanStatus st = scan_.next_float(v);
       if (st != ScanStatus::kOk) {
         return fail(place, std::string(kRows[row]) + " of candidate " + std::to_string(i) + ": " +
-                               describe(st, scan_));
+                               io::describe(st, scan_));
       }
       if (row == 2 && v < 0.f) {
         return fail(place, "score of candidate " + std::to_string(i) +
@@ -194,7 +178,7 @@ std::optional<Error> ViewParser::parse_limb(int l, const std::vector<int>& count
     if (st != ScanStatus::kOk) {
       const std::size_t c = static_cast<std::size_t>(cols);
       return fail(place, "value (" + std::to_string(i / c) + "," + std::to_string(i % c) +
-                             "): " + describe(st, scan_));
+                             "): " + io::describe(st, scan_));
     }
     if (v < 0.f) return fail(place, "negative PAF score " + scan_.last_token_for_message());
     if (store) out.values[i] = v;

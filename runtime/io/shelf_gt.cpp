@@ -19,22 +19,6 @@ using io::TextScanner;
 
 constexpr const char* kRowNames[4] = {"x", "y", "z", "homogeneous"};
 
-std::string describe(ScanStatus status, const TextScanner& scan) {
-  switch (status) {
-    case ScanStatus::kOk:
-      return "ok";
-    case ScanStatus::kEnd:
-      return "unexpected end of file (truncated?)";
-    case ScanStatus::kNotNumber:
-      return "expected a number, got " + scan.last_token_for_message();
-    case ScanStatus::kOutOfRange:
-      return "number out of range: " + scan.last_token_for_message();
-    case ScanStatus::kNonFinite:
-      return "non-finite value " + scan.last_token_for_message();
-  }
-  return "unknown scan status";
-}
-
 class GtParser {
  public:
   GtParser(std::string_view text, std::string_view source, const ShelfGtOptions& options)
@@ -63,7 +47,7 @@ class GtParser {
     std::int64_t v = 0;
     const ScanStatus st = scan_.next_int(v);
     if (st != ScanStatus::kOk && st != ScanStatus::kOutOfRange) {
-      *error = fail(std::string(what) + ": " + describe(st, scan_));
+      *error = fail(std::string(what) + ": " + io::describe(st, scan_));
       return std::nullopt;
     }
     if (st == ScanStatus::kOutOfRange || v < min || v > max) {
@@ -122,7 +106,7 @@ Result<std::vector<ShelfGtFrame>> GtParser::run() {
           const ScanStatus st = scan_.next_double(v);
           if (st != ScanStatus::kOk) {
             return fail("id " + std::to_string(*id) + ", " + kRowNames[row] + " row, joint " +
-                        std::to_string(j) + ": " + describe(st, scan_));
+                        std::to_string(j) + ": " + io::describe(st, scan_));
           }
           if (row < 3) {
             actor.joints_m[static_cast<std::size_t>(j)][row] = v;

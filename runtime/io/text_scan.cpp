@@ -155,4 +155,20 @@ std::string TextScanner::last_token_for_message() const {
   return s;
 }
 
+std::string describe(ScanStatus status, const TextScanner& scan) {
+  switch (status) {
+    case ScanStatus::kOk:
+      return "ok";
+    case ScanStatus::kEnd:
+      return "unexpected end of file (truncated?)";
+    case ScanStatus::kNotNumber:
+      return "expected a number, got " + scan.last_token_for_message();
+    case ScanStatus::kOutOfRange:
+      return "number out of range: " + scan.last_token_for_message();
+    case ScanStatus::kNonFinite:
+      return "non-finite value " + scan.last_token_for_message();
+  }
+  return "unknown scan status";
+}
+
 }  // namespace mocap::io

@@ -68,4 +68,7 @@ class TextScanner {
   int token_line_ = 1;
 };
 
+// A readable reason for a failed read, quoting the offending token.
+std::string describe(ScanStatus status, const TextScanner& scan);
+
 }  // namespace mocap::io

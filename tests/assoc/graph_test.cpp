@@ -1,6 +1,7 @@
 // FrameGraph::build on hand-made detections: matching, tracking and parsing edges with known
 // probabilities, candidate filtering and errors.
 #include "runtime/assoc/graph.h"
+#include "tests/support/cameras.h"
 
 #include <gtest/gtest.h>
 
@@ -18,22 +19,7 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-// Camera on a horizontal ring of radius_m at height_m, looking at `target`: f = 1000 px,
-// principal point at the centre of a 1000 x 1000 image, no distortion.
-Camera ring_camera(double angle_rad, double radius_m, double height_m,
-                   const Eigen::Vector3d& target) {
-  const Eigen::Vector3d c(radius_m * std::cos(angle_rad), radius_m * std::sin(angle_rad), height_m);
-  const Eigen::Vector3d z = (target - c).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d R;
-  R.row(0) = x.transpose();
-  R.row(1) = y.transpose();
-  R.row(2) = z.transpose();
-  Eigen::Matrix3d K;
-  K << 1000, 0, 500, 0, 1000, 500, 0, 0, 1;
-  return Camera(K, Distortion{}, 1000, 1000, R, -R * c);
-}
+using ::mocap::testing::ring_camera;
 
 // Two joints "a" - "b", one limb.
 const SkeletonTopology& two_joint_topology() {

@@ -1,5 +1,6 @@
 // Consensus triangulation of one joint from hand-made observations.
 #include "runtime/assoc/triangulate.h"
+#include "tests/support/cameras.h"
 
 #include <gtest/gtest.h>
 
@@ -13,20 +14,7 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-Camera ring_camera(double angle_rad, double radius_m, double height_m,
-                   const Eigen::Vector3d& target) {
-  const Eigen::Vector3d c(radius_m * std::cos(angle_rad), radius_m * std::sin(angle_rad), height_m);
-  const Eigen::Vector3d z = (target - c).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d R;
-  R.row(0) = x.transpose();
-  R.row(1) = y.transpose();
-  R.row(2) = z.transpose();
-  Eigen::Matrix3d K;
-  K << 1000, 0, 500, 0, 1000, 500, 0, 0, 1;
-  return Camera(K, Distortion{}, 1000, 1000, R, -R * c);
-}
+using ::mocap::testing::ring_camera;
 
 class TriangulateTest : public ::testing::Test {
  protected:
