@@ -48,7 +48,7 @@ struct CliqueOptions {
   // Bound on the work per limb type and frame: maximal cliques enumerated exhaustively
   // (Bron–Kerbosch). Past it the limb type switches to greedy clique growth from every 2D limb
   // (linear in the nodes); each switch is counted in ParsingStats::clique_cap_hits.
-  int max_cliques_per_limb = 256;
+  int max_cliques_per_limb = 64;
   // Bundles below this score are not used.
   double min_bundle_score = 0.0;
   // A bundle seen in >= 2 views is triangulated; when its 3D limb length falls outside
