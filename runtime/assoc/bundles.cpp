@@ -277,15 +277,17 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
       }
     }
     if (n > 1) {
+      // The length check (a 3x3 solve per end) runs only for a removal that would win.
       for (int i = 0; i < k; ++i) {
         if (!alive[ix(i)]) continue;
         const LimbEdge& x = s.edges[ix(members[ix(i)])];
-        const double sc = check_length
-                              ? eval(n - 1, paf - static_cast<double>(x.p), match - row[ix(i)],
-                                     track >= 0, tsum - trk[ix(i)], Aa - Pa[ix(i)], ba - qa[ix(i)],
-                                     Ab - Pb[ix(i)], bb - qb[ix(i)])
-                              : eval(n - 1, paf - static_cast<double>(x.p), match - row[ix(i)],
-                                     track >= 0, tsum - trk[ix(i)], Aa, ba, Ab, bb);
+        double sc = s.combine(n - 1, paf - static_cast<double>(x.p), match - row[ix(i)], track >= 0,
+                              tsum - trk[ix(i)]);
+        if (sc <= cand_best) continue;
+        if (check_length && n - 1 >= 2 &&
+            !s.plausible_length(Aa - Pa[ix(i)], ba - qa[ix(i)], Ab - Pb[ix(i)], bb - qb[ix(i)])) {
+          sc = -1.0;
+        }
         if (sc > cand_best) {
           cand_best = sc;
           drop = i;
@@ -386,15 +388,25 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   const int n = n2d + static_cast<int>(cg.track_of_node.size());
   cg.adj.resize(ix(n));
   for (auto& b : cg.adj) b.reset(n);
+  // 2D limbs by candidate, so compatibility only visits matching neighbours (sparse) and
+  // taking a bundle only visits the limbs sharing its candidates.
+  std::vector<std::vector<int>> by_ka(ix(graph.candidate_count(L.joint_a)));
+  std::vector<std::vector<int>> by_kb(ix(graph.candidate_count(L.joint_b)));
+  for (int e = 0; e < n2d; ++e) {
+    by_ka[ix(edges[ix(e)].ka)].push_back(e);
+    by_kb[ix(edges[ix(e)].kb)].push_back(e);
+  }
   for (int x = 0; x < n2d; ++x) {
     const LimbEdge& ex = edges[ix(x)];
-    for (int y = x + 1; y < n2d; ++y) {
-      const LimbEdge& ey = edges[ix(y)];
-      if (ex.view == ey.view) continue;
-      if (graph.match(L.joint_a, ex.ka, ey.ka) <= 0.f) continue;
-      if (graph.match(L.joint_b, ex.kb, ey.kb) <= 0.f) continue;
-      cg.adj[ix(x)].set(y);
-      cg.adj[ix(y)].set(x);
+    for (int ka2 : graph.match_neighbors(L.joint_a, ex.ka)) {
+      for (int y : by_ka[ix(ka2)]) {
+        if (y <= x) continue;
+        const LimbEdge& ey = edges[ix(y)];
+        if (ex.view == ey.view) continue;
+        if (graph.match(L.joint_b, ex.kb, ey.kb) <= 0.f) continue;
+        cg.adj[ix(x)].set(y);
+        cg.adj[ix(y)].set(x);
+      }
     }
     for (int ti = 0; ti < static_cast<int>(cg.track_of_node.size()); ++ti) {
       const int t = cg.track_of_node[ix(ti)];
@@ -514,10 +526,8 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     if (c.score < options.min_bundle_score) break;
     for (int m : c.members) {
       const LimbEdge& e = edges[ix(m)];
-      for (int y = 0; y < n2d; ++y) {
-        const LimbEdge& f = edges[ix(y)];
-        if (f.view == e.view && (f.ka == e.ka || f.kb == e.kb)) dead[ix(y)] = 1;
-      }
+      for (int y : by_ka[ix(e.ka)]) dead[ix(y)] = 1;  // same candidate => same view
+      for (int y : by_kb[ix(e.kb)]) dead[ix(y)] = 1;
     }
     if (c.track >= 0) track_dead[ix(c.track)] = 1;
     out.push_back(Bundle{limb, c.track, std::move(c.members), c.score});

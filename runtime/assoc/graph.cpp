@@ -36,6 +36,7 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
   candidates_dropped_ = 0;
   cands_.resize(idx(J));
   match_.resize(idx(J));
+  nbr_.resize(idx(J));
   track_.resize(idx(J));
   limb_edges_.resize(idx(topo.limb_count()));
   track_valid_.assign(idx(track_count_ * J), false);
@@ -92,6 +93,9 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
     // Matching edges.
     auto& m = match_[idx(j)];
     m.assign(idx(n * n), 0.f);
+    auto& nb = nbr_[idx(j)];
+    if (nb.size() < idx(n)) nb.resize(idx(n));
+    for (int k = 0; k < n; ++k) nb[idx(k)].clear();  // keeps the rows' storage
     for (int k1 = 0; k1 < n; ++k1) {
       const GraphCandidate& a = cj[idx(k1)];
       for (int k2 = k1 + 1; k2 < n; ++k2) {
@@ -103,6 +107,8 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
         const float p = static_cast<float>(1.0 - d / options.max_epipolar_dist_m);
         m[idx(k1 * n + k2)] = p;
         m[idx(k2 * n + k1)] = p;
+        nb[idx(k1)].push_back(k2);
+        nb[idx(k2)].push_back(k1);
       }
     }
     // Tracking edges.

@@ -63,6 +63,8 @@ class FrameGraph {
   float track(int joint, int t, int k) const {
     return track_[idx(joint)][idx(t * candidate_count(joint) + k)];
   }
+  // Candidates of `joint` joined to candidate k by a matching edge (sparse view of match()).
+  std::span<const int> match_neighbors(int joint, int k) const { return nbr_[idx(joint)][idx(k)]; }
   bool track_has_joint(int t, int joint) const {
     return track_valid_[idx(t * joint_count() + joint)];
   }
@@ -83,6 +85,7 @@ class FrameGraph {
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
   std::vector<std::vector<float>> match_;           // [joint][k1 * n + k2]
   std::vector<std::vector<float>> track_;           // [joint][t * n + k]
+  std::vector<std::vector<std::vector<int>>> nbr_;  // [joint][k] matching neighbours
   std::vector<bool> track_valid_;                   // [t * joints + joint]
   std::vector<std::vector<LimbEdge>> limb_edges_;   // [limb]
 };

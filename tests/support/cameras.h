@@ -14,8 +14,7 @@ namespace mocap::testing {
 // f = 1000 px, principal point at the centre of a 1000 x 1000 image, no distortion.
 inline Camera ring_camera(double angle_rad, double radius_m, double height_m,
                           const Eigen::Vector3d& target) {
-  const Eigen::Vector3d c(radius_m * std::cos(angle_rad), radius_m * std::sin(angle_rad),
-                          height_m);
+  const Eigen::Vector3d c(radius_m * std::cos(angle_rad), radius_m * std::sin(angle_rad), height_m);
   const Eigen::Vector3d z = (target - c).normalized();
   const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
   const Eigen::Vector3d y = z.cross(x);

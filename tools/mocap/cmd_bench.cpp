@@ -78,6 +78,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   std::vector<double> assoc;
   std::vector<double> fit;
   std::vector<double> total;
+  std::vector<double> graph_ms, parse_ms, assemble_ms;
   int count_ok = 0;
   int candidates = 0;
   for (std::size_t f = 0; f < rendered.size(); ++f) {
@@ -88,6 +89,9 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
     }
     const auto& st = r->stats;
     assoc.push_back(st.graph_ms + st.parse_ms + st.assemble_ms);
+    graph_ms.push_back(st.graph_ms);
+    parse_ms.push_back(st.parse_ms);
+    assemble_ms.push_back(st.assemble_ms);
     fit.push_back(st.reconstruct_ms);
     total.push_back(assoc.back() + fit.back());
     if (st.persons == truth_count[f]) ++count_ok;
@@ -97,6 +101,9 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
               views, people, frames, candidates / frames);
   std::printf("%-22s %9s %9s %9s %9s\n", "stage (ms/frame)", "median", "p90", "p99", "max");
   print_row("association", percentiles(assoc));
+  print_row("  graph", percentiles(graph_ms));
+  print_row("  bundle parsing", percentiles(parse_ms));
+  print_row("  assembling", percentiles(assemble_ms));
   print_row("reconstruct+fit", percentiles(fit));
   const Percentiles t = percentiles(total);
   print_row("total", t);
