@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <queue>
 
+#include "runtime/assoc/triangulate.h"
 #include "runtime/core/log.h"
 #include "runtime/fit/skeleton_fitter.h"
 #include "runtime/skeleton/topology.h"
@@ -158,11 +159,6 @@ struct Scorer {
     return 0.5 * (static_cast<double>(graph.track(limb.joint_a, t, x.ka)) +
                   static_cast<double>(graph.track(limb.joint_b, t, x.kb)));
   }
-  static void add_ray(const Ray& r, Eigen::Matrix3d& A, Eigen::Vector3d& b) {
-    const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - r.direction * r.direction.transpose();
-    A += P;
-    b += P * r.origin_m;
-  }
 
   double score(int track, const std::vector<int>& members) const {
     const int n = static_cast<int>(members.size());
@@ -178,8 +174,8 @@ struct Scorer {
     for (int i = 0; i < n; ++i) {
       const LimbEdge& x = edges[ix(members[ix(i)])];
       if (check_length) {
-        add_ray(graph.candidates(limb.joint_a)[ix(x.ka)].ray, Aa, ba);
-        add_ray(graph.candidates(limb.joint_b)[ix(x.kb)].ray, Ab, bb);
+        add_ray_normal_equations(graph.candidates(limb.joint_a)[ix(x.ka)].ray, 1.0, Aa, ba);
+        add_ray_normal_equations(graph.candidates(limb.joint_b)[ix(x.kb)].ray, 1.0, Ab, bb);
       }
       paf += static_cast<double>(x.p);
       for (int j = i + 1; j < n; ++j) match += pair_match(x, edges[ix(members[ix(j)])]);
@@ -250,8 +246,10 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
       Pb[ix(i)].setZero();
       qa[ix(i)].setZero();
       qb[ix(i)].setZero();
-      Scorer::add_ray(s.graph.candidates(L.joint_a)[ix(x.ka)].ray, Pa[ix(i)], qa[ix(i)]);
-      Scorer::add_ray(s.graph.candidates(L.joint_b)[ix(x.kb)].ray, Pb[ix(i)], qb[ix(i)]);
+      add_ray_normal_equations(s.graph.candidates(L.joint_a)[ix(x.ka)].ray, 1.0, Pa[ix(i)],
+                               qa[ix(i)]);
+      add_ray_normal_equations(s.graph.candidates(L.joint_b)[ix(x.kb)].ray, 1.0, Pb[ix(i)],
+                               qb[ix(i)]);
       Aa += Pa[ix(i)];
       Ab += Pb[ix(i)];
       ba += qa[ix(i)];

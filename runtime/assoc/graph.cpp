@@ -9,19 +9,12 @@
 namespace mocap::assoc {
 namespace {
 
-// Shortest distance between two rays, and whether the closest points lie in front of both
-// cameras (depth along each ray >= min_depth_m).
+// Shortest distance between two rays (closest_points), and whether the closest points lie in
+// front of both cameras (depth along each ray >= min_depth_m). Parallel rays never match.
 bool ray_pair_distance(const Ray& a, const Ray& b, double min_depth_m, double* dist_m) {
-  const Eigen::Vector3d w = a.origin_m - b.origin_m;
-  const double dab = a.direction.dot(b.direction);
-  const double denom = 1.0 - dab * dab;  // directions are unit
-  if (denom < 1e-12) return false;       // parallel rays never match
-  const double da = a.direction.dot(w);
-  const double db = b.direction.dot(w);
-  const double sa = (dab * db - da) / denom;
-  const double sb = (db - dab * da) / denom;
-  if (sa < min_depth_m || sb < min_depth_m) return false;
-  *dist_m = (w + sa * a.direction - sb * b.direction).norm();
+  const ClosestPoints cp = closest_points(a, b);
+  if (cp.parallel || cp.s_a_m < min_depth_m || cp.s_b_m < min_depth_m) return false;
+  *dist_m = (cp.on_a - cp.on_b).norm();
   return true;
 }
 

@@ -17,11 +17,7 @@ bool solve_rays(std::span<const Observation> obs, unsigned used, Eigen::Vector3d
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < obs.size(); ++i) {
     if (!(used & (1u << i))) continue;
-    const Observation& o = obs[i];
-    const Eigen::Matrix3d P =
-        Eigen::Matrix3d::Identity() - o.ray.direction * o.ray.direction.transpose();
-    A += o.weight * P;
-    b += o.weight * (P * o.ray.origin_m);
+    add_ray_normal_equations(obs[i].ray, obs[i].weight, A, b);
   }
   Eigen::LDLT<Eigen::Matrix3d> ldlt(A);
   if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-9) return false;

@@ -25,6 +25,15 @@ struct TriangulatedPoint {
   unsigned view_mask = 0;  // bit v set when view v was used (views < 32)
 };
 
+// Adds weight·(I − ddᵀ) and weight·(I − ddᵀ)·o of ray (o, d) to the normal equations A X = b
+// whose solution is the point minimising the weighted squared distances to the rays added.
+inline void add_ray_normal_equations(const Ray& ray, double weight, Eigen::Matrix3d& A,
+                                     Eigen::Vector3d& b) {
+  const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - ray.direction * ray.direction.transpose();
+  A += weight * P;
+  b += weight * (P * ray.origin_m);
+}
+
 // Consensus triangulation: every pair of views proposes a point (least squares over rays);
 // the proposal whose inlier views (reprojection error < max_reprojection_error_px) carry the
 // largest soft weight wins; the point is then re-solved on its inliers (weighted least squares
