@@ -44,6 +44,11 @@ Engine::Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
       options_(options),
       hierarchy_(limb_hierarchy_weights(topology)),
       parents_(topology.parents()) {
+  limb_template_m_.resize(static_cast<std::size_t>(topology.limb_count()));
+  for (int l = 0; l < topology.limb_count(); ++l) {
+    limb_template_m_[static_cast<std::size_t>(l)] = fit::known_template_bone_length_m(
+        topology.joint_name(topology.limb(l).joint_a), topology.joint_name(topology.limb(l).joint_b));
+  }
   if (options.fit.enabled && topology.is_tree()) {
     auto f = fit::SkeletonFitter::create(topology, options.fit);
     if (f.ok()) fitter_.emplace(std::move(*f));
@@ -184,30 +189,65 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
     person_valid[i] = triangulate_person(persons_[i], person_pts_[i], person_conf_[i]);
   }
 
-  // One person split in two (e.g. tracking edges in only some views make the tracked views
-  // and the others separate bundles): merge persons whose 2D assignments do not contradict
-  // and whose 3D joints coincide.
+  // One person split in two: tracking edges in only some views make the tracked views and
+  // the others separate bundles, or an occluded body part (a leg behind furniture, the upper
+  // body in two views only) is assembled on its own. Merge persons whose 2D assignments do not
+  // contradict and that are one body in 3D: either >= 3 common joints coincide, or the few
+  // common joints coincide and every limb joining one part to the other has a plausible length.
   std::vector<char> merged_away(P, 0);
+  const auto merge_ok = [&](std::size_t a, std::size_t b) {
+    const PersonAssignment& pa = persons_[a];
+    const PersonAssignment& pb = persons_[b];
+    for (std::size_t s = 0; s < pa.k.size(); ++s) {
+      if (pa.k[s] >= 0 && pb.k[s] >= 0 && pa.k[s] != pb.k[s]) return false;
+    }
+    const auto& A = person_pts_[a];
+    const auto& B = person_pts_[b];
+    double sum = 0;
+    int n = 0;
+    for (int j = 0; j < J; ++j) {
+      if (!A[ix(j)].valid || !B[ix(j)].valid) continue;
+      sum += (A[ix(j)].X_m - B[ix(j)].X_m).norm();
+      ++n;
+    }
+    if (n > 0 && sum / n > topt.fragment_merge_max_mean_dist_m) return false;
+    const bool same_track = pa.track < 0 || pb.track < 0 || pa.track == pb.track;
+    if (n >= 3) return same_track;
+    if (n > 0 && !same_track) return false;  // different tracks: the parts must be disjoint
+    int links = 0;
+    for (int l = 0; l < topology_.limb_count(); ++l) {
+      const double template_m = limb_template_m_[ix(l)];
+      if (template_m <= 0) continue;
+      const int u = topology_.limb(l).joint_a;
+      const int w = topology_.limb(l).joint_b;
+      const bool au = A[ix(u)].valid, aw = A[ix(w)].valid;
+      const bool bu = B[ix(u)].valid, bw = B[ix(w)].valid;
+      const Eigen::Vector3d* x = nullptr;
+      const Eigen::Vector3d* y = nullptr;
+      if (au && !bu && bw && !aw) {
+        x = &A[ix(u)].X_m;
+        y = &B[ix(w)].X_m;
+      } else if (bu && !au && aw && !bw) {
+        x = &B[ix(u)].X_m;
+        y = &A[ix(w)].X_m;
+      } else {
+        continue;
+      }
+      const double ratio = (*x - *y).norm() / template_m;
+      if (!(ratio >= topt.fragment_merge_min_limb_ratio &&
+            ratio <= topt.fragment_merge_max_limb_ratio)) {
+        return false;
+      }
+      ++links;
+    }
+    return links > 0;
+  };
   for (std::size_t a = 0; a < P; ++a) {
     if (merged_away[a]) continue;
     for (std::size_t b = a + 1; b < P; ++b) {
-      if (merged_away[b]) continue;
+      if (merged_away[b] || !merge_ok(a, b)) continue;
       PersonAssignment& pa = persons_[a];
       const PersonAssignment& pb = persons_[b];
-      if (pa.track >= 0 && pb.track >= 0 && pa.track != pb.track) continue;
-      bool compatible = true;
-      for (std::size_t s = 0; s < pa.k.size() && compatible; ++s) {
-        compatible = !(pa.k[s] >= 0 && pb.k[s] >= 0 && pa.k[s] != pb.k[s]);
-      }
-      if (!compatible) continue;
-      double sum = 0;
-      int n = 0;
-      for (int j = 0; j < J; ++j) {
-        if (!person_pts_[a][ix(j)].valid || !person_pts_[b][ix(j)].valid) continue;
-        sum += (person_pts_[a][ix(j)].X_m - person_pts_[b][ix(j)].X_m).norm();
-        ++n;
-      }
-      if (n < 3 || sum / n > topt.fragment_merge_max_mean_dist_m) continue;
       for (std::size_t s = 0; s < pa.k.size(); ++s) {
         if (pa.k[s] < 0 && pb.k[s] >= 0) {
           pa.k[s] = pb.k[s];
@@ -228,6 +268,7 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
     std::vector<float>& conf = person_conf_[pi];
     const int valid = person_valid[pi];
     if (valid == 0) continue;
+    const bool fragment = valid < topt.min_joints_observed;
 
     // Which track: the one its bundles were attached to, else a close unclaimed one, else new.
     std::size_t ti = old_tracks;  // none
@@ -311,7 +352,12 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
         }
       }
     }
-    tr.missed = 0;
+    if (fragment) {
+      ++tr.missed;  // a fragment keeps the track's joints fresh but does not keep it alive
+      ++st.fragment_observations;
+    } else {
+      tr.missed = 0;
+    }
     ++tr.observed_frames;
 
     Output o{ti, {}, {}, conf, std::move(rotations)};

@@ -35,6 +35,7 @@ struct FrameStats {
   int bundles = 0;
   AssemblyStats assembly;
   int fragments_merged = 0;  // persons merged after triangulation (one person split in two)
+  int fragment_observations = 0;  // persons with < min_joints_observed joints (track ages)
   int persons = 0;           // persons output this frame
   int births = 0;
   int deaths = 0;
@@ -96,6 +97,7 @@ class Engine {
   AssociationOptions options_;
   std::vector<double> hierarchy_;
   std::vector<int> parents_;
+  std::vector<double> limb_template_m_;  // per limb; 0 = no template length known
   std::vector<Track> tracks_;
   int next_track_id_ = 0;
   std::optional<fit::SkeletonFitter> fitter_;  // empty: topology not a tree or fitting off

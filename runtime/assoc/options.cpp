@@ -48,9 +48,14 @@ Status CliqueOptions::validate() const {
 Status TrackingOptions::validate() const {
   MOCAP_CHECK(min_assignments_new_person >= 1, "tracking.min_assignments_new_person",
               "must be >= 1");
+  MOCAP_CHECK(min_joints_observed >= 1, "tracking.min_joints_observed", "must be >= 1");
   MOCAP_CHECK(min_joints_new_track >= 1, "tracking.min_joints_new_track", "must be >= 1");
   MOCAP_CHECK(max_missed_frames >= 0, "tracking.max_missed_frames", "must be >= 0");
   MOCAP_CHECK(reattach_max_mean_dist_m >= 0, "tracking.reattach_max_mean_dist_m", "must be >= 0");
+  MOCAP_CHECK(fragment_merge_min_limb_ratio > 0 &&
+                  fragment_merge_min_limb_ratio <= fragment_merge_max_limb_ratio,
+              "tracking.fragment_merge_min_limb_ratio",
+              "must be > 0 and <= fragment_merge_max_limb_ratio");
   MOCAP_CHECK(fragment_merge_max_mean_dist_m >= 0, "tracking.fragment_merge_max_mean_dist_m",
               "must be >= 0");
   return Status::Ok();

@@ -67,12 +67,22 @@ struct TrackingOptions {
   int min_joints_new_track = 10;
   // A track not observed for this many consecutive frames is dropped.
   int max_missed_frames = 12;
+  // A person with fewer triangulated joints than this is a fragment (a lone leg or arm): it
+  // updates and outputs its track but counts as a missed frame, so a track that is only ever
+  // seen as a fragment dies after max_missed_frames instead of living on as stale joints
+  // around a limb that now belongs to somebody else.
+  int min_joints_observed = 5;
   // A person with no tracking edge can still continue a track whose last pose is this close
   // (mean distance over common joints, metres).
   double reattach_max_mean_dist_m = 0.35;
   // Two assembled persons whose 2D assignments do not contradict and whose triangulated
   // joints lie within this mean distance (over >= 3 common joints) are one person.
   double fragment_merge_max_mean_dist_m = 0.15;
+  // Two persons with fewer common joints (a body part assembled on its own) merge when every
+  // limb joining one to the other is [min, max] x its template length. Persons already on
+  // different tracks merge this way only when they share no joint.
+  double fragment_merge_min_limb_ratio = 0.6;
+  double fragment_merge_max_limb_ratio = 1.5;
 
   Status validate() const;
 };

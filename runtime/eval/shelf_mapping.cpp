@@ -91,13 +91,11 @@ Result<ShelfJoints> shelf15_from_body19(std::span<const Eigen::Vector3d> joints_
                  "shelf15_from_body19: " + std::to_string(confidence.size()) +
                      " confidences given, expected 0 or " + std::to_string(count));
   }
-  if (!std::isfinite(options.bottom_head_fraction) || !std::isfinite(options.head_length_m) ||
-      options.head_length_m < 0 || !std::isfinite(options.head_up_weight) ||
-      !std::isfinite(options.head_face_weight) || !std::isfinite(options.min_confidence) ||
-      !options.fallback_up.allFinite() || options.fallback_up.norm() < 1e-12) {
+  if (!std::isfinite(options.bottom_head_fraction) || !std::isfinite(options.head_forward_m) ||
+      !std::isfinite(options.head_up_m) || !std::isfinite(options.min_confidence) ||
+      !options.up_axis.allFinite() || options.up_axis.norm() < 1e-12) {
     return Error(ErrorCode::kInvalidArgument,
-                 "shelf15_from_body19: mapping options must be finite, head length >= 0 and "
-                 "fallback_up non-zero");
+                 "shelf15_from_body19: mapping options must be finite and up_axis non-zero");
   }
 
   auto at = [&](int j) -> const Eigen::Vector3d& { return joints_m[static_cast<std::size_t>(j)]; };
@@ -132,22 +130,15 @@ Result<ShelfJoints> shelf15_from_body19(std::span<const Eigen::Vector3d> joints_
       have_ears ? Eigen::Vector3d(shoulder_c + options.bottom_head_fraction * (ear_c - shoulder_c))
                 : neck;
 
-  Eigen::Vector3d up = neck - at(b.pelvis);
-  if (!up.allFinite() || up.norm() < 1e-9) up = options.fallback_up;
-  up.normalize();
-
-  Eigen::Vector3d face = Eigen::Vector3d::Zero();
-  if (present(b.nose)) {
-    face = at(b.nose) - (have_ears ? ear_c : bottom);
-    face -= up * face.dot(up);
-    const double norm = face.norm();
-    face =
-        std::isfinite(norm) && norm > 1e-9 ? Eigen::Vector3d(face / norm) : Eigen::Vector3d::Zero();
-  }
-  Eigen::Vector3d dir = options.head_up_weight * up + options.head_face_weight * face;
-  if (dir.norm() < 1e-12) dir = up;  // weights that cancel: fall back to straight up
+  const Eigen::Vector3d up_axis = options.up_axis.normalized();
+  Eigen::Vector3d forward =
+      (neck - at(b.pelvis)).cross(Eigen::Vector3d(at(b.r_shoulder) - at(b.l_shoulder)));
+  const double forward_norm = forward.norm();
+  forward = std::isfinite(forward_norm) && forward_norm > 1e-9
+                ? Eigen::Vector3d(forward / forward_norm)
+                : Eigen::Vector3d::Zero();  // degenerate trunk: the head goes straight up
   s[kBottomHead] = bottom;
-  s[kTopHead] = bottom + options.head_length_m * dir.normalized();
+  s[kTopHead] = bottom + options.head_forward_m * forward + options.head_up_m * up_axis;
   return s;
 }
 

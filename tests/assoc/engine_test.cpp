@@ -590,5 +590,90 @@ TEST(AssocEngine, PartialTrackingEdgesKeepEveryViewsEvidence) {
   }
 }
 
+// Person 0's hip-knee affinity is zero in every view, so its left leg (knee, ankle, toe) is
+// assembled as a person of its own that shares no joint with the body. The engine merges it
+// back because the hip-knee limb joining the two parts has a plausible length.
+DetectionSet without_left_thigh_affinity(DetectionSet d, const Frames& f) {
+  const SkeletonTopology& t = body19_topology();
+  const int hip = t.find_joint("l_hip");
+  const int knee = t.find_joint("l_knee");
+  const int l = t.find_limb(hip, knee);
+  EXPECT_GE(l, 0);
+  for (int v = 0; v < static_cast<int>(d.views.size()); ++v) {
+    d.views[ix(v)].affinities[ix(l)].at(f.index_of(v, hip, 0), f.index_of(v, knee, 0)) = 0.f;
+  }
+  return d;
+}
+
+TEST(AssocEngine, BodyPartAssembledAloneIsMergedBackByLimbLength) {
+  const Frames f = two_person_frames();
+  const SkeletonTopology& t = body19_topology();
+  const int knee = t.find_joint("l_knee");
+  for (bool fit : {false, true}) {
+    AssociationOptions o;
+    o.fit.enabled = fit;
+    auto engine = Engine::create(t, f.cams(), o);
+    ASSERT_TRUE(engine.ok());
+    for (std::uint64_t frame = 0; frame < 3; ++frame) {
+      auto r = (*engine)->process(without_left_thigh_affinity(f.frame(frame), f));
+      ASSERT_TRUE(r.ok());
+      // From frame 1 on the track's tracking edges join the leg to the body already.
+      if (frame == 0) {
+        EXPECT_GE(r->stats.fragments_merged, 1);
+      }
+      ASSERT_EQ(r->skeletons.persons.size(), 2u);
+      for (std::size_t i = 0; i < 2; ++i) {
+        const int who = truth_of(r->skeletons.persons[i], f);
+        if (who != 0) continue;
+        EXPECT_EQ(r->evidence[i].views_used[ix(knee)], kViews);
+        EXPECT_LT((r->skeletons.persons[i].joints_m[ix(knee)] - f.persons()[0][ix(knee)]).norm(),
+                  1e-6);
+      }
+    }
+  }
+  // With a limb-length window the thigh does not fit, the leg stays apart: it is too small to
+  // be a person, so person 0 is output without its left knee.
+  AssociationOptions strict;
+  strict.fit.enabled = false;
+  strict.tracking.fragment_merge_min_limb_ratio = 0.1;
+  strict.tracking.fragment_merge_max_limb_ratio = 0.2;
+  auto engine = Engine::create(t, f.cams(), strict);
+  ASSERT_TRUE(engine.ok());
+  auto r = (*engine)->process(without_left_thigh_affinity(f.frame(0), f));
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->stats.fragments_merged, 0);
+  ASSERT_EQ(r->skeletons.persons.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    if (truth_of(r->skeletons.persons[i], f) == 0) {
+      EXPECT_EQ(r->evidence[i].views_used[ix(knee)], 0);
+    }
+  }
+}
+
+// A track that is only ever seen as a fragment (fewer than min_joints_observed joints) ages
+// like an unobserved one and dies after max_missed_frames.
+TEST(AssocEngine, TrackSeenOnlyAsAFragmentDies) {
+  const Frames f = two_person_frames();
+  const SkeletonTopology& t = body19_topology();
+  const std::set<std::string> leg = {"l_hip", "l_knee", "l_ankle", "l_big_toe"};
+  AssociationOptions o;
+  o.fit.enabled = false;
+  o.tracking.max_missed_frames = 3;
+  auto engine = Engine::create(t, f.cams(), o);
+  ASSERT_TRUE(engine.ok());
+  ASSERT_TRUE((*engine)->process(f.frame(0)).ok());
+  const auto only_leg = [&](int p, int j) { return p == 0 || leg.count(t.joint_name(j)) > 0; };
+  int frames_with_two = 0;
+  std::uint64_t frame = 1;
+  for (; frame < 12; ++frame) {
+    auto r = (*engine)->process(f.frame_if(frame, only_leg));
+    ASSERT_TRUE(r.ok());
+    frames_with_two += r->skeletons.persons.size() == 2u ? 1 : 0;
+    if (r->stats.tracks == 1) break;
+  }
+  EXPECT_LT(frame, 12u) << "the leg-only track never died";
+  EXPECT_LE(frames_with_two, o.tracking.max_missed_frames + 1);
+}
+
 }  // namespace
 }  // namespace mocap::assoc
