@@ -46,8 +46,9 @@ Engine::Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
       parents_(topology.parents()) {
   limb_template_m_.resize(static_cast<std::size_t>(topology.limb_count()));
   for (int l = 0; l < topology.limb_count(); ++l) {
-    limb_template_m_[static_cast<std::size_t>(l)] = fit::known_template_bone_length_m(
-        topology.joint_name(topology.limb(l).joint_a), topology.joint_name(topology.limb(l).joint_b));
+    limb_template_m_[static_cast<std::size_t>(l)] =
+        fit::known_template_bone_length_m(topology.joint_name(topology.limb(l).joint_a),
+                                          topology.joint_name(topology.limb(l).joint_b));
   }
   if (options.fit.enabled && topology.is_tree()) {
     auto f = fit::SkeletonFitter::create(topology, options.fit);

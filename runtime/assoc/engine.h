@@ -34,9 +34,9 @@ struct FrameStats {
   ParsingStats parsing;
   int bundles = 0;
   AssemblyStats assembly;
-  int fragments_merged = 0;  // persons merged after triangulation (one person split in two)
+  int fragments_merged = 0;       // persons merged after triangulation (one person split in two)
   int fragment_observations = 0;  // persons with < min_joints_observed joints (track ages)
-  int persons = 0;           // persons output this frame
+  int persons = 0;                // persons output this frame
   int births = 0;
   int deaths = 0;
   int tracks = 0;  // live tracks after this frame

@@ -36,7 +36,7 @@
 namespace mocap {
 
 struct Shelf15MappingOptions {
-  double bottom_head_fraction = 0.5;           // 0 = shoulder centre, 1 = ear centre
+  double bottom_head_fraction = 0.5;       // 0 = shoulder centre, 1 = ear centre
   double head_forward_m = 0.125;           // top head, along the trunk's facing direction
   double head_up_m = 0.145;                // top head, along up_axis
   float min_confidence = 0.f;              // a joint with confidence <= this counts as missing
