@@ -9,9 +9,16 @@
 namespace mocap::assoc {
 namespace {
 
-// Shortest distance between two rays (closest_points), and whether the closest points lie in
-// front of both cameras (depth along each ray >= min_depth_m). Parallel rays never match.
-bool ray_pair_distance(const Ray& a, const Ray& b, double min_depth_m, double* dist_m) {
+// Shortest distance between two rays (closest_points) when it is below max_dist_m and the
+// closest points lie in front of both cameras (depth along each ray >= min_depth_m). Parallel
+// rays never match. Most pairs are far apart: the line-to-line distance |w.n| / |n| (n = the
+// directions' cross product) rejects them before the closest points are solved; it is exactly
+// the distance between the closest points, so the test changes no result.
+bool ray_pair_distance(const Ray& a, const Ray& b, double min_depth_m, double max_dist_m,
+                       double* dist_m) {
+  const Eigen::Vector3d n = a.direction.cross(b.direction);
+  const double wn = (b.origin_m - a.origin_m).dot(n);
+  if (wn * wn >= max_dist_m * max_dist_m * n.squaredNorm()) return false;
   const ClosestPoints cp = closest_points(a, b);
   if (cp.parallel || cp.s_a_m < min_depth_m || cp.s_b_m < min_depth_m) return false;
   *dist_m = (cp.on_a - cp.on_b).norm();
@@ -95,7 +102,10 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
         const GraphCandidate& b = cj[idx(k2)];
         if (a.view == b.view) continue;
         double d = 0;
-        if (!ray_pair_distance(a.ray, b.ray, options.min_depth_m, &d)) continue;
+        if (!ray_pair_distance(a.ray, b.ray, options.min_depth_m, options.max_epipolar_dist_m,
+                               &d)) {
+          continue;
+        }
         if (d >= options.max_epipolar_dist_m) continue;
         const float p = static_cast<float>(1.0 - d / options.max_epipolar_dist_m);
         m[idx(k1 * n + k2)] = p;
@@ -120,7 +130,10 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
     }
   }
 
-  // Parsing edges (2D limbs).
+  // Parsing edges (2D limbs). p = raw^e >= min_affinity <=> raw >= min_affinity^(1/e) (e > 0),
+  // so raw scores below that skip the pow; the test after the pow still decides.
+  const float raw_min = static_cast<float>(
+      0.999 * std::pow(options.min_affinity, 1.0 / options.affinity_exponent));
   for (int l = 0; l < topo.limb_count(); ++l) {
     const Limb& limb = topo.limb(l);
     auto& edges = limb_edges_[idx(l)];
@@ -139,7 +152,7 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
       for (std::size_t ia = a0; ia < a1; ++ia) {
         for (std::size_t ib = b0; ib < b1; ++ib) {
           const float raw = aff.at(ca[ia].index, cb[ib].index);
-          if (!(raw > 0.f)) continue;
+          if (!(raw > 0.f) || raw < raw_min) continue;
           const float p =
               static_cast<float>(std::pow(static_cast<double>(raw), options.affinity_exponent));
           if (static_cast<double>(p) < options.min_affinity) continue;
