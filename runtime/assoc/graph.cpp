@@ -132,8 +132,8 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
 
   // Parsing edges (2D limbs). p = raw^e >= min_affinity <=> raw >= min_affinity^(1/e) (e > 0),
   // so raw scores below that skip the pow; the test after the pow still decides.
-  const float raw_min = static_cast<float>(
-      0.999 * std::pow(options.min_affinity, 1.0 / options.affinity_exponent));
+  const float raw_min =
+      static_cast<float>(0.999 * std::pow(options.min_affinity, 1.0 / options.affinity_exponent));
   for (int l = 0; l < topo.limb_count(); ++l) {
     const Limb& limb = topo.limb(l);
     auto& edges = limb_edges_[idx(l)];
