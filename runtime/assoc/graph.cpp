@@ -22,7 +22,7 @@ bool ray_pair_distance(const Ray& a, const Ray& b, double min_depth_m, double ma
   const ClosestPoints cp = closest_points(a, b);
   if (cp.parallel || cp.s_a_m < min_depth_m || cp.s_b_m < min_depth_m) return false;
   *dist_m = (cp.on_a - cp.on_b).norm();
-  return true;
+  return *dist_m < max_dist_m;
 }
 
 }  // namespace
@@ -106,7 +106,6 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
                                &d)) {
           continue;
         }
-        if (d >= options.max_epipolar_dist_m) continue;
         const float p = static_cast<float>(1.0 - d / options.max_epipolar_dist_m);
         m[idx(k1 * n + k2)] = p;
         m[idx(k2 * n + k1)] = p;
