@@ -423,14 +423,16 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     by_ka[ix(edges[ix(e)].ka)].push_back(e);
     by_kb[ix(edges[ix(e)].kb)].push_back(e);
   }
+  // Limb edges come sorted by ka and matching neighbours sorted ascending (FrameGraph), and
+  // matching edges join different views only: the pairs y > x are exactly those through
+  // neighbours ka2 > ka, so each pair is visited once.
   for (int x = 0; x < n2d; ++x) {
     const LimbEdge& ex = edges[ix(x)];
-    for (int ka2 : graph.match_neighbors(L.joint_a, ex.ka)) {
-      for (int y : by_ka[ix(ka2)]) {
-        if (y <= x) continue;
-        const LimbEdge& ey = edges[ix(y)];
-        if (ex.view == ey.view) continue;
-        if (graph.match(L.joint_b, ex.kb, ey.kb) <= 0.f) continue;
+    const std::span<const int> nbrs = graph.match_neighbors(L.joint_a, ex.ka);
+    const std::span<const float> match_b = graph.match_row(L.joint_b, ex.kb);
+    for (auto it = std::upper_bound(nbrs.begin(), nbrs.end(), ex.ka); it != nbrs.end(); ++it) {
+      for (int y : by_ka[ix(*it)]) {
+        if (match_b[ix(edges[ix(y)].kb)] <= 0.f) continue;
         cg.adj[ix(x)].set(y);
         cg.adj[ix(y)].set(x);
       }

@@ -63,11 +63,18 @@ class FrameGraph {
   float track(int joint, int t, int k) const {
     return track_[idx(joint)][idx(t * candidate_count(joint) + k)];
   }
-  // Candidates of `joint` joined to candidate k by a matching edge (sparse view of match()).
+  // Row k1 of the matching table of `joint`: match(joint, k1, k2) = match_row(joint, k1)[k2].
+  std::span<const float> match_row(int joint, int k1) const {
+    const int n = candidate_count(joint);
+    return std::span<const float>(match_[idx(joint)]).subspan(idx(k1 * n), idx(n));
+  }
+  // Candidates of `joint` joined to candidate k by a matching edge (sparse view of match()),
+  // in ascending order; they are all in other views than k's.
   std::span<const int> match_neighbors(int joint, int k) const { return nbr_[idx(joint)][idx(k)]; }
   bool track_has_joint(int t, int joint) const {
     return track_valid_[idx(t * joint_count() + joint)];
   }
+  // The 2D limbs of `limb`, sorted by view and then by ka (then kb).
   std::span<const LimbEdge> limb_edges(int limb) const { return limb_edges_[idx(limb)]; }
 
   // Builds the graph. `cameras` is indexed by view id (DetectionSet view_id = camera index);

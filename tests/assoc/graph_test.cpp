@@ -6,12 +6,14 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "runtime/sim/simulator.h"
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::assoc {
@@ -358,6 +360,61 @@ TEST_F(GraphTest, RebuildReusesStorageWithoutStaleEdges) {
   EXPECT_EQ(g.limb_edges(0).size(), 0u);
   EXPECT_EQ(g.match(0, 0, 0), 0.f);
   EXPECT_EQ(g.track_count(), 0);
+}
+
+// On a crowded simulated frame (12 views, 10 people, false candidates) the matching table equals
+// a brute-force evaluation of every candidate pair with closest_points (the line-to-line
+// prefilter changes no edge), neighbour lists are ascending and in other views, and limb edges
+// are sorted by view and ka: the orders parse_limb_bundles relies on.
+TEST(GraphSimTest, MatchingEdgesEqualBruteForceAndAreOrdered) {
+  sim::SceneOptions scene;
+  scene.people = 10;
+  scene.area_radius_m = 3.0;
+  sim::RigOptions rig;
+  rig.views = 12;
+  Result<sim::Simulator> s =
+      sim::Simulator::create(rig, scene, sim::DetectionNoiseOptions{}, body19_topology());
+  ASSERT_TRUE(s.ok()) << s.error().message();
+  Result<sim::RenderedFrame> f = s->next();
+  ASSERT_TRUE(f.ok()) << f.error().message();
+  const GraphOptions opt;
+  FrameGraph g;
+  ASSERT_TRUE(g.build(f->detections, s->rig().cameras, {}, opt).ok());
+  long edges = 0;
+  for (int j = 0; j < g.joint_count(); ++j) {
+    const auto c = g.candidates(j);
+    const int n = g.candidate_count(j);
+    for (int k1 = 0; k1 < n; ++k1) {
+      const auto nb = g.match_neighbors(j, k1);
+      EXPECT_TRUE(std::is_sorted(nb.begin(), nb.end())) << "joint " << j << " k " << k1;
+      for (int k2 = 0; k2 < n; ++k2) {
+        const GraphCandidate& a = c[static_cast<std::size_t>(k1)];
+        const GraphCandidate& b = c[static_cast<std::size_t>(k2)];
+        float want = 0.f;
+        if (a.view != b.view) {
+          const ClosestPoints cp = closest_points(a.ray, b.ray);
+          const double d = (cp.on_a - cp.on_b).norm();
+          if (!cp.parallel && cp.s_a_m >= opt.min_depth_m && cp.s_b_m >= opt.min_depth_m &&
+              d < opt.max_epipolar_dist_m) {
+            want = static_cast<float>(1.0 - d / opt.max_epipolar_dist_m);
+          }
+        }
+        ASSERT_FLOAT_EQ(g.match(j, k1, k2), want) << "joint " << j << " pair " << k1 << "," << k2;
+        const bool listed = std::find(nb.begin(), nb.end(), k2) != nb.end();
+        ASSERT_EQ(listed, want > 0.f) << "joint " << j << " pair " << k1 << "," << k2;
+        if (want > 0.f) ++edges;
+      }
+    }
+  }
+  EXPECT_GT(edges, 5000);  // the frame is crowded enough to exercise the prefilter
+  for (int l = 0; l < g.limb_count(); ++l) {
+    const auto e = g.limb_edges(l);
+    EXPECT_TRUE(std::is_sorted(e.begin(), e.end(),
+                               [](const LimbEdge& x, const LimbEdge& y) {
+                                 return x.view != y.view ? x.view < y.view : x.ka < y.ka;
+                               }))
+        << "limb " << l;
+  }
 }
 
 }  // namespace
