@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# One command on a fresh Debian 12 machine: installs the Debian packages the project needs,
-# fetches the PoseNet weights (checked by SHA-256, cached), builds (CMake + Ninja, Release)
-# and runs the main job. Idempotent: a second run installs and downloads nothing.
+# One command on a fresh Debian 12 machine: installs the Debian packages, fetches the PoseNet
+# weights and test photos (SHA-256 checked, cached), installs the TF.js reference runner,
+# builds (CMake + Ninja, Release), converts models/posenet.json to models/posenet.mcnn and runs
+# the main job. Idempotent: a second run installs and downloads nothing. --no-models skips
+# every download (weights, photos, npm packages) and the conversion.
 #
 #   tools/setup.sh [--no-run] [--no-build] [--no-models]
 set -euo pipefail
@@ -12,7 +14,7 @@ for arg in "$@"; do
     --no-run) RUN=0 ;;
     --no-build) BUILD=0; RUN=0 ;;
     --no-models) MODELS=0 ;;
-    -h|--help) sed -n '2,7p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "setup.sh: unknown option '$arg' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -45,10 +47,45 @@ install_npm() {
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends nodejs npm
 }
 
+install_tfjs_ref() {
+  # The TF.js reference runner (tools/tfjs_ref): npm ci when node_modules is missing or older
+  # than package-lock.json. Needs only the npm registry at install time, nothing at run time.
+  local dir="$ROOT/tools/tfjs_ref"
+  if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+    say "TF.js reference: node/npm not found, skipped"
+    return
+  fi
+  if [ -d "$dir/node_modules" ] && [ ! "$dir/package-lock.json" -nt "$dir/node_modules" ]; then
+    say "TF.js reference: tools/tfjs_ref/node_modules up to date"
+    return
+  fi
+  say "TF.js reference: npm ci in tools/tfjs_ref"
+  (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error)
+  touch "$dir/node_modules"
+}
+
 build() {
   say "Build (Release) in build/"
   cmake -S "$ROOT" -B "$ROOT/build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
   cmake --build "$ROOT/build"
+}
+
+convert_models() {
+  # models/posenet.mcnn (docs/model-format.md) from the TF.js graph model, with the mocap just
+  # built; redone only when missing or older than posenet.json/posenet.bin. mocap writes a
+  # temporary file and renames it, so an interrupted run leaves no partial model behind.
+  local json="$ROOT/models/posenet.json" bin="$ROOT/models/posenet.bin"
+  local out="$ROOT/models/posenet.mcnn"
+  if [ ! -f "$json" ]; then
+    say "Model file: models/posenet.json not found, conversion skipped"
+    return
+  fi
+  if [ -f "$out" ] && [ ! "$json" -nt "$out" ] && [ ! "$bin" -nt "$out" ]; then
+    say "Model file: models/posenet.mcnn up to date"
+    return
+  fi
+  say "Model file: converting models/posenet.json to models/posenet.mcnn"
+  "$ROOT/build/bin/mocap" model convert --tfjs "$json" --out "$out"
 }
 
 install_packages
@@ -56,8 +93,12 @@ if [ "$MODELS" -eq 1 ]; then
   install_npm
   say "Models"
   bash "$ROOT/tools/fetch_models.sh"
+  say "Test photos"
+  bash "$ROOT/tools/fetch_test_photos.sh"
+  install_tfjs_ref
 fi
 [ "$BUILD" -eq 1 ] && build
+[ "$BUILD" -eq 1 ] && [ "$MODELS" -eq 1 ] && convert_models
 if [ "$RUN" -eq 1 ]; then
   bash "$ROOT/tools/run_main.sh"
 fi

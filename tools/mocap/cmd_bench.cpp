@@ -178,12 +178,14 @@ int run_bench(Args args) {
   if (args.empty() || args[0] == "--help" || args[0] == "-h") {
     std::fputs(
         "usage: mocap bench <what> [options]\n\nbenchmarks:\n"
-        "  assoc    association + fitting per frame (mocap bench assoc --help)\n",
+        "  assoc    association + fitting per frame (mocap bench assoc --help)\n"
+        "  cnn      pose CNN per frame, per layer, vs TF.js (mocap bench cnn --help)\n",
         args.empty() ? stderr : stdout);
     return args.empty() ? 2 : 0;
   }
   if (args[0] == "assoc") return bench_assoc(args.subspan(1));
-  std::fprintf(stderr, "mocap bench: unknown benchmark '%s' (try: assoc)\n",
+  if (args[0] == "cnn") return run_bench_cnn(args.subspan(1));
+  std::fprintf(stderr, "mocap bench: unknown benchmark '%s' (try: assoc, cnn)\n",
                std::string(args[0]).c_str());
   return 2;
 }

@@ -19,9 +19,9 @@ struct Command {
 const Command kCommands[] = {
   {"calib",   "show or check a calibration file",                        mocap::tools::run_calib, nullptr},
   {"eval",    "evaluate the association engine on a benchmark (shelf)",   mocap::tools::run_eval, nullptr},
-  {"bench",   "benchmarks: assoc (cnn and pipeline arrive with issues #4, #6)", mocap::tools::run_bench, nullptr},
-  {"infer",   "run the pose CNN on a tensor or an image",                 nullptr, "the Vulkan inference runtime (issue #4)"},
-  {"model",   "convert and inspect model files",                          nullptr, "the Vulkan inference runtime (issue #4)"},
+  {"bench",   "benchmarks: assoc, cnn (pipeline arrives with issue #6)", mocap::tools::run_bench, nullptr},
+  {"infer",   "run the pose CNN on a tensor or an image",                 mocap::tools::run_infer, nullptr},
+  {"model",   "convert and inspect model files",                          mocap::tools::run_model, nullptr},
   {"replay",  "run a recorded multi-view video through the pipeline",     nullptr, "the hardware layer (issue #5) and mocapd (issue #6)"},
   {"cameras", "list cameras and their formats",                           nullptr, "the hardware layer (issue #5)"},
   {"capture", "record frames from cameras",                               nullptr, "the hardware layer (issue #5)"},

@@ -1,0 +1,641 @@
+#include "runtime/gpu/context.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <system_error>
+
+#include "runtime/core/log.h"
+
+MOCAP_LOG_CATEGORY(Gpu)
+
+namespace mocap::gpu {
+namespace {
+
+constexpr const char* kValidationLayer = "VK_LAYER_KHRONOS_validation";
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+int type_rank(VkPhysicalDeviceType t) {
+  switch (t) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
+      return 4;
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
+      return 3;
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU:
+      return 2;
+    case VK_PHYSICAL_DEVICE_TYPE_CPU:
+      return 1;
+    default:
+      return 0;
+  }
+}
+
+// First queue family with compute; -1 when none.
+int compute_family(VkPhysicalDevice pd, std::uint32_t* timestamp_bits) {
+  std::uint32_t n = 0;
+  vkGetPhysicalDeviceQueueFamilyProperties(pd, &n, nullptr);
+  std::vector<VkQueueFamilyProperties> fams(n);
+  vkGetPhysicalDeviceQueueFamilyProperties(pd, &n, fams.data());
+  for (std::uint32_t i = 0; i < n; ++i) {
+    if (fams[i].queueFlags & VK_QUEUE_COMPUTE_BIT) {
+      if (timestamp_bits) *timestamp_bits = fams[i].timestampValidBits;
+      return static_cast<int>(i);
+    }
+  }
+  return -1;
+}
+
+DeviceInfo describe(VkPhysicalDevice pd, int index) {
+  DeviceInfo d;
+  d.index = index;
+  VkPhysicalDeviceSubgroupProperties sub{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
+  VkPhysicalDeviceDriverProperties drv{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+  sub.pNext = &drv;
+  VkPhysicalDeviceProperties2 p2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+  p2.pNext = &sub;
+  vkGetPhysicalDeviceProperties2(pd, &p2);
+  const VkPhysicalDeviceProperties& p = p2.properties;
+  d.name = p.deviceName;
+  d.type = p.deviceType;
+  d.api_version = p.apiVersion;
+  d.vendor_id = p.vendorID;
+  d.device_id = p.deviceID;
+  d.subgroup_size = sub.subgroupSize;
+  d.max_workgroup_invocations = p.limits.maxComputeWorkGroupInvocations;
+  if (VK_API_VERSION_MINOR(p.apiVersion) >= 2 || VK_API_VERSION_MAJOR(p.apiVersion) > 1) {
+    d.driver = std::string(drv.driverName) + " " + drv.driverInfo;
+  }
+  std::uint32_t ts_bits = 0;
+  compute_family(pd, &ts_bits);
+  if (ts_bits > 0 && p.limits.timestampComputeAndGraphics) {
+    d.timestamp_period_ns = static_cast<double>(p.limits.timestampPeriod);
+  }
+  return d;
+}
+
+bool layer_available(const char* name) {
+  std::uint32_t n = 0;
+  vkEnumerateInstanceLayerProperties(&n, nullptr);
+  std::vector<VkLayerProperties> layers(n);
+  vkEnumerateInstanceLayerProperties(&n, layers.data());
+  for (const auto& l : layers) {
+    if (std::strcmp(l.layerName, name) == 0) return true;
+  }
+  return false;
+}
+
+bool instance_extension_available(const char* name) {
+  std::uint32_t n = 0;
+  vkEnumerateInstanceExtensionProperties(nullptr, &n, nullptr);
+  std::vector<VkExtensionProperties> ext(n);
+  vkEnumerateInstanceExtensionProperties(nullptr, &n, ext.data());
+  for (const auto& e : ext) {
+    if (std::strcmp(e.extensionName, name) == 0) return true;
+  }
+  return false;
+}
+
+VkResult make_instance(bool validation, VkInstance* out) {
+  VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+  app.pApplicationName = "mocap-box";
+  app.pEngineName = "mocap-box";
+  app.apiVersion = VK_API_VERSION_1_1;
+  VkInstanceCreateInfo ci{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+  ci.pApplicationInfo = &app;
+  const char* layers[] = {kValidationLayer};
+  const char* exts[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME};
+  if (validation) {
+    ci.enabledLayerCount = 1;
+    ci.ppEnabledLayerNames = layers;
+    ci.enabledExtensionCount = 1;
+    ci.ppEnabledExtensionNames = exts;
+  }
+  return vkCreateInstance(&ci, nullptr, out);
+}
+
+std::vector<VkPhysicalDevice> physical_devices(VkInstance inst) {
+  std::uint32_t n = 0;
+  vkEnumeratePhysicalDevices(inst, &n, nullptr);
+  std::vector<VkPhysicalDevice> pds(n);
+  vkEnumeratePhysicalDevices(inst, &n, pds.data());
+  pds.resize(n);
+  return pds;
+}
+
+VKAPI_ATTR VkBool32 VKAPI_CALL on_validation(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
+                                             VkDebugUtilsMessageTypeFlagsEXT,
+                                             const VkDebugUtilsMessengerCallbackDataEXT* data,
+                                             void* user) {
+  if (severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT) {
+    ++*static_cast<int*>(user);
+    MOCAP_LOG(Gpu, Error) << "Vulkan validation: " << (data ? data->pMessage : "?");
+  } else if (severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT) {
+    MOCAP_LOG(Gpu, Warn) << "Vulkan validation: " << (data ? data->pMessage : "?");
+  }
+  return VK_FALSE;
+}
+
+std::filesystem::path default_cache_path() {
+  const char* xdg = std::getenv("XDG_CACHE_HOME");
+  const char* home = std::getenv("HOME");
+  std::filesystem::path base;
+  if (xdg && *xdg) {
+    base = xdg;
+  } else if (home && *home) {
+    base = std::filesystem::path(home) / ".cache";
+  } else {
+    return {};
+  }
+  return base / "mocap-box" / "vk-pipeline-cache.bin";
+}
+
+}  // namespace
+
+const char* vk_result_name(VkResult r) {
+  switch (r) {
+    case VK_SUCCESS:
+      return "VK_SUCCESS";
+    case VK_NOT_READY:
+      return "VK_NOT_READY";
+    case VK_TIMEOUT:
+      return "VK_TIMEOUT";
+    case VK_ERROR_OUT_OF_HOST_MEMORY:
+      return "VK_ERROR_OUT_OF_HOST_MEMORY";
+    case VK_ERROR_OUT_OF_DEVICE_MEMORY:
+      return "VK_ERROR_OUT_OF_DEVICE_MEMORY";
+    case VK_ERROR_INITIALIZATION_FAILED:
+      return "VK_ERROR_INITIALIZATION_FAILED";
+    case VK_ERROR_DEVICE_LOST:
+      return "VK_ERROR_DEVICE_LOST";
+    case VK_ERROR_MEMORY_MAP_FAILED:
+      return "VK_ERROR_MEMORY_MAP_FAILED";
+    case VK_ERROR_LAYER_NOT_PRESENT:
+      return "VK_ERROR_LAYER_NOT_PRESENT";
+    case VK_ERROR_EXTENSION_NOT_PRESENT:
+      return "VK_ERROR_EXTENSION_NOT_PRESENT";
+    case VK_ERROR_FEATURE_NOT_PRESENT:
+      return "VK_ERROR_FEATURE_NOT_PRESENT";
+    case VK_ERROR_INCOMPATIBLE_DRIVER:
+      return "VK_ERROR_INCOMPATIBLE_DRIVER";
+    case VK_ERROR_TOO_MANY_OBJECTS:
+      return "VK_ERROR_TOO_MANY_OBJECTS";
+    case VK_ERROR_OUT_OF_POOL_MEMORY:
+      return "VK_ERROR_OUT_OF_POOL_MEMORY";
+    default:
+      return "VkResult error";
+  }
+}
+
+Error vk_error(VkResult r, const std::string& what) {
+  const ErrorCode code = r == VK_ERROR_INCOMPATIBLE_DRIVER || r == VK_ERROR_INITIALIZATION_FAILED
+                             ? ErrorCode::kUnsupported
+                             : ErrorCode::kDevice;
+  return Error(code, "Vulkan: " + what + " failed (" + vk_result_name(r) + ", " +
+                         std::to_string(static_cast<int>(r)) + ")");
+}
+
+Status GpuOptions::validate() const {
+  for (char c : device) {
+    if (!std::isprint(static_cast<unsigned char>(c))) {
+      return Error(ErrorCode::kInvalidArgument, "GpuOptions.device has a non-printable character");
+    }
+  }
+  return Status::Ok();
+}
+
+std::string DeviceInfo::type_name() const {
+  switch (type) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
+      return "discrete GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
+      return "integrated GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU:
+      return "virtual GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_CPU:
+      return "CPU (software)";
+    default:
+      return "other";
+  }
+}
+
+// ------------------------------------------------------------------------------------ Buffer
+
+Buffer::Buffer(Buffer&& o) noexcept { *this = std::move(o); }
+Buffer& Buffer::operator=(Buffer&& o) noexcept {
+  if (this != &o) {
+    release();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    buffer_ = std::exchange(o.buffer_, VK_NULL_HANDLE);
+    memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
+    size_ = std::exchange(o.size_, 0);
+    mapped_ = std::exchange(o.mapped_, nullptr);
+  }
+  return *this;
+}
+Buffer::~Buffer() { release(); }
+void Buffer::release() {
+  if (device_ == VK_NULL_HANDLE) return;
+  if (mapped_) vkUnmapMemory(device_, memory_);
+  if (buffer_) vkDestroyBuffer(device_, buffer_, nullptr);
+  if (memory_) vkFreeMemory(device_, memory_, nullptr);
+  device_ = VK_NULL_HANDLE;
+  buffer_ = VK_NULL_HANDLE;
+  memory_ = VK_NULL_HANDLE;
+  mapped_ = nullptr;
+  size_ = 0;
+}
+
+// ------------------------------------------------------------------------------------ Kernel
+
+Kernel::Kernel(Kernel&& o) noexcept { *this = std::move(o); }
+Kernel& Kernel::operator=(Kernel&& o) noexcept {
+  if (this != &o) {
+    release();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    module_ = std::exchange(o.module_, VK_NULL_HANDLE);
+    set_layout_ = std::exchange(o.set_layout_, VK_NULL_HANDLE);
+    layout_ = std::exchange(o.layout_, VK_NULL_HANDLE);
+    pipeline_ = std::exchange(o.pipeline_, VK_NULL_HANDLE);
+    bindings_ = o.bindings_;
+    workgroup_size_ = o.workgroup_size_;
+    push_bytes_ = o.push_bytes_;
+  }
+  return *this;
+}
+Kernel::~Kernel() { release(); }
+void Kernel::release() {
+  if (device_ == VK_NULL_HANDLE) return;
+  if (pipeline_) vkDestroyPipeline(device_, pipeline_, nullptr);
+  if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
+  if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
+  if (module_) vkDestroyShaderModule(device_, module_, nullptr);
+  device_ = VK_NULL_HANDLE;
+}
+
+// ----------------------------------------------------------------------------------- Context
+
+Result<std::vector<DeviceInfo>> Context::list_devices() {
+  VkInstance inst = VK_NULL_HANDLE;
+  if (VkResult r = make_instance(false, &inst); r != VK_SUCCESS) {
+    return vk_error(r,
+                    "creating an instance (is a Vulkan driver installed? Debian: "
+                    "mesa-vulkan-drivers)");
+  }
+  std::vector<DeviceInfo> out;
+  const auto pds = physical_devices(inst);
+  for (std::size_t i = 0; i < pds.size(); ++i) {
+    if (compute_family(pds[i], nullptr) < 0) continue;
+    out.push_back(describe(pds[i], static_cast<int>(i)));
+  }
+  vkDestroyInstance(inst, nullptr);
+  return out;
+}
+
+Result<std::unique_ptr<Context>> Context::create(const GpuOptions& options) {
+  if (Status s = options.validate(); !s.ok()) return s.error();
+  std::unique_ptr<Context> ctx(new Context());
+  ctx->options_ = options;
+  if (const char* env = std::getenv("MOCAP_VULKAN_DEVICE"); env && *env) {
+    ctx->options_.device = env;
+  }
+  bool validation = options.validation;
+  if (const char* env = std::getenv("MOCAP_VULKAN_VALIDATION"); env && *env) {
+    validation = std::string(env) != "0";
+  }
+  if (validation && !(layer_available(kValidationLayer) &&
+                      instance_extension_available(VK_EXT_DEBUG_UTILS_EXTENSION_NAME))) {
+    MOCAP_LOG(Gpu, Warn) << "Vulkan validation requested but " << kValidationLayer
+                         << " is not installed (Debian: vulkan-validationlayers); running "
+                            "without it";
+    validation = false;
+  }
+  if (VkResult r = make_instance(validation, &ctx->instance_); r != VK_SUCCESS) {
+    return vk_error(r,
+                    "creating an instance (is a Vulkan driver installed? Debian: "
+                    "mesa-vulkan-drivers)");
+  }
+  if (validation) {
+    auto create_messenger = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(ctx->instance_, "vkCreateDebugUtilsMessengerEXT"));
+    if (create_messenger) {
+      VkDebugUtilsMessengerCreateInfoEXT mi{
+          VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+      mi.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
+                           VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+      mi.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
+                       VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                       VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+      mi.pfnUserCallback = on_validation;
+      mi.pUserData = ctx->validation_error_count_.get();
+      create_messenger(ctx->instance_, &mi, nullptr, &ctx->messenger_);
+    }
+  }
+
+  // Device selection.
+  const auto pds = physical_devices(ctx->instance_);
+  std::vector<DeviceInfo> infos;
+  std::string listing;
+  for (std::size_t i = 0; i < pds.size(); ++i) {
+    infos.push_back(describe(pds[i], static_cast<int>(i)));
+    listing += "\n  " + std::to_string(i) + ": " + infos.back().name + " (" +
+               infos.back().type_name() + ")";
+  }
+  int chosen = -1;
+  const std::string& want = ctx->options_.device;
+  for (std::size_t i = 0; i < pds.size(); ++i) {
+    if (compute_family(pds[i], nullptr) < 0) continue;
+    if (VK_API_VERSION_MAJOR(infos[i].api_version) == 1 &&
+        VK_API_VERSION_MINOR(infos[i].api_version) < 1) {
+      continue;
+    }
+    if (!want.empty()) {
+      const bool by_index = std::all_of(want.begin(), want.end(), [](char c) {
+        return std::isdigit(static_cast<unsigned char>(c));
+      });
+      const bool match = by_index ? std::to_string(i) == want
+                                  : lower(infos[i].name).find(lower(want)) != std::string::npos;
+      if (match) {
+        chosen = static_cast<int>(i);
+        break;
+      }
+      continue;
+    }
+    if (chosen < 0 ||
+        type_rank(infos[i].type) > type_rank(infos[static_cast<std::size_t>(chosen)].type)) {
+      chosen = static_cast<int>(i);
+    }
+  }
+  if (chosen < 0) {
+    if (pds.empty()) {
+      return Error(ErrorCode::kUnsupported,
+                   "no Vulkan device found; install a driver (Debian: mesa-vulkan-drivers gives "
+                   "the lavapipe CPU device) or use the CPU backend (--backend cpu)");
+    }
+    return Error(ErrorCode::kNotFound,
+                 want.empty() ? "no Vulkan 1.1 device with a compute queue among:" + listing
+                              : "no Vulkan device matches '" + want +
+                                    "' (MOCAP_VULKAN_DEVICE / --device); devices:" + listing);
+  }
+  ctx->physical_ = pds[static_cast<std::size_t>(chosen)];
+  ctx->info_ = infos[static_cast<std::size_t>(chosen)];
+  ctx->queue_family_ = static_cast<std::uint32_t>(compute_family(ctx->physical_, nullptr));
+  vkGetPhysicalDeviceMemoryProperties(ctx->physical_, &ctx->memory_);
+
+  const float prio = 1.0f;
+  VkDeviceQueueCreateInfo qi{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+  qi.queueFamilyIndex = ctx->queue_family_;
+  qi.queueCount = 1;
+  qi.pQueuePriorities = &prio;
+  VkDeviceCreateInfo di{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+  di.queueCreateInfoCount = 1;
+  di.pQueueCreateInfos = &qi;
+  if (VkResult r = vkCreateDevice(ctx->physical_, &di, nullptr, &ctx->device_); r != VK_SUCCESS) {
+    return vk_error(r, "creating the logical device on " + ctx->info_.name);
+  }
+  vkGetDeviceQueue(ctx->device_, ctx->queue_family_, 0, &ctx->queue_);
+  VkCommandPoolCreateInfo pi{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+  pi.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+  pi.queueFamilyIndex = ctx->queue_family_;
+  if (VkResult r = vkCreateCommandPool(ctx->device_, &pi, nullptr, &ctx->pool_); r != VK_SUCCESS) {
+    return vk_error(r, "creating a command pool");
+  }
+  VkFenceCreateInfo fi{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+  if (VkResult r = vkCreateFence(ctx->device_, &fi, nullptr, &ctx->fence_); r != VK_SUCCESS) {
+    return vk_error(r, "creating a fence");
+  }
+
+  // Pipeline cache: reuse the file only when its header names this device and driver.
+  ctx->cache_path_ =
+      options.pipeline_cache_path.empty() ? default_cache_path() : options.pipeline_cache_path;
+  std::vector<char> blob;
+  if (options.persist_pipeline_cache && !ctx->cache_path_.empty()) {
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(ctx->cache_path_, ec);
+    constexpr std::uintmax_t kMaxCacheBytes = 256u << 20;
+    if (!ec && size > 0 && size < kMaxCacheBytes) {
+      std::ifstream f(ctx->cache_path_, std::ios::binary);
+      blob.resize(static_cast<std::size_t>(size));
+      if (!f.read(blob.data(), static_cast<std::streamsize>(size))) blob.clear();
+    }
+    VkPhysicalDeviceProperties props;
+    vkGetPhysicalDeviceProperties(ctx->physical_, &props);
+    bool ok = blob.size() >= 16 + VK_UUID_SIZE;
+    if (ok) {
+      std::uint32_t h[4];
+      std::memcpy(h, blob.data(), sizeof h);
+      ok = h[0] >= 16 + VK_UUID_SIZE && h[1] == VK_PIPELINE_CACHE_HEADER_VERSION_ONE &&
+           h[2] == props.vendorID && h[3] == props.deviceID &&
+           std::memcmp(blob.data() + 16, props.pipelineCacheUUID, VK_UUID_SIZE) == 0;
+    }
+    if (!ok && !blob.empty()) {
+      MOCAP_LOG(Gpu, Info) << "pipeline cache " << ctx->cache_path_.string()
+                           << " is for another device or driver; starting a new one";
+    }
+    if (!ok) blob.clear();
+  }
+  VkPipelineCacheCreateInfo ci{VK_STRUCTURE_TYPE_PIPELINE_CACHE_CREATE_INFO};
+  ci.initialDataSize = blob.size();
+  ci.pInitialData = blob.empty() ? nullptr : blob.data();
+  if (VkResult r = vkCreatePipelineCache(ctx->device_, &ci, nullptr, &ctx->pipeline_cache_);
+      r != VK_SUCCESS) {
+    ci.initialDataSize = 0;
+    ci.pInitialData = nullptr;
+    if (VkResult r2 = vkCreatePipelineCache(ctx->device_, &ci, nullptr, &ctx->pipeline_cache_);
+        r2 != VK_SUCCESS) {
+      return vk_error(r2, "creating a pipeline cache");
+    }
+    (void)r;
+  }
+  MOCAP_LOG(Gpu, Info) << "Vulkan device " << ctx->info_.index << ": " << ctx->info_.name << " ("
+                       << ctx->info_.type_name() << ")" << (validation ? ", validation on" : "");
+  if (ctx->info_.is_cpu()) {
+    MOCAP_LOG(Gpu, Info) << "running on a software Vulkan device (no GPU found or chosen)";
+  }
+  return ctx;
+}
+
+Context::~Context() {
+  if (device_) {
+    vkDeviceWaitIdle(device_);
+    if (options_.persist_pipeline_cache) (void)save_pipeline_cache();
+    if (pipeline_cache_) vkDestroyPipelineCache(device_, pipeline_cache_, nullptr);
+    if (fence_) vkDestroyFence(device_, fence_, nullptr);
+    if (pool_) vkDestroyCommandPool(device_, pool_, nullptr);
+    vkDestroyDevice(device_, nullptr);
+  }
+  if (messenger_) {
+    auto destroy = reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(instance_, "vkDestroyDebugUtilsMessengerEXT"));
+    if (destroy) destroy(instance_, messenger_, nullptr);
+  }
+  if (instance_) vkDestroyInstance(instance_, nullptr);
+}
+
+int Context::validation_errors() const { return *validation_error_count_; }
+
+Status Context::save_pipeline_cache() {
+  if (cache_path_.empty() || !pipeline_cache_) return Status::Ok();
+  std::size_t n = 0;
+  if (vkGetPipelineCacheData(device_, pipeline_cache_, &n, nullptr) != VK_SUCCESS || n == 0) {
+    return Status::Ok();
+  }
+  std::vector<char> data(n);
+  if (vkGetPipelineCacheData(device_, pipeline_cache_, &n, data.data()) != VK_SUCCESS) {
+    return Status::Ok();
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(cache_path_.parent_path(), ec);
+  const auto tmp = cache_path_.string() + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    if (!f) {
+      MOCAP_LOG(Gpu, Warn) << "cannot write pipeline cache " << tmp << "; pipelines will be "
+                           << "rebuilt at the next start";
+      return Status::Ok();
+    }
+    f.write(data.data(), static_cast<std::streamsize>(n));
+  }
+  std::filesystem::rename(tmp, cache_path_, ec);
+  return Status::Ok();
+}
+
+Result<Buffer> Context::create_buffer(VkDeviceSize bytes, bool host_visible) {
+  Buffer b;
+  b.device_ = device_;
+  b.size_ = std::max<VkDeviceSize>(bytes, 16);
+  VkBufferCreateInfo bi{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+  bi.size = b.size_;
+  bi.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
+             VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  if (VkResult r = vkCreateBuffer(device_, &bi, nullptr, &b.buffer_); r != VK_SUCCESS) {
+    return vk_error(r, "creating a buffer of " + std::to_string(bytes) + " bytes");
+  }
+  VkMemoryRequirements req;
+  vkGetBufferMemoryRequirements(device_, b.buffer_, &req);
+  // Host-visible buffers prefer cached memory (fast readback); device buffers device-local.
+  const VkMemoryPropertyFlags need =
+      host_visible ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
+                   : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT;
+  const VkMemoryPropertyFlags nice = host_visible ? VK_MEMORY_PROPERTY_HOST_CACHED_BIT : 0;
+  int type = -1;
+  for (int pass = 0; pass < 3 && type < 0; ++pass) {
+    const VkMemoryPropertyFlags want = pass == 0 ? need | nice : pass == 1 ? need : 0;
+    if (pass == 2 && host_visible) break;  // host-visible is not optional
+    for (std::uint32_t i = 0; i < memory_.memoryTypeCount; ++i) {
+      if ((req.memoryTypeBits & (1u << i)) &&
+          (memory_.memoryTypes[i].propertyFlags & want) == want) {
+        type = static_cast<int>(i);
+        break;
+      }
+    }
+  }
+  if (type < 0) {
+    return Error(ErrorCode::kDevice, "Vulkan: no suitable memory type for a " +
+                                         std::string(host_visible ? "host-visible" : "device") +
+                                         " buffer on " + info_.name);
+  }
+  VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  ai.allocationSize = req.size;
+  ai.memoryTypeIndex = static_cast<std::uint32_t>(type);
+  if (VkResult r = vkAllocateMemory(device_, &ai, nullptr, &b.memory_); r != VK_SUCCESS) {
+    return vk_error(r, "allocating " + std::to_string(req.size) + " bytes of GPU memory");
+  }
+  vkBindBufferMemory(device_, b.buffer_, b.memory_, 0);
+  if (host_visible) {
+    if (VkResult r = vkMapMemory(device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_);
+        r != VK_SUCCESS) {
+      return vk_error(r, "mapping a host-visible buffer");
+    }
+  }
+  return b;
+}
+
+Result<Kernel> Context::create_kernel(std::span<const std::uint32_t> spirv, const std::string& name,
+                                      int bindings, std::uint32_t push_bytes,
+                                      std::span<const std::int32_t> spec_constants,
+                                      std::uint32_t workgroup_size) {
+  Kernel k;
+  k.device_ = device_;
+  k.bindings_ = bindings;
+  k.push_bytes_ = push_bytes;
+  k.workgroup_size_ = std::min(workgroup_size, info_.max_workgroup_invocations);
+  VkShaderModuleCreateInfo mi{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  mi.codeSize = spirv.size_bytes();
+  mi.pCode = spirv.data();
+  if (VkResult r = vkCreateShaderModule(device_, &mi, nullptr, &k.module_); r != VK_SUCCESS) {
+    return vk_error(r, "creating shader module " + name);
+  }
+  std::vector<VkDescriptorSetLayoutBinding> b(static_cast<std::size_t>(bindings));
+  for (int i = 0; i < bindings; ++i) {
+    b[static_cast<std::size_t>(i)] = VkDescriptorSetLayoutBinding{
+        static_cast<std::uint32_t>(i), VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+        VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
+  }
+  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  li.bindingCount = static_cast<std::uint32_t>(bindings);
+  li.pBindings = b.data();
+  if (VkResult r = vkCreateDescriptorSetLayout(device_, &li, nullptr, &k.set_layout_);
+      r != VK_SUCCESS) {
+    return vk_error(r, "creating the descriptor set layout of " + name);
+  }
+  VkPushConstantRange pr{VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes};
+  VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  pli.setLayoutCount = 1;
+  pli.pSetLayouts = &k.set_layout_;
+  pli.pushConstantRangeCount = push_bytes > 0 ? 1 : 0;
+  pli.pPushConstantRanges = &pr;
+  if (VkResult r = vkCreatePipelineLayout(device_, &pli, nullptr, &k.layout_); r != VK_SUCCESS) {
+    return vk_error(r, "creating the pipeline layout of " + name);
+  }
+  // Specialization constants: id 0 = workgroup size, ids 1.. = spec_constants.
+  std::vector<std::int32_t> values;
+  values.push_back(static_cast<std::int32_t>(k.workgroup_size_));
+  values.insert(values.end(), spec_constants.begin(), spec_constants.end());
+  std::vector<VkSpecializationMapEntry> entries(values.size());
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    entries[i] = VkSpecializationMapEntry{static_cast<std::uint32_t>(i),
+                                          static_cast<std::uint32_t>(i * sizeof(std::int32_t)),
+                                          sizeof(std::int32_t)};
+  }
+  VkSpecializationInfo si{static_cast<std::uint32_t>(entries.size()), entries.data(),
+                          values.size() * sizeof(std::int32_t), values.data()};
+  VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  ci.stage = VkPipelineShaderStageCreateInfo{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  ci.stage.module = k.module_;
+  ci.stage.pName = "main";
+  ci.stage.pSpecializationInfo = &si;
+  ci.layout = k.layout_;
+  if (VkResult r =
+          vkCreateComputePipelines(device_, pipeline_cache_, 1, &ci, nullptr, &k.pipeline_);
+      r != VK_SUCCESS) {
+    return vk_error(r, "creating the compute pipeline of " + name);
+  }
+  return k;
+}
+
+Status Context::submit_and_wait(VkCommandBuffer cb) {
+  VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  si.commandBufferCount = 1;
+  si.pCommandBuffers = &cb;
+  vkResetFences(device_, 1, &fence_);
+  if (VkResult r = vkQueueSubmit(queue_, 1, &si, fence_); r != VK_SUCCESS) {
+    return vk_error(r, "submitting work");
+  }
+  constexpr std::uint64_t kTimeout_ns = 60'000'000'000ull;
+  if (VkResult r = vkWaitForFences(device_, 1, &fence_, VK_TRUE, kTimeout_ns); r != VK_SUCCESS) {
+    return vk_error(r, "waiting for the GPU");
+  }
+  return Status::Ok();
+}
+
+}  // namespace mocap::gpu

@@ -1,0 +1,185 @@
+// Vulkan compute runtime: instance and device selection, buffers, compute kernels built from
+// the embedded SPIR-V (shaders/), a persisted pipeline cache, validation-layer reporting.
+// Runs on any Vulkan 1.1+ implementation with a compute queue: discrete, integrated or
+// embedded GPUs, and Mesa lavapipe (CPU) in CI.
+#pragma once
+
+#include <vulkan/vulkan.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "runtime/core/error.h"
+
+namespace mocap::gpu {
+
+struct GpuOptions {
+  // Which device: "" picks the best (discrete > integrated > virtual > CPU); otherwise a device
+  // index ("0") or a case-insensitive substring of its name ("llvmpipe"). The environment
+  // variable MOCAP_VULKAN_DEVICE overrides this when set.
+  std::string device;
+  // Enable VK_LAYER_KHRONOS_validation when installed (also MOCAP_VULKAN_VALIDATION=1); its
+  // errors are logged and counted (Context::validation_errors()).
+  bool validation = false;
+  // Pipeline cache file; empty = $XDG_CACHE_HOME (or ~/.cache)/mocap-box/vk-pipeline-cache.bin.
+  // A file written for another device or driver is ignored.
+  std::filesystem::path pipeline_cache_path;
+  bool persist_pipeline_cache = true;
+
+  Status validate() const;
+};
+
+struct DeviceInfo {
+  int index = -1;
+  std::string name;
+  VkPhysicalDeviceType type = VK_PHYSICAL_DEVICE_TYPE_OTHER;
+  std::uint32_t api_version = 0;
+  std::uint32_t vendor_id = 0;
+  std::uint32_t device_id = 0;
+  std::string driver;              // driver name and info when the driver reports them
+  double timestamp_period_ns = 0;  // 0 = no timestamps on the compute queue
+  std::uint32_t subgroup_size = 0;
+  std::uint32_t max_workgroup_invocations = 0;
+  bool is_cpu() const { return type == VK_PHYSICAL_DEVICE_TYPE_CPU; }
+  std::string type_name() const;
+};
+
+class Context;
+
+// A storage buffer. Device-local when `host_visible` is false (activations, weights), else
+// host-visible and persistently mapped (staging for uploads and downloads).
+class Buffer {
+ public:
+  Buffer() = default;
+  Buffer(const Buffer&) = delete;
+  Buffer& operator=(const Buffer&) = delete;
+  Buffer(Buffer&& o) noexcept;
+  Buffer& operator=(Buffer&& o) noexcept;
+  ~Buffer();
+
+  VkBuffer handle() const { return buffer_; }
+  VkDeviceSize size_bytes() const { return size_; }
+  void* mapped() const { return mapped_; }
+
+ private:
+  friend class Context;
+  void release();
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkBuffer buffer_ = VK_NULL_HANDLE;
+  VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  VkDeviceSize size_ = 0;
+  void* mapped_ = nullptr;
+};
+
+// A compute pipeline of one embedded kernel: `bindings` storage buffers (set 0, bindings
+// 0..n-1), push constants of `push_bytes`, int specialization constants (constant_id = index;
+// id 0 is the workgroup size).
+class Kernel {
+ public:
+  Kernel() = default;
+  Kernel(const Kernel&) = delete;
+  Kernel& operator=(const Kernel&) = delete;
+  Kernel(Kernel&& o) noexcept;
+  Kernel& operator=(Kernel&& o) noexcept;
+  ~Kernel();
+
+  VkPipeline pipeline() const { return pipeline_; }
+  VkPipelineLayout layout() const { return layout_; }
+  VkDescriptorSetLayout set_layout() const { return set_layout_; }
+  int bindings() const { return bindings_; }
+  std::uint32_t workgroup_size() const { return workgroup_size_; }
+  std::uint32_t push_bytes() const { return push_bytes_; }
+
+ private:
+  friend class Context;
+  void release();
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkShaderModule module_ = VK_NULL_HANDLE;
+  VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
+  VkPipelineLayout layout_ = VK_NULL_HANDLE;
+  VkPipeline pipeline_ = VK_NULL_HANDLE;
+  int bindings_ = 0;
+  std::uint32_t workgroup_size_ = 0;
+  std::uint32_t push_bytes_ = 0;
+};
+
+class Context {
+ public:
+  // Lists the Vulkan devices with a compute queue (empty when there is no Vulkan driver).
+  static Result<std::vector<DeviceInfo>> list_devices();
+  // Fails with kUnsupported, naming the reason and the fix, when no usable device exists.
+  static Result<std::unique_ptr<Context>> create(const GpuOptions& options);
+  ~Context();
+  Context(const Context&) = delete;
+  Context& operator=(const Context&) = delete;
+
+  const DeviceInfo& device_info() const { return info_; }
+  VkDevice device() const { return device_; }
+  VkQueue queue() const { return queue_; }
+  std::uint32_t queue_family() const { return queue_family_; }
+  int validation_errors() const;
+
+  Result<Buffer> create_buffer(VkDeviceSize bytes, bool host_visible);
+  Result<Kernel> create_kernel(std::span<const std::uint32_t> spirv, const std::string& name,
+                               int bindings, std::uint32_t push_bytes,
+                               std::span<const std::int32_t> spec_constants,
+                               std::uint32_t workgroup_size);
+  // Writes the pipeline cache to its file now (also done on destruction).
+  Status save_pipeline_cache();
+  VkPipelineCache pipeline_cache() const { return pipeline_cache_; }
+
+  // One-shot command buffer: record with `record`, submit, wait on a fence.
+  template <typename F>
+  Status run_once(F&& record);
+  VkCommandPool command_pool() const { return pool_; }
+  Status submit_and_wait(VkCommandBuffer cb);
+
+ private:
+  Context() = default;
+  struct Messenger;
+
+  GpuOptions options_;
+  DeviceInfo info_;
+  VkInstance instance_ = VK_NULL_HANDLE;
+  VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
+  std::unique_ptr<int> validation_error_count_ = std::make_unique<int>(0);
+  VkPhysicalDevice physical_ = VK_NULL_HANDLE;
+  VkPhysicalDeviceMemoryProperties memory_{};
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkQueue queue_ = VK_NULL_HANDLE;
+  std::uint32_t queue_family_ = 0;
+  VkCommandPool pool_ = VK_NULL_HANDLE;
+  VkFence fence_ = VK_NULL_HANDLE;
+  VkPipelineCache pipeline_cache_ = VK_NULL_HANDLE;
+  std::filesystem::path cache_path_;
+};
+
+// "VK_ERROR_OUT_OF_DEVICE_MEMORY" etc.
+const char* vk_result_name(VkResult r);
+Error vk_error(VkResult r, const std::string& what);
+
+template <typename F>
+Status Context::run_once(F&& record) {
+  VkCommandBufferAllocateInfo ai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  ai.commandPool = pool_;
+  ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  ai.commandBufferCount = 1;
+  VkCommandBuffer cb = VK_NULL_HANDLE;
+  if (VkResult r = vkAllocateCommandBuffers(device_, &ai, &cb); r != VK_SUCCESS) {
+    return vk_error(r, "allocating a command buffer");
+  }
+  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  vkBeginCommandBuffer(cb, &bi);
+  record(cb);
+  vkEndCommandBuffer(cb);
+  Status s = submit_and_wait(cb);
+  vkFreeCommandBuffers(device_, pool_, 1, &cb);
+  return s;
+}
+
+}  // namespace mocap::gpu

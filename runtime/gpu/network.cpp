@@ -1,0 +1,403 @@
+#include "runtime/gpu/network.h"
+
+#include <algorithm>
+#include <cstring>
+#include <string>
+
+#include "runtime/gpu/shaders.h"
+
+namespace mocap::gpu {
+namespace {
+
+inline std::size_t ix(long i) { return static_cast<std::size_t>(i); }
+int c4_of(int c) { return (c + 3) / 4; }
+int round_even(int v) { return (v + 1) / 2 * 2; }
+std::uint32_t div_up(long a, long b) { return static_cast<std::uint32_t>((a + b - 1) / b); }
+
+// Descriptor bindings of every kernel: input, weights, bias, output, PReLU slopes.
+constexpr int kBindings = 5;
+constexpr std::uint32_t kPushBytes = 16 * sizeof(std::int32_t);
+// Pixels per invocation of pointwise_conv2d.comp (TP there).
+constexpr int kPointwisePixels = 8;
+
+}  // namespace
+
+Status NetworkOptions::validate() const {
+  if (batch < 1 || batch > 64) {
+    return Error(ErrorCode::kInvalidArgument, "NetworkOptions.batch must be in [1, 64]");
+  }
+  if (height_px < 1 || width_px < 1 || height_px > 4096 || width_px > 4096) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "NetworkOptions.height_px/width_px must be in [1, 4096]");
+  }
+  if (workgroup_size < 1 || workgroup_size > 1024) {
+    return Error(ErrorCode::kInvalidArgument, "NetworkOptions.workgroup_size must be in [1, 1024]");
+  }
+  return Status::Ok();
+}
+
+Result<std::unique_ptr<Network>> Network::create(Context& ctx, const nn::Model& model,
+                                                 const NetworkOptions& options) {
+  if (Status s = options.validate(); !s.ok()) return s.error();
+  std::unique_ptr<Network> net(new Network(ctx));
+  if (Status s = net->build(model, options); !s.ok()) return s.error();
+  return net;
+}
+
+Network::~Network() {
+  VkDevice d = ctx_.device();
+  vkDeviceWaitIdle(d);
+  if (cb_) vkFreeCommandBuffers(d, ctx_.command_pool(), 1, &cb_);
+  if (queries_) vkDestroyQueryPool(d, queries_, nullptr);
+  if (pool_) vkDestroyDescriptorPool(d, pool_, nullptr);
+}
+
+Result<const Kernel*> Network::kernel(int shader, std::vector<std::int32_t> spec) {
+  for (const KernelEntry& e : kernels_) {
+    if (e.shader == shader && e.spec == spec) return e.kernel.get();
+  }
+  const Shader s = static_cast<Shader>(shader);
+  auto k = ctx_.create_kernel(shader_spirv(s), shader_name(s), kBindings, kPushBytes, spec,
+                              options_.workgroup_size);
+  if (!k.ok()) return k.error();
+  kernels_.push_back(KernelEntry{shader, std::move(spec), std::make_unique<Kernel>(std::move(*k))});
+  return kernels_.back().kernel.get();
+}
+
+Result<Buffer> Network::upload(std::span<const float> data) {
+  const VkDeviceSize bytes = std::max<VkDeviceSize>(data.size_bytes(), 16);
+  auto staging = ctx_.create_buffer(bytes, true);
+  if (!staging.ok()) return staging.error();
+  std::memset(staging->mapped(), 0, bytes);
+  std::memcpy(staging->mapped(), data.data(), data.size_bytes());
+  auto dev = ctx_.create_buffer(bytes, false);
+  if (!dev.ok()) return dev.error();
+  const VkBuffer src = staging->handle();
+  const VkBuffer dst = dev->handle();
+  Status s = ctx_.run_once([&](VkCommandBuffer cb) {
+    VkBufferCopy c{0, 0, bytes};
+    vkCmdCopyBuffer(cb, src, dst, 1, &c);
+  });
+  if (!s.ok()) return s.error();
+  return std::move(*dev);
+}
+
+Status Network::build(const nn::Model& model, const NetworkOptions& options) {
+  options_ = options;
+  input_channels_ = model.input_channels;
+  auto shapes = model.infer_shapes(
+      nn::Shape{options.batch, options.height_px, options.width_px, model.input_channels});
+  if (!shapes.ok()) return shapes.error();
+  shapes_ = std::move(*shapes);
+  const std::size_t V = shapes_.size();
+  for (const nn::Shape& s : shapes_) c4_.push_back(c4_of(s.c));
+
+  // Activation buffers (vec4 channel groups).
+  for (std::size_t v = 0; v < V; ++v) {
+    const nn::Shape& s = shapes_[v];
+    const VkDeviceSize bytes =
+        static_cast<VkDeviceSize>(s.n) * s.h * s.w * static_cast<VkDeviceSize>(c4_[v]) * 16;
+    auto b = ctx_.create_buffer(bytes, false);
+    if (!b.ok()) return b.error();
+    values_.push_back(std::move(*b));
+  }
+  auto in_staging = ctx_.create_buffer(values_[0].size_bytes(), true);
+  if (!in_staging.ok()) return in_staging.error();
+  input_staging_ = std::move(*in_staging);
+  std::memset(input_staging_.mapped(), 0, input_staging_.size_bytes());
+  for (const nn::ModelOutput& o : model.outputs) {
+    auto st = ctx_.create_buffer(values_[ix(o.value)].size_bytes(), true);
+    if (!st.ok()) return st.error();
+    outputs_.push_back(Output{o.name, o.value, shapes_[ix(o.value)], std::move(*st)});
+  }
+  auto dummy = upload(std::vector<float>(4, 0.f));
+  if (!dummy.ok()) return dummy.error();
+  constants_.push_back(std::move(*dummy));
+  const std::size_t dummy_index = 0;
+
+  VkDescriptorPoolSize ps{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                          static_cast<std::uint32_t>(model.layers.size() * kBindings)};
+  VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  pi.maxSets = static_cast<std::uint32_t>(model.layers.size());
+  pi.poolSizeCount = 1;
+  pi.pPoolSizes = &ps;
+  if (VkResult r = vkCreateDescriptorPool(ctx_.device(), &pi, nullptr, &pool_); r != VK_SUCCESS) {
+    return vk_error(r, "creating a descriptor pool");
+  }
+
+  for (std::size_t li = 0; li < model.layers.size(); ++li) {
+    const nn::Layer& l = model.layers[li];
+    const int in_v = l.inputs[0];
+    const nn::Shape& is = shapes_[ix(in_v)];
+    const nn::Shape& os = shapes_[li + 1];
+    const int cin4 = c4_[ix(in_v)];
+    const int cout4 = c4_[li + 1];
+    Step step;
+    step.name = l.name;
+    int shader = -1;
+    std::vector<float> w;
+    std::vector<float> bias;
+    int bias_groups = cout4;
+    if (l.op == nn::OpType::kConv2D && l.kernel_h == 1 && l.kernel_w == 1 && l.stride_h == 1 &&
+        l.stride_w == 1) {
+      shader = static_cast<int>(Shader::kPointwiseConv2D);
+      const int cout4p = round_even(cout4);
+      bias_groups = cout4p;
+      const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
+      const int cin = wt.shape[2];
+      const int cout = wt.shape[3];
+      w.assign(ix(static_cast<long>(cin4) * 4 * cout4p * 4), 0.f);
+      for (int ci = 0; ci < cin; ++ci) {
+        for (int co = 0; co < cout; ++co) {
+          w[ix(static_cast<long>(ci) * cout4p * 4 + co)] =
+              wt.data[ix(static_cast<long>(ci) * cout + co)];
+        }
+      }
+      const long pixels = static_cast<long>(os.n) * os.h * os.w;
+      step.push = {static_cast<std::int32_t>(pixels), cin4, cin4, 0, cout4, cout4p, cout4, 0};
+      step.groups = div_up(div_up(pixels, kPointwisePixels) * (cout4p / 2),
+                           static_cast<long>(options.workgroup_size));
+    } else if (l.op == nn::OpType::kConv2D) {
+      shader = static_cast<int>(Shader::kConv2D);
+      const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
+      const int cin = wt.shape[2];
+      const int cout = wt.shape[3];
+      w.assign(ix(static_cast<long>(l.kernel_h) * l.kernel_w * cin4 * 4 * cout4 * 4), 0.f);
+      for (int k = 0; k < l.kernel_h * l.kernel_w; ++k) {
+        for (int ci = 0; ci < cin; ++ci) {
+          for (int co = 0; co < cout; ++co) {
+            w[ix((static_cast<long>(k) * cin4 * 4 + ci) * cout4 * 4 + co)] =
+                wt.data[ix((static_cast<long>(k) * cin + ci) * cout + co)];
+          }
+        }
+      }
+      step.push = {os.n,
+                   is.h,
+                   is.w,
+                   cin4,
+                   cin4,
+                   os.h,
+                   os.w,
+                   cout4,
+                   cout4,
+                   0,
+                   l.stride_h,
+                   l.stride_w,
+                   nn::conv_pad_before(is.h, l.kernel_h, l.stride_h, l.padding),
+                   nn::conv_pad_before(is.w, l.kernel_w, l.stride_w, l.padding)};
+      step.groups = div_up(static_cast<long>(os.n) * os.h * os.w * cout4,
+                           static_cast<long>(options.workgroup_size));
+    } else if (l.op == nn::OpType::kDepthwiseConv2D) {
+      shader = static_cast<int>(Shader::kDepthwiseConv2D);
+      const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
+      const int c = wt.shape[2];
+      w.assign(ix(static_cast<long>(l.kernel_h) * l.kernel_w * cin4 * 4), 0.f);
+      for (int k = 0; k < l.kernel_h * l.kernel_w; ++k) {
+        for (int ch = 0; ch < c; ++ch) {
+          w[ix(static_cast<long>(k) * cin4 * 4 + ch)] = wt.data[ix(static_cast<long>(k) * c + ch)];
+        }
+      }
+      step.push = {os.n,
+                   is.h,
+                   is.w,
+                   cin4,
+                   cin4,
+                   os.h,
+                   os.w,
+                   cout4,
+                   l.stride_h,
+                   l.stride_w,
+                   nn::conv_pad_before(is.h, l.kernel_h, l.stride_h, l.padding),
+                   nn::conv_pad_before(is.w, l.kernel_w, l.stride_w, l.padding)};
+      step.groups = div_up(static_cast<long>(os.n) * os.h * os.w * cout4,
+                           static_cast<long>(options.workgroup_size));
+    } else {
+      return Error(ErrorCode::kUnsupported, std::string("the Vulkan backend has no kernel for ") +
+                                                nn::to_string(l.op) + " yet (layer '" + l.name +
+                                                "'); run this model with the CPU backend");
+    }
+    step.push.resize(kPushBytes / sizeof(std::int32_t), 0);
+    bias.assign(ix(static_cast<long>(bias_groups) * 4), 0.f);
+    if (l.bias >= 0) {
+      const auto& bt = model.tensors[ix(l.bias)].data;
+      std::copy(bt.begin(), bt.end(), bias.begin());
+    }
+    std::vector<float> alpha;
+    if (l.activation == nn::Activation::kPRelu) {
+      alpha.assign(ix(static_cast<long>(bias_groups) * 4), 0.f);
+      const auto& at = model.tensors[ix(l.alpha)].data;
+      std::copy(at.begin(), at.end(), alpha.begin());
+    }
+    std::vector<std::int32_t> spec{static_cast<std::int32_t>(l.activation)};
+    if (shader != static_cast<int>(Shader::kPointwiseConv2D)) {
+      spec.push_back(l.kernel_h);
+      spec.push_back(l.kernel_w);
+    }
+    auto k = kernel(shader, spec);
+    if (!k.ok()) return k.error();
+    step.kernel = *k;
+    auto wb = upload(w);
+    if (!wb.ok()) return wb.error();
+    auto bb = upload(bias);
+    if (!bb.ok()) return bb.error();
+    const std::size_t wi = constants_.size();
+    constants_.push_back(std::move(*wb));
+    constants_.push_back(std::move(*bb));
+    std::size_t ai = dummy_index;
+    if (!alpha.empty()) {
+      auto ab = upload(alpha);
+      if (!ab.ok()) return ab.error();
+      ai = constants_.size();
+      constants_.push_back(std::move(*ab));
+    }
+    VkDescriptorSetAllocateInfo dai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    dai.descriptorPool = pool_;
+    dai.descriptorSetCount = 1;
+    const VkDescriptorSetLayout sl = step.kernel->set_layout();
+    dai.pSetLayouts = &sl;
+    if (VkResult r = vkAllocateDescriptorSets(ctx_.device(), &dai, &step.set); r != VK_SUCCESS) {
+      return vk_error(r, "allocating a descriptor set");
+    }
+    const VkBuffer bufs[kBindings] = {values_[ix(in_v)].handle(), constants_[wi].handle(),
+                                      constants_[wi + 1].handle(), values_[li + 1].handle(),
+                                      constants_[ai].handle()};
+    VkDescriptorBufferInfo infos[kBindings];
+    VkWriteDescriptorSet writes[kBindings];
+    for (int b = 0; b < kBindings; ++b) {
+      infos[b] = VkDescriptorBufferInfo{bufs[b], 0, VK_WHOLE_SIZE};
+      writes[b] = VkWriteDescriptorSet{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      writes[b].dstSet = step.set;
+      writes[b].dstBinding = static_cast<std::uint32_t>(b);
+      writes[b].descriptorCount = 1;
+      writes[b].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+      writes[b].pBufferInfo = &infos[b];
+    }
+    vkUpdateDescriptorSets(ctx_.device(), kBindings, writes, 0, nullptr);
+    steps_.push_back(std::move(step));
+    layer_times_.push_back(LayerTime{l.name, shader_name(static_cast<Shader>(shader)), 0});
+  }
+  return record();
+}
+
+Status Network::record() {
+  const bool timestamps = options_.timestamps && ctx_.device_info().timestamp_period_ns > 0;
+  if (timestamps) {
+    VkQueryPoolCreateInfo qi{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+    qi.queryType = VK_QUERY_TYPE_TIMESTAMP;
+    qi.queryCount = static_cast<std::uint32_t>(steps_.size() + 2);
+    if (VkResult r = vkCreateQueryPool(ctx_.device(), &qi, nullptr, &queries_); r != VK_SUCCESS) {
+      return vk_error(r, "creating a timestamp query pool");
+    }
+  }
+  VkCommandBufferAllocateInfo ai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  ai.commandPool = ctx_.command_pool();
+  ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  ai.commandBufferCount = 1;
+  if (VkResult r = vkAllocateCommandBuffers(ctx_.device(), &ai, &cb_); r != VK_SUCCESS) {
+    return vk_error(r, "allocating the network's command buffer");
+  }
+  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  vkBeginCommandBuffer(cb_, &bi);
+  if (queries_)
+    vkCmdResetQueryPool(cb_, queries_, 0, static_cast<std::uint32_t>(steps_.size() + 2));
+  VkBufferCopy up{0, 0, values_[0].size_bytes()};
+  vkCmdCopyBuffer(cb_, input_staging_.handle(), values_[0].handle(), 1, &up);
+  VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  mb.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+  vkCmdPipelineBarrier(cb_, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0,
+                       1, &mb, 0, nullptr, 0, nullptr);
+  if (queries_) vkCmdWriteTimestamp(cb_, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries_, 0);
+  for (std::size_t i = 0; i < steps_.size(); ++i) {
+    const Step& s = steps_[i];
+    vkCmdBindPipeline(cb_, VK_PIPELINE_BIND_POINT_COMPUTE, s.kernel->pipeline());
+    vkCmdBindDescriptorSets(cb_, VK_PIPELINE_BIND_POINT_COMPUTE, s.kernel->layout(), 0, 1, &s.set,
+                            0, nullptr);
+    vkCmdPushConstants(cb_, s.kernel->layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, kPushBytes,
+                       s.push.data());
+    vkCmdDispatch(cb_, s.groups, 1, 1);
+    if (queries_) {
+      vkCmdWriteTimestamp(cb_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, queries_,
+                          static_cast<std::uint32_t>(i + 1));
+    }
+    VkMemoryBarrier cm{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    cm.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    cm.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+    vkCmdPipelineBarrier(cb_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                         VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
+                         1, &cm, 0, nullptr, 0, nullptr);
+  }
+  for (const Output& o : outputs_) {
+    VkBufferCopy c{0, 0, o.staging.size_bytes()};
+    vkCmdCopyBuffer(cb_, values_[ix(o.value)].handle(), o.staging.handle(), 1, &c);
+  }
+  VkMemoryBarrier hb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  hb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  hb.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+  vkCmdPipelineBarrier(cb_, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &hb,
+                       0, nullptr, 0, nullptr);
+  if (queries_) {
+    vkCmdWriteTimestamp(cb_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_,
+                        static_cast<std::uint32_t>(steps_.size() + 1));
+  }
+  if (VkResult r = vkEndCommandBuffer(cb_); r != VK_SUCCESS) {
+    return vk_error(r, "recording the network");
+  }
+  return Status::Ok();
+}
+
+Status Network::run(std::span<const float> input) {
+  const nn::Shape& s = shapes_[0];
+  if (static_cast<long>(input.size()) != s.elements()) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "network input holds " + std::to_string(input.size()) + " floats, needs " +
+                     std::to_string(s.elements()) + " (" + std::to_string(s.n) + "x" +
+                     std::to_string(s.h) + "x" + std::to_string(s.w) + "x" + std::to_string(s.c) +
+                     ")");
+  }
+  // NHWC -> channels in vec4 groups (the padding lanes stay zero).
+  float* dst = static_cast<float*>(input_staging_.mapped());
+  const int c = s.c;
+  const int c4 = c4_[0];
+  const long pixels = static_cast<long>(s.n) * s.h * s.w;
+  if (c == c4 * 4) {
+    std::memcpy(dst, input.data(), input.size_bytes());
+  } else {
+    for (long p = 0; p < pixels; ++p) {
+      std::memcpy(dst + p * c4 * 4, input.data() + p * c, ix(c) * sizeof(float));
+    }
+  }
+  if (Status st = ctx_.submit_and_wait(cb_); !st.ok()) return st;
+  if (queries_) {
+    std::vector<std::uint64_t> ts(steps_.size() + 2);
+    if (vkGetQueryPoolResults(ctx_.device(), queries_, 0, static_cast<std::uint32_t>(ts.size()),
+                              ts.size() * sizeof(std::uint64_t), ts.data(), sizeof(std::uint64_t),
+                              VK_QUERY_RESULT_64_BIT) == VK_SUCCESS) {
+      const double period_ms = ctx_.device_info().timestamp_period_ns * 1e-6;
+      for (std::size_t i = 0; i < steps_.size(); ++i) {
+        layer_times_[i].ms = static_cast<double>(ts[i + 1] - ts[i]) * period_ms;
+      }
+      gpu_ms_ = static_cast<double>(ts.back() - ts.front()) * period_ms;
+    }
+  }
+  return Status::Ok();
+}
+
+Status Network::read_output(std::size_t i, nn::Tensor& out) const {
+  if (i >= outputs_.size()) {
+    return Error(ErrorCode::kInvalidArgument, "no network output " + std::to_string(i));
+  }
+  const Output& o = outputs_[i];
+  out.shape = o.shape;
+  out.data.resize(ix(o.shape.elements()));
+  const float* src = static_cast<const float*>(o.staging.mapped());
+  const int c = o.shape.c;
+  const int c4 = c4_of(c);
+  const long pixels = static_cast<long>(o.shape.n) * o.shape.h * o.shape.w;
+  for (long p = 0; p < pixels; ++p) {
+    std::memcpy(out.data.data() + p * c, src + p * c4 * 4, ix(c) * sizeof(float));
+  }
+  return Status::Ok();
+}
+
+}  // namespace mocap::gpu

@@ -1,0 +1,99 @@
+// A Model compiled for one input size and batch on a Vulkan device: every activation in a
+// device buffer (NHWC, channels in vec4 groups), weights packed once for the kernels, and the
+// whole network recorded once into one command buffer (upload copy, one dispatch per layer
+// with a barrier between, download copies, per-layer timestamps) that each run() resubmits.
+#pragma once
+
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "runtime/core/error.h"
+#include "runtime/gpu/context.h"
+#include "runtime/nn/cpu_ops.h"
+#include "runtime/nn/model.h"
+
+namespace mocap::gpu {
+
+struct NetworkOptions {
+  int batch = 1;
+  int height_px = 257;
+  int width_px = 257;
+  std::uint32_t workgroup_size = 64;
+  bool timestamps = true;  // per-layer GPU times (when the queue supports timestamps)
+
+  Status validate() const;
+};
+
+struct LayerTime {
+  std::string name;
+  std::string kernel;
+  double ms = 0;
+};
+
+class Network {
+ public:
+  static Result<std::unique_ptr<Network>> create(Context& ctx, const nn::Model& model,
+                                                 const NetworkOptions& options);
+  ~Network();
+  Network(const Network&) = delete;
+  Network& operator=(const Network&) = delete;
+
+  // input: [batch, height, width, model.input_channels] NHWC float32.
+  Status run(std::span<const float> input);
+  // Output i (Model::outputs order) of the last run, NHWC float32 without channel padding.
+  Status read_output(std::size_t i, nn::Tensor& out) const;
+  std::size_t output_count() const { return outputs_.size(); }
+  const std::string& output_name(std::size_t i) const { return outputs_[i].name; }
+  nn::Shape output_shape(std::size_t i) const { return outputs_[i].shape; }
+
+  // GPU time of each layer and of the whole command buffer in the last run (empty / 0 when
+  // timestamps are unavailable).
+  const std::vector<LayerTime>& layer_times() const { return layer_times_; }
+  double gpu_ms() const { return gpu_ms_; }
+
+ private:
+  Network(Context& ctx) : ctx_(ctx) {}
+  struct Output {
+    std::string name;
+    int value = -1;
+    nn::Shape shape;
+    Buffer staging;
+  };
+  struct Step {
+    std::string name;
+    const Kernel* kernel = nullptr;
+    VkDescriptorSet set = VK_NULL_HANDLE;
+    std::vector<std::int32_t> push;
+    std::uint32_t groups = 0;
+  };
+  Status build(const nn::Model& model, const NetworkOptions& options);
+  Result<const Kernel*> kernel(int shader, std::vector<std::int32_t> spec);
+  Result<Buffer> upload(std::span<const float> data);
+  Status record();
+
+  Context& ctx_;
+  NetworkOptions options_;
+  std::vector<nn::Shape> shapes_;
+  std::vector<int> c4_;  // vec4 groups per value
+  int input_channels_ = 0;
+  std::vector<Buffer> values_;
+  std::vector<Buffer> constants_;
+  Buffer input_staging_;
+  std::vector<Output> outputs_;
+  struct KernelEntry {
+    int shader;
+    std::vector<std::int32_t> spec;
+    std::unique_ptr<Kernel> kernel;
+  };
+  std::vector<KernelEntry> kernels_;
+  std::vector<Step> steps_;
+  VkDescriptorPool pool_ = VK_NULL_HANDLE;
+  VkQueryPool queries_ = VK_NULL_HANDLE;
+  VkCommandBuffer cb_ = VK_NULL_HANDLE;
+  std::vector<LayerTime> layer_times_;
+  double gpu_ms_ = 0;
+};
+
+}  // namespace mocap::gpu

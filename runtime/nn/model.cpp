@@ -1,0 +1,244 @@
+#include "runtime/nn/model.h"
+
+#include <string>
+
+namespace mocap::nn {
+namespace {
+
+inline std::size_t ix(int i) { return static_cast<std::size_t>(i); }
+
+Error layer_error(std::size_t i, const Layer& l, const std::string& what) {
+  return Error(ErrorCode::kParse, "layer " + std::to_string(i) + " '" + l.name + "' (" +
+                                      to_string(l.op) + "): " + what);
+}
+
+}  // namespace
+
+long ConstTensor::elements() const {
+  long n = 1;
+  for (int d : shape) n *= d;
+  return shape.empty() ? 0 : n;
+}
+
+int conv_out_size(int in, int kernel, int stride, Padding padding) {
+  if (in <= 0 || kernel <= 0 || stride <= 0) return 0;
+  if (padding == Padding::kSame) return (in + stride - 1) / stride;
+  const int span = in - kernel + 1;
+  return span <= 0 ? 0 : (span + stride - 1) / stride;
+}
+
+int conv_pad_before(int in, int kernel, int stride, Padding padding) {
+  if (padding == Padding::kValid) return 0;
+  const int out = conv_out_size(in, kernel, stride, padding);
+  const int total = std::max(0, (out - 1) * stride + kernel - in);
+  return total / 2;  // TensorFlow: the odd pixel goes after
+}
+
+const char* to_string(OpType op) {
+  switch (op) {
+    case OpType::kConv2D:
+      return "conv2d";
+    case OpType::kDepthwiseConv2D:
+      return "depthwise_conv2d";
+    case OpType::kAdd:
+      return "add";
+    case OpType::kConcat:
+      return "concat";
+    case OpType::kMaxPool:
+      return "max_pool";
+    case OpType::kResizeBilinear:
+      return "resize_bilinear";
+    case OpType::kResizeNearest:
+      return "resize_nearest";
+    case OpType::kActivation:
+      return "activation";
+  }
+  return "unknown-op";
+}
+
+const char* to_string(Activation a) {
+  switch (a) {
+    case Activation::kNone:
+      return "none";
+    case Activation::kRelu:
+      return "relu";
+    case Activation::kRelu6:
+      return "relu6";
+    case Activation::kPRelu:
+      return "prelu";
+    case Activation::kSigmoid:
+      return "sigmoid";
+  }
+  return "unknown-activation";
+}
+
+long Model::parameter_count() const {
+  long n = 0;
+  for (const ConstTensor& t : tensors) n += t.elements();
+  return n;
+}
+
+Status Model::validate() const {
+  if (input_channels <= 0) {
+    return Error(ErrorCode::kParse, "model '" + name + "': input_channels must be > 0");
+  }
+  if (layers.empty()) return Error(ErrorCode::kParse, "model '" + name + "' has no layers");
+  for (std::size_t t = 0; t < tensors.size(); ++t) {
+    const ConstTensor& ct = tensors[t];
+    for (int d : ct.shape) {
+      if (d <= 0) {
+        return Error(ErrorCode::kParse,
+                     "tensor " + std::to_string(t) + " '" + ct.name + "' has a dimension <= 0");
+      }
+    }
+    if (static_cast<long>(ct.data.size()) != ct.elements()) {
+      return Error(ErrorCode::kParse, "tensor " + std::to_string(t) + " '" + ct.name + "' holds " +
+                                          std::to_string(ct.data.size()) +
+                                          " values, its shape needs " +
+                                          std::to_string(ct.elements()));
+    }
+  }
+  auto tensor_ok = [&](int ti) { return ti >= 0 && ix(ti) < tensors.size(); };
+  for (std::size_t i = 0; i < layers.size(); ++i) {
+    const Layer& l = layers[i];
+    const int own = static_cast<int>(i) + 1;
+    std::size_t want_inputs = 1;
+    if (l.op == OpType::kAdd) want_inputs = 2;
+    if (l.op == OpType::kConcat) want_inputs = l.inputs.size() >= 2 ? l.inputs.size() : 2;
+    if (l.inputs.size() != want_inputs) {
+      return layer_error(i, l,
+                         "has " + std::to_string(l.inputs.size()) + " inputs, needs " +
+                             std::to_string(want_inputs));
+    }
+    for (int v : l.inputs) {
+      if (v < 0 || v >= own) {
+        return layer_error(
+            i, l,
+            "input value " + std::to_string(v) + " is not the network input or an earlier layer");
+      }
+    }
+    if (l.kernel_h <= 0 || l.kernel_w <= 0 || l.stride_h <= 0 || l.stride_w <= 0) {
+      return layer_error(i, l, "kernel and stride must be > 0");
+    }
+    if (l.padding != Padding::kSame && l.padding != Padding::kValid) {
+      return layer_error(i, l, "unknown padding");
+    }
+    switch (l.activation) {
+      case Activation::kNone:
+      case Activation::kRelu:
+      case Activation::kRelu6:
+      case Activation::kSigmoid:
+        break;
+      case Activation::kPRelu:
+        if (!tensor_ok(l.alpha) || tensors[ix(l.alpha)].shape.size() != 1) {
+          return layer_error(i, l, "PReLU needs a 1-D slope tensor");
+        }
+        break;
+      default:
+        return layer_error(i, l, "unknown activation");
+    }
+    if (l.op == OpType::kConv2D || l.op == OpType::kDepthwiseConv2D) {
+      if (!tensor_ok(l.weights)) return layer_error(i, l, "missing weights tensor");
+      const auto& ws = tensors[ix(l.weights)].shape;
+      if (ws.size() != 4 || ws[0] != l.kernel_h || ws[1] != l.kernel_w) {
+        return layer_error(i, l, "weights must be [kernel_h, kernel_w, cin, cout|1]");
+      }
+      if (l.op == OpType::kConv2D && ws[3] != l.out_channels) {
+        return layer_error(i, l,
+                           "weights have " + std::to_string(ws[3]) +
+                               " output channels, out_channels says " +
+                               std::to_string(l.out_channels));
+      }
+      if (l.op == OpType::kDepthwiseConv2D && ws[3] != 1) {
+        return layer_error(i, l, "depthwise channel multiplier must be 1");
+      }
+      const int cout = l.op == OpType::kConv2D ? ws[3] : ws[2];
+      if (l.bias >= 0 &&
+          (!tensor_ok(l.bias) || tensors[ix(l.bias)].shape != std::vector<int>{cout})) {
+        return layer_error(i, l, "bias must be [" + std::to_string(cout) + "]");
+      }
+      if (l.activation == Activation::kPRelu && tensors[ix(l.alpha)].shape[0] != cout) {
+        return layer_error(i, l, "PReLU slopes must be [" + std::to_string(cout) + "]");
+      }
+    } else if (l.op == OpType::kResizeBilinear || l.op == OpType::kResizeNearest) {
+      if (l.resize_factor < 1 || l.resize_factor > 64) {
+        return layer_error(i, l, "resize_factor must be in [1, 64]");
+      }
+    } else if (l.op != OpType::kAdd && l.op != OpType::kConcat && l.op != OpType::kMaxPool &&
+               l.op != OpType::kActivation) {
+      return layer_error(i, l, "unknown op " + std::to_string(static_cast<std::uint32_t>(l.op)));
+    }
+  }
+  if (outputs.empty()) return Error(ErrorCode::kParse, "model '" + name + "' has no outputs");
+  for (const ModelOutput& o : outputs) {
+    if (o.value < 1 || ix(o.value) > layers.size()) {
+      return Error(ErrorCode::kParse, "output '" + o.name + "' refers to value " +
+                                          std::to_string(o.value) + ", which no layer produces");
+    }
+  }
+  return Status::Ok();
+}
+
+Result<std::vector<Shape>> Model::infer_shapes(const Shape& input) const {
+  if (Status s = validate(); !s.ok()) return s.error();
+  if (input.n <= 0 || input.h <= 0 || input.w <= 0 || input.c != input_channels) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "input shape " + std::to_string(input.n) + "x" + std::to_string(input.h) + "x" +
+                     std::to_string(input.w) + "x" + std::to_string(input.c) +
+                     " does not fit model '" + name + "' (needs N, H, W > 0 and " +
+                     std::to_string(input_channels) + " channels)");
+  }
+  std::vector<Shape> v{input};
+  v.reserve(layers.size() + 1);
+  for (std::size_t i = 0; i < layers.size(); ++i) {
+    const Layer& l = layers[i];
+    const Shape& in = v[ix(l.inputs[0])];
+    Shape out = in;
+    switch (l.op) {
+      case OpType::kConv2D:
+      case OpType::kDepthwiseConv2D:
+      case OpType::kMaxPool: {
+        if (l.op != OpType::kMaxPool) {
+          const int cin = tensors[ix(l.weights)].shape[2];
+          if (cin != in.c) {
+            return layer_error(i, l,
+                               "weights expect " + std::to_string(cin) +
+                                   " input channels, the input has " + std::to_string(in.c));
+          }
+        }
+        out.h = conv_out_size(in.h, l.kernel_h, l.stride_h, l.padding);
+        out.w = conv_out_size(in.w, l.kernel_w, l.stride_w, l.padding);
+        if (l.op == OpType::kConv2D) out.c = l.out_channels;
+        break;
+      }
+      case OpType::kAdd:
+        if (!(v[ix(l.inputs[1])] == in)) return layer_error(i, l, "inputs differ in shape");
+        break;
+      case OpType::kConcat:
+        out.c = 0;
+        for (int u : l.inputs) {
+          const Shape& s = v[ix(u)];
+          if (s.n != in.n || s.h != in.h || s.w != in.w) {
+            return layer_error(i, l, "inputs differ in N, H or W");
+          }
+          out.c += s.c;
+        }
+        break;
+      case OpType::kResizeBilinear:
+      case OpType::kResizeNearest:
+        out.h = in.h * l.resize_factor;
+        out.w = in.w * l.resize_factor;
+        break;
+      case OpType::kActivation:
+        break;
+    }
+    if (l.activation == Activation::kPRelu && tensors[ix(l.alpha)].shape[0] != out.c) {
+      return layer_error(i, l, "PReLU slopes do not match " + std::to_string(out.c) + " channels");
+    }
+    if (out.h <= 0 || out.w <= 0) return layer_error(i, l, "output size collapses to zero");
+    v.push_back(out);
+  }
+  return v;
+}
+
+}  // namespace mocap::nn

@@ -1,0 +1,330 @@
+// Every Vulkan kernel against its CPU reference (runtime/nn/cpu_ops) on the machine's Vulkan
+// device (lavapipe in CI): random weights, odd sizes, strides, batches, every activation; with
+// the validation layer on when installed, which must report nothing.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include "runtime/gpu/context.h"
+#include "runtime/gpu/network.h"
+#include "runtime/nn/cpu_ops.h"
+
+namespace mocap::gpu {
+namespace {
+
+bool in_ci() {
+  const char* ci = std::getenv("CI");
+  return ci && std::string(ci) == "true";
+}
+
+std::filesystem::path temp_cache(const std::string& name) {
+  return std::filesystem::temp_directory_path() /
+         ("mocap-gpu-test-" + std::to_string(::getpid()) + "-" + name + ".bin");
+}
+
+class GpuTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    GpuOptions o;
+    o.validation = true;
+    o.pipeline_cache_path = temp_cache("kernels");
+    auto c = Context::create(o);
+    if (!c.ok()) {
+      if (in_ci()) FAIL() << "CI=true but no Vulkan device: " << c.error().message();
+      GTEST_SKIP() << "no Vulkan device here: " << c.error().message();
+    }
+    ctx_ = std::move(*c);
+  }
+  void TearDown() override {
+    if (ctx_) {
+      EXPECT_EQ(ctx_->validation_errors(), 0) << "Vulkan validation reported errors";
+    }
+  }
+  std::unique_ptr<Context> ctx_;
+};
+
+nn::ConstTensor random_tensor(const std::string& name, std::vector<int> shape, std::mt19937& rng) {
+  nn::ConstTensor t{name, std::move(shape), {}};
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  t.data.resize(static_cast<std::size_t>(t.elements()));
+  for (float& v : t.data) v = u(rng);
+  return t;
+}
+
+nn::Tensor random_input(const nn::Shape& s, std::mt19937& rng) {
+  nn::Tensor t(s);
+  std::uniform_real_distribution<float> u(-2.f, 2.f);
+  for (float& v : t.data) v = u(rng);
+  return t;
+}
+
+// One-layer model: conv (kernel k, stride, cin -> cout) or depthwise (c), with bias and an
+// activation.
+nn::Model one_layer(nn::OpType op, int k, int stride, int cin, int cout, nn::Activation act,
+                    nn::Padding pad, std::mt19937& rng) {
+  nn::Model m;
+  m.name = "one";
+  m.input_channels = cin;
+  const int c_out = op == nn::OpType::kDepthwiseConv2D ? cin : cout;
+  m.tensors.push_back(
+      random_tensor("w", {k, k, cin, op == nn::OpType::kDepthwiseConv2D ? 1 : cout}, rng));
+  m.tensors.push_back(random_tensor("b", {c_out}, rng));
+  nn::Layer l;
+  l.name = "layer";
+  l.op = op;
+  l.inputs = {0};
+  l.kernel_h = l.kernel_w = k;
+  l.stride_h = l.stride_w = stride;
+  l.padding = pad;
+  l.out_channels = op == nn::OpType::kConv2D ? cout : 0;
+  l.weights = 0;
+  l.bias = 1;
+  l.activation = act;
+  if (act == nn::Activation::kPRelu) {
+    m.tensors.push_back(random_tensor("alpha", {c_out}, rng));
+    l.alpha = 2;
+  }
+  m.layers.push_back(l);
+  m.outputs = {{"out", 1}};
+  return m;
+}
+
+// Largest |gpu - cpu| relative to the CPU output's largest magnitude.
+double compare(Context& ctx, const nn::Model& m, const nn::Tensor& in, std::string* what) {
+  NetworkOptions no;
+  no.batch = in.shape.n;
+  no.height_px = in.shape.h;
+  no.width_px = in.shape.w;
+  auto net = Network::create(ctx, m, no);
+  if (!net.ok()) {
+    *what = net.error().message();
+    return 1e9;
+  }
+  if (Status s = (*net)->run(in.data); !s.ok()) {
+    *what = s.error().message();
+    return 1e9;
+  }
+  nn::Tensor got;
+  if (Status s = (*net)->read_output(0, got); !s.ok()) {
+    *what = s.error().message();
+    return 1e9;
+  }
+  auto want = nn::run_model_cpu(m, in);
+  if (!want.ok()) {
+    *what = want.error().message();
+    return 1e9;
+  }
+  const nn::Tensor& ref = (*want)[1];
+  if (!(got.shape == ref.shape)) {
+    *what = "shape mismatch";
+    return 1e9;
+  }
+  double max_ref = 1e-12;
+  double max_err = 0;
+  for (std::size_t i = 0; i < ref.data.size(); ++i) {
+    max_ref = std::max(max_ref, static_cast<double>(std::fabs(ref.data[i])));
+    max_err = std::max(max_err, static_cast<double>(std::fabs(got.data[i] - ref.data[i])));
+  }
+  return max_err / max_ref;
+}
+
+constexpr double kTolerance = 1e-5;
+
+TEST_F(GpuTest, PointwiseMatchesCpuOnOddShapes) {
+  std::mt19937 rng(1);
+  const int cases[][4] = {
+      {1, 7, 5, 3}, {1, 9, 13, 17}, {3, 5, 24, 48}, {2, 11, 34, 9}, {1, 1, 1, 1}};
+  for (const auto& c : cases) {
+    for (nn::Activation act :
+         {nn::Activation::kNone, nn::Activation::kRelu6, nn::Activation::kPRelu,
+          nn::Activation::kSigmoid, nn::Activation::kRelu}) {
+      const nn::Model m =
+          one_layer(nn::OpType::kConv2D, 1, 1, c[2], c[3], act, nn::Padding::kSame, rng);
+      const nn::Tensor in = random_input({c[0], c[1], c[1] + 2, c[2]}, rng);
+      std::string what;
+      EXPECT_LT(compare(*ctx_, m, in, &what), kTolerance)
+          << what << " batch " << c[0] << " size " << c[1] << " cin " << c[2] << " cout " << c[3]
+          << " act " << nn::to_string(act);
+    }
+  }
+}
+
+TEST_F(GpuTest, ConvMatchesCpuWithStridesAndPadding) {
+  std::mt19937 rng(2);
+  struct Case {
+    int n, h, w, k, stride, cin, cout;
+    nn::Padding pad;
+  };
+  const Case cases[] = {{1, 17, 17, 3, 2, 3, 24, nn::Padding::kSame},
+                        {2, 16, 10, 3, 2, 5, 7, nn::Padding::kSame},
+                        {1, 9, 12, 5, 1, 4, 6, nn::Padding::kSame},
+                        {1, 11, 8, 3, 2, 2, 9, nn::Padding::kValid},
+                        {1, 6, 6, 1, 2, 6, 5, nn::Padding::kSame}};
+  for (const Case& c : cases) {
+    const nn::Model m = one_layer(nn::OpType::kConv2D, c.k, c.stride, c.cin, c.cout,
+                                  nn::Activation::kRelu6, c.pad, rng);
+    const nn::Tensor in = random_input({c.n, c.h, c.w, c.cin}, rng);
+    std::string what;
+    EXPECT_LT(compare(*ctx_, m, in, &what), kTolerance)
+        << what << " " << c.h << "x" << c.w << " k" << c.k << " s" << c.stride << " " << c.cin
+        << "->" << c.cout;
+  }
+}
+
+TEST_F(GpuTest, DepthwiseMatchesCpuWithStridesAndPadding) {
+  std::mt19937 rng(3);
+  struct Case {
+    int n, h, w, k, stride, c;
+    nn::Padding pad;
+  };
+  const Case cases[] = {{1, 17, 17, 3, 2, 24, nn::Padding::kSame},
+                        {1, 16, 16, 3, 2, 13, nn::Padding::kSame},
+                        {2, 9, 7, 3, 1, 6, nn::Padding::kSame},
+                        {1, 10, 9, 5, 1, 3, nn::Padding::kValid}};
+  for (const Case& c : cases) {
+    const nn::Model m = one_layer(nn::OpType::kDepthwiseConv2D, c.k, c.stride, c.c, 0,
+                                  nn::Activation::kRelu6, c.pad, rng);
+    const nn::Tensor in = random_input({c.n, c.h, c.w, c.c}, rng);
+    std::string what;
+    EXPECT_LT(compare(*ctx_, m, in, &what), kTolerance)
+        << what << " " << c.h << "x" << c.w << " k" << c.k << " s" << c.stride << " c" << c.c;
+  }
+}
+
+TEST_F(GpuTest, ChainedLayersAndRepeatedRunsMatchCpu) {
+  // A MobileNet-style chain (conv s2, depthwise, pointwise, two heads) run twice with different
+  // inputs: the recorded command buffer is reused.
+  std::mt19937 rng(4);
+  nn::Model m;
+  m.name = "chain";
+  m.input_channels = 3;
+  m.tensors.push_back(random_tensor("w0", {3, 3, 3, 8}, rng));
+  m.tensors.push_back(random_tensor("b0", {8}, rng));
+  m.tensors.push_back(random_tensor("dw", {3, 3, 8, 1}, rng));
+  m.tensors.push_back(random_tensor("pw", {1, 1, 8, 12}, rng));
+  m.tensors.push_back(random_tensor("h1", {1, 1, 12, 17}, rng));
+  m.tensors.push_back(random_tensor("h2", {1, 1, 12, 34}, rng));
+  auto layer = [](std::string name, nn::OpType op, int in, int k, int s, int cout, int w, int b,
+                  nn::Activation a) {
+    nn::Layer l;
+    l.name = std::move(name);
+    l.op = op;
+    l.inputs = {in};
+    l.kernel_h = l.kernel_w = k;
+    l.stride_h = l.stride_w = s;
+    l.out_channels = cout;
+    l.weights = w;
+    l.bias = b;
+    l.activation = a;
+    return l;
+  };
+  m.layers = {layer("c0", nn::OpType::kConv2D, 0, 3, 2, 8, 0, 1, nn::Activation::kRelu6),
+              layer("dw", nn::OpType::kDepthwiseConv2D, 1, 3, 1, 0, 2, -1, nn::Activation::kRelu6),
+              layer("pw", nn::OpType::kConv2D, 2, 1, 1, 12, 3, -1, nn::Activation::kRelu6),
+              layer("h1", nn::OpType::kConv2D, 3, 1, 1, 17, 4, -1, nn::Activation::kNone),
+              layer("h2", nn::OpType::kConv2D, 3, 1, 1, 34, 5, -1, nn::Activation::kNone)};
+  m.outputs = {{"h1", 4}, {"h2", 5}};
+  ASSERT_TRUE(m.validate().ok()) << m.validate().error().message();
+  NetworkOptions no;
+  no.batch = 2;
+  no.height_px = 33;
+  no.width_px = 21;
+  auto net = Network::create(*ctx_, m, no);
+  ASSERT_TRUE(net.ok()) << net.error().message();
+  for (int run = 0; run < 2; ++run) {
+    const nn::Tensor in = random_input({2, 33, 21, 3}, rng);
+    ASSERT_TRUE((*net)->run(in.data).ok());
+    auto want = nn::run_model_cpu(m, in);
+    ASSERT_TRUE(want.ok());
+    for (std::size_t o = 0; o < 2; ++o) {
+      nn::Tensor got;
+      ASSERT_TRUE((*net)->read_output(o, got).ok());
+      const nn::Tensor& ref = (*want)[static_cast<std::size_t>(m.outputs[o].value)];
+      ASSERT_EQ(got.shape, ref.shape);
+      double max_ref = 1e-12, max_err = 0;
+      for (std::size_t i = 0; i < ref.data.size(); ++i) {
+        max_ref = std::max(max_ref, static_cast<double>(std::fabs(ref.data[i])));
+        max_err = std::max(max_err, static_cast<double>(std::fabs(got.data[i] - ref.data[i])));
+      }
+      EXPECT_LT(max_err / max_ref, kTolerance) << "run " << run << " output " << o;
+    }
+  }
+  EXPECT_EQ((*net)->layer_times().size(), 5u);
+}
+
+TEST_F(GpuTest, WrongInputSizeAndUnsupportedOpAreErrors) {
+  std::mt19937 rng(5);
+  const nn::Model m =
+      one_layer(nn::OpType::kConv2D, 1, 1, 4, 4, nn::Activation::kNone, nn::Padding::kSame, rng);
+  NetworkOptions no;
+  no.height_px = 4;
+  no.width_px = 4;
+  auto net = Network::create(*ctx_, m, no);
+  ASSERT_TRUE(net.ok()) << net.error().message();
+  const std::vector<float> short_input(10, 0.f);
+  const Status s = (*net)->run(short_input);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message().find("1x4x4x4"), std::string::npos) << s.error().message();
+
+  nn::Model add = m;
+  nn::Layer a;
+  a.name = "sum";
+  a.op = nn::OpType::kAdd;
+  a.inputs = {0, 1};
+  add.layers.push_back(a);
+  add.outputs = {{"out", 2}};
+  auto bad = Network::create(*ctx_, add, no);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.error().code(), ErrorCode::kUnsupported);
+  EXPECT_NE(bad.error().message().find("'sum'"), std::string::npos) << bad.error().message();
+}
+
+TEST(GpuContextTest, UnknownDeviceNameIsAnErrorListingDevices) {
+  GpuOptions o;
+  o.device = "no-such-gpu-xyz";
+  o.persist_pipeline_cache = false;
+  auto c = Context::create(o);
+  ASSERT_FALSE(c.ok());
+  if (c.error().code() == ErrorCode::kUnsupported && !in_ci()) GTEST_SKIP() << "no Vulkan driver";
+  EXPECT_EQ(c.error().code(), ErrorCode::kNotFound);
+  EXPECT_NE(c.error().message().find("no-such-gpu-xyz"), std::string::npos) << c.error().message();
+}
+
+TEST(GpuContextTest, PipelineCacheIsPersistedAndGarbageIsIgnored) {
+  const auto path = temp_cache("persist");
+  {
+    std::ofstream f(path, std::ios::binary);
+    f << "this is not a pipeline cache";
+  }
+  GpuOptions o;
+  o.pipeline_cache_path = path;
+  {
+    auto c = Context::create(o);
+    if (!c.ok()) {
+      if (in_ci()) FAIL() << c.error().message();
+      GTEST_SKIP() << c.error().message();
+    }
+    std::mt19937 rng(6);
+    const nn::Model m =
+        one_layer(nn::OpType::kConv2D, 1, 1, 4, 8, nn::Activation::kNone, nn::Padding::kSame, rng);
+    NetworkOptions no;
+    no.height_px = no.width_px = 3;
+    ASSERT_TRUE(Network::create(**c, m, no).ok());
+  }
+  ASSERT_TRUE(std::filesystem::exists(path));
+  // At least the header (lavapipe stores nothing more; GPU drivers store the pipelines).
+  EXPECT_GE(std::filesystem::file_size(path), 32u);
+  auto again = Context::create(o);  // reads the cache it wrote
+  EXPECT_TRUE(again.ok());
+  again = Error(ErrorCode::kInternal, "released");
+  std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace mocap::gpu

@@ -1,0 +1,658 @@
+#include "runtime/nn/tfjs_import.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include <bit>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "runtime/nn/model_file.h"
+
+namespace mocap::nn {
+namespace {
+
+using ::testing::AllOf;
+using ::testing::HasSubstr;
+using Json = nlohmann::ordered_json;
+
+std::string base64(std::string_view in) {
+  static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  std::size_t i = 0;
+  for (; i + 2 < in.size(); i += 3) {
+    const unsigned v = (static_cast<unsigned char>(in[i]) << 16) |
+                       (static_cast<unsigned char>(in[i + 1]) << 8) |
+                       static_cast<unsigned char>(in[i + 2]);
+    for (int k = 3; k >= 0; --k) out += kAlphabet[(v >> (6 * k)) & 63];
+  }
+  if (i + 1 == in.size()) {
+    const unsigned v = static_cast<unsigned char>(in[i]) << 16;
+    out += kAlphabet[(v >> 18) & 63];
+    out += kAlphabet[(v >> 12) & 63];
+    out += "==";
+  } else if (i + 2 == in.size()) {
+    const unsigned v =
+        (static_cast<unsigned char>(in[i]) << 16) | (static_cast<unsigned char>(in[i + 1]) << 8);
+    out += kAlphabet[(v >> 18) & 63];
+    out += kAlphabet[(v >> 12) & 63];
+    out += kAlphabet[(v >> 6) & 63];
+    out += '=';
+  }
+  return out;
+}
+
+Json s_attr(std::string_view s) { return Json{{"s", base64(s)}}; }
+Json ints_attr(std::initializer_list<int> v) {
+  Json list = Json::array();
+  for (int x : v) list.push_back(std::to_string(x));  // int64 as strings, like the converter
+  return Json{{"list", Json{{"i", list}}}};
+}
+Json fused_attr(std::initializer_list<std::string_view> ops) {
+  Json list = Json::array();
+  for (std::string_view o : ops) list.push_back(base64(o));
+  return Json{{"list", Json{{"s", list}}}};
+}
+Json conv_attrs(int stride, std::string_view padding) {
+  return Json{{"strides", ints_attr({1, stride, stride, 1})},
+              {"padding", s_attr(padding)},
+              {"dilations", ints_attr({1, 1, 1, 1})},
+              {"data_format", s_attr("NHWC")},
+              {"T", Json{{"type", "DT_FLOAT"}}}};
+}
+
+std::vector<float> ramp(std::size_t n, float start, float step) {
+  std::vector<float> v(n);
+  for (std::size_t i = 0; i < n; ++i) v[i] = start + step * static_cast<float>(i);
+  return v;
+}
+
+std::size_t count(const std::vector<int>& shape) {
+  std::size_t n = 1;
+  for (int d : shape) n *= static_cast<std::size_t>(d);
+  return n;
+}
+
+// A TF.js graph model under construction: nodes, manifest entries and the weight bytes.
+class TfjsGraph {
+ public:
+  void placeholder(const std::string& name, std::initializer_list<int> shape) {
+    Json dims = Json::array();
+    for (int d : shape) dims.push_back(Json{{"size", std::to_string(d)}});
+    nodes_.push_back(Json{{"name", name},
+                          {"op", "Placeholder"},
+                          {"attr", Json{{"shape", Json{{"shape", Json{{"dim", dims}}}}},
+                                        {"dtype", Json{{"type", "DT_FLOAT"}}}}}});
+  }
+  void const_f(const std::string& name, const std::vector<int>& shape, std::vector<float> v) {
+    EXPECT_EQ(v.size(), count(shape)) << name;
+    add_const(name, shape, "DT_FLOAT");
+    weights_.push_back(Json{{"name", name}, {"shape", shape}, {"dtype", "float32"}});
+    for (float f : v) put32(std::bit_cast<std::uint32_t>(f));
+    floats_[name] = std::move(v);
+  }
+  void const_i(const std::string& name, const std::vector<int>& shape,
+               const std::vector<std::int32_t>& v) {
+    add_const(name, shape, "DT_INT32");
+    weights_.push_back(Json{{"name", name}, {"shape", shape}, {"dtype", "int32"}});
+    for (std::int32_t x : v) put32(std::bit_cast<std::uint32_t>(x));
+  }
+  // A float32 weight stored quantized: uint8 (bytes == 1) or uint16 (bytes == 2).
+  void const_q(const std::string& name, const std::vector<int>& shape, const std::vector<int>& q,
+               int bytes, float scale, float min) {
+    add_const(name, shape, "DT_FLOAT");
+    weights_.push_back(
+        Json{{"name", name},
+             {"shape", shape},
+             {"dtype", "float32"},
+             {"quantization",
+              Json{{"dtype", bytes == 1 ? "uint8" : "uint16"}, {"scale", scale}, {"min", min}}}});
+    for (int x : q) {
+      bin_.push_back(static_cast<char>(x & 0xFF));
+      if (bytes == 2) bin_.push_back(static_cast<char>((x >> 8) & 0xFF));
+    }
+  }
+  void node(const std::string& name, const std::string& op, std::vector<std::string> inputs,
+            Json attr = Json::object()) {
+    nodes_.push_back(Json{{"name", name}, {"op", op}, {"input", inputs}, {"attr", attr}});
+  }
+  // Writes DIR/model.json and DIR/weights.bin; nodes go out in reverse order (a valid graph
+  // model need not be topologically sorted).
+  std::filesystem::path write(const std::filesystem::path& dir, const Json& signature = Json()) {
+    Json nodes = Json::array();
+    for (auto it = nodes_.rbegin(); it != nodes_.rend(); ++it) nodes.push_back(*it);
+    Json doc{{"format", "graph-model"},
+             {"generatedBy", "tfjs_import_test"},
+             {"modelTopology", Json{{"node", nodes}, {"library", Json::object()}}},
+             {"weightsManifest",
+              Json::array({Json{{"paths", Json::array({"weights.bin"})}, {"weights", weights_}}})}};
+    if (!signature.is_null()) doc["signature"] = signature;
+    std::ofstream(dir / "model.json") << doc.dump(1);
+    std::ofstream(dir / "weights.bin", std::ios::binary)
+        .write(bin_.data(), static_cast<long>(bin_.size()));
+    return dir / "model.json";
+  }
+  const std::vector<float>& floats(const std::string& name) { return floats_.at(name); }
+
+ private:
+  void add_const(const std::string& name, const std::vector<int>& shape, const char* dtype) {
+    Json dims = Json::array();
+    for (int d : shape) dims.push_back(Json{{"size", std::to_string(d)}});
+    nodes_.push_back(
+        Json{{"name", name},
+             {"op", "Const"},
+             {"attr", Json{{"value", Json{{"tensor", Json{{"dtype", dtype},
+                                                          {"tensorShape", Json{{"dim", dims}}}}}}},
+                           {"dtype", Json{{"type", dtype}}}}}});
+  }
+  void put32(std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) bin_.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
+  }
+
+  std::vector<Json> nodes_;
+  Json weights_ = Json::array();
+  std::string bin_;
+  std::map<std::string, std::vector<float>> floats_;
+};
+
+class TfjsImportTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("mocap_tfjs_import_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    std::filesystem::remove_all(dir_, ec);
+  }
+
+  // input 8x8x3 -> fused conv 3x3/2 (BiasAdd+Relu6) -> fused depthwise (BiasAdd+Relu6)
+  // -> Conv2D 1x1 + standalone BiasAdd + Relu6 (folded) -> AddV2 with the first conv
+  // -> ConcatV2 with the depthwise output -> MaxPool 2x2/2 VALID -> ResizeBilinear x2
+  // -> Identity -> Sigmoid (not foldable: a resize produces it); Relu on the first conv (not
+  // foldable: that conv has three consumers).
+  void build_small_graph() {
+    g_.placeholder("input", {1, 8, 8, 3});
+    g_.const_f("w1", {3, 3, 3, 4}, ramp(108, -0.5f, 0.01f));
+    g_.const_f("b1", {4}, {0.1f, 0.2f, 0.3f, 0.4f});
+    g_.const_f("dw", {3, 3, 4, 1}, ramp(36, 0.2f, -0.01f));
+    g_.const_f("db", {4}, {-0.1f, 0.0f, 0.1f, 0.2f});
+    g_.const_f("w2", {1, 1, 4, 4}, ramp(16, 1.0f, -0.125f));
+    g_.const_f("b2", {4}, {1.0f, 2.0f, 3.0f, 4.0f});
+    g_.const_i("axis", {}, {3});
+    g_.const_i("size", {2}, {4, 4});
+    Json c1 = conv_attrs(2, "SAME");
+    c1["fused_ops"] = fused_attr({"BiasAdd", "Relu6"});
+    c1["num_args"] = Json{{"i", "1"}};
+    g_.node("net/c1", "_FusedConv2D", {"input", "w1", "b1"}, c1);
+    Json d1 = conv_attrs(1, "SAME");
+    d1["fused_ops"] = fused_attr({"BiasAdd", "Relu6"});
+    g_.node("net/d1", "FusedDepthwiseConv2dNative", {"net/c1", "dw", "db"}, d1);
+    g_.node("net/c2", "Conv2D", {"net/d1:0", "w2"}, conv_attrs(1, "VALID"));
+    g_.node("net/c2/bias", "BiasAdd", {"net/c2", "b2"}, Json{{"data_format", s_attr("NHWC")}});
+    g_.node("net/c2/relu6", "Relu6", {"net/c2/bias", "^net/c1"});
+    g_.node("net/add", "AddV2", {"net/c2/relu6", "net/c1"});
+    g_.node("net/cat", "ConcatV2", {"net/add", "net/d1", "axis"}, Json{{"N", Json{{"i", "2"}}}});
+    g_.node("net/pool", "MaxPool", {"net/cat"},
+            Json{{"ksize", ints_attr({1, 2, 2, 1})},
+                 {"strides", ints_attr({1, 2, 2, 1})},
+                 {"padding", s_attr("VALID")}});
+    g_.node("net/up", "ResizeBilinear", {"net/pool", "size"},
+            Json{{"align_corners", Json{{"b", false}}}, {"half_pixel_centers", Json{{"b", true}}}});
+    g_.node("net/up/id", "Identity", {"net/up"});
+    g_.node("net/sig", "Sigmoid", {"net/up/id"});
+    g_.node("net/relu", "Relu", {"net/c1"});
+  }
+
+  Error import_error(const std::filesystem::path& json) {
+    Result<Model> r = import_tfjs(json);
+    if (r.ok()) {
+      ADD_FAILURE() << "import unexpectedly succeeded";
+      return Error(ErrorCode::kInternal, "");
+    }
+    return r.error();
+  }
+
+  std::filesystem::path dir_;
+  TfjsGraph g_;
+};
+
+void expect_bits(const std::vector<float>& a, const std::vector<float>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(std::bit_cast<std::uint32_t>(a[i]), std::bit_cast<std::uint32_t>(b[i])) << i;
+  }
+}
+
+// The value id a layer writes, found by name (-1 when absent).
+int value_of(const Model& m, const std::string& name) {
+  for (std::size_t i = 0; i < m.layers.size(); ++i) {
+    if (m.layers[i].name == name) return static_cast<int>(i) + 1;
+  }
+  return -1;
+}
+
+const ConstTensor& tensor(const Model& m, int index) {
+  EXPECT_GE(index, 0);
+  EXPECT_LT(index, static_cast<int>(m.tensors.size()));
+  static const ConstTensor kNone;
+  if (index < 0 || index >= static_cast<int>(m.tensors.size())) return kNone;
+  return m.tensors[static_cast<std::size_t>(index)];
+}
+
+TEST_F(TfjsImportTest, SmallGraphMapsToLayers) {
+  build_small_graph();
+  Result<Model> r = import_tfjs(g_.write(dir_));
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  const Model& m = *r;
+  EXPECT_EQ(m.name, "model");
+  EXPECT_EQ(m.input_channels, 3);
+  // BiasAdd and Relu6 after net/c2, the Identity and the Const nodes leave no layer.
+  ASSERT_EQ(m.layers.size(), 9u);
+  const int c1 = value_of(m, "net/c1");
+  const int d1 = value_of(m, "net/d1");
+  const int c2 = value_of(m, "net/c2");
+  const int add = value_of(m, "net/add");
+  const int cat = value_of(m, "net/cat");
+  const int pool = value_of(m, "net/pool");
+  const int up = value_of(m, "net/up");
+  const int sig = value_of(m, "net/sig");
+  const int relu = value_of(m, "net/relu");
+  for (int v : {c1, d1, c2, add, cat, pool, up, sig, relu}) ASSERT_GE(v, 1);
+  auto layer = [&](int v) -> const Layer& { return m.layers[static_cast<std::size_t>(v - 1)]; };
+
+  const Layer& conv1 = layer(c1);
+  EXPECT_EQ(conv1.op, OpType::kConv2D);
+  EXPECT_EQ(conv1.inputs, std::vector<int>{0});
+  EXPECT_EQ(conv1.kernel_h, 3);
+  EXPECT_EQ(conv1.kernel_w, 3);
+  EXPECT_EQ(conv1.stride_h, 2);
+  EXPECT_EQ(conv1.stride_w, 2);
+  EXPECT_EQ(conv1.padding, Padding::kSame);
+  EXPECT_EQ(conv1.out_channels, 4);
+  EXPECT_EQ(conv1.activation, Activation::kRelu6);
+  EXPECT_EQ(tensor(m, conv1.weights).shape, (std::vector<int>{3, 3, 3, 4}));
+  expect_bits(tensor(m, conv1.weights).data, g_.floats("w1"));
+  expect_bits(tensor(m, conv1.bias).data, g_.floats("b1"));
+
+  const Layer& dw = layer(d1);
+  EXPECT_EQ(dw.op, OpType::kDepthwiseConv2D);
+  EXPECT_EQ(dw.inputs, std::vector<int>{c1});
+  EXPECT_EQ(dw.activation, Activation::kRelu6);
+  EXPECT_EQ(tensor(m, dw.weights).shape, (std::vector<int>{3, 3, 4, 1}));
+  expect_bits(tensor(m, dw.weights).data, g_.floats("dw"));
+  expect_bits(tensor(m, dw.bias).data, g_.floats("db"));
+
+  const Layer& conv2 = layer(c2);  // the standalone BiasAdd and Relu6 are folded in
+  EXPECT_EQ(conv2.op, OpType::kConv2D);
+  EXPECT_EQ(conv2.inputs, std::vector<int>{d1});
+  EXPECT_EQ(conv2.kernel_h, 1);
+  EXPECT_EQ(conv2.padding, Padding::kValid);
+  EXPECT_EQ(conv2.activation, Activation::kRelu6);
+  expect_bits(tensor(m, conv2.bias).data, g_.floats("b2"));
+
+  EXPECT_EQ(layer(add).op, OpType::kAdd);
+  EXPECT_EQ(layer(add).inputs, (std::vector<int>{c2, c1}));
+  EXPECT_EQ(layer(cat).op, OpType::kConcat);
+  EXPECT_EQ(layer(cat).inputs, (std::vector<int>{add, d1}));
+  const Layer& mp = layer(pool);
+  EXPECT_EQ(mp.op, OpType::kMaxPool);
+  EXPECT_EQ(mp.inputs, std::vector<int>{cat});
+  EXPECT_EQ(mp.kernel_h, 2);
+  EXPECT_EQ(mp.kernel_w, 2);
+  EXPECT_EQ(mp.stride_h, 2);
+  EXPECT_EQ(mp.stride_w, 2);
+  EXPECT_EQ(mp.padding, Padding::kValid);
+  EXPECT_EQ(layer(up).op, OpType::kResizeBilinear);
+  EXPECT_EQ(layer(up).resize_factor, 2);
+  EXPECT_EQ(layer(sig).op, OpType::kActivation);
+  EXPECT_EQ(layer(sig).activation, Activation::kSigmoid);
+  EXPECT_EQ(layer(sig).inputs, std::vector<int>{up});  // through the Identity
+  EXPECT_EQ(layer(relu).op, OpType::kActivation);      // net/c1 has three consumers
+  EXPECT_EQ(layer(relu).activation, Activation::kRelu);
+  EXPECT_EQ(layer(relu).inputs, std::vector<int>{c1});
+  EXPECT_EQ(m.parameter_count(), 108 + 4 + 36 + 4 + 16 + 4);
+
+  // Sinks in file order (the test writes nodes in reverse, so net/relu comes first).
+  ASSERT_EQ(m.outputs.size(), 2u);
+  EXPECT_EQ(m.outputs[0].name, "net/relu");
+  EXPECT_EQ(m.outputs[0].value, relu);
+  EXPECT_EQ(m.outputs[1].name, "net/sig");
+  EXPECT_EQ(m.outputs[1].value, sig);
+
+  Result<std::vector<Shape>> shapes = m.infer_shapes({1, 8, 8, 3});
+  ASSERT_TRUE(shapes.ok()) << shapes.error().message();
+  auto shape = [&](int v) { return (*shapes)[static_cast<std::size_t>(v)]; };
+  EXPECT_EQ(shape(c1), (Shape{1, 4, 4, 4}));
+  EXPECT_EQ(shape(cat), (Shape{1, 4, 4, 8}));
+  EXPECT_EQ(shape(pool), (Shape{1, 2, 2, 8}));
+  EXPECT_EQ(shape(sig), (Shape{1, 4, 4, 8}));
+  EXPECT_EQ(shape(relu), (Shape{1, 4, 4, 4}));
+
+  // The result survives the model file.
+  Result<Model> back = parse_model_bytes(serialize_model(m), "small.mcnn");
+  ASSERT_TRUE(back.ok()) << back.error().message();
+  EXPECT_EQ(back->layers.size(), m.layers.size());
+}
+
+TEST_F(TfjsImportTest, SignatureOutputsGiveTheOrder) {
+  build_small_graph();
+  const Json sig{{"outputs", Json{{"net/sig:0", Json{{"name", "net/sig:0"}}},
+                                  {"net/relu:0", Json{{"name", "net/relu:0"}}}}}};
+  Result<Model> r = import_tfjs(g_.write(dir_, sig));
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  ASSERT_EQ(r->outputs.size(), 2u);
+  EXPECT_EQ(r->outputs[0].name, "net/sig");
+  EXPECT_EQ(r->outputs[1].name, "net/relu");
+}
+
+TEST_F(TfjsImportTest, PoseNetHeadsAreRenamedAndOrdered) {
+  g_.placeholder("image", {1, 33, 33, 3});
+  g_.const_f("w", {1, 1, 3, 8}, ramp(24, 0.0f, 0.5f));
+  g_.const_f("b", {8}, ramp(8, 0.0f, 1.0f));
+  Json fused = conv_attrs(2, "SAME");
+  fused["fused_ops"] = fused_attr({"BiasAdd", "Relu6"});
+  g_.node("backbone", "_FusedConv2D", {"image", "w", "b"}, fused);
+  const std::vector<std::pair<std::string, int>> heads = {{"net/displacement_bwd_2/BiasAdd", 32},
+                                                          {"net/heatmap_2/BiasAdd", 17},
+                                                          {"net/offset_2/BiasAdd", 34},
+                                                          {"net/displacement_fwd_2/BiasAdd", 32}};
+  Json head_attrs = conv_attrs(1, "SAME");
+  head_attrs["fused_ops"] = fused_attr({"BiasAdd"});
+  for (const auto& [name, c] : heads) {
+    g_.const_f(name + "/w", {1, 1, 8, c}, ramp(static_cast<std::size_t>(8 * c), 0.0f, 0.1f));
+    g_.const_f(name + "/b", {c}, ramp(static_cast<std::size_t>(c), 0.0f, 0.1f));
+    g_.node(name, "_FusedConv2D", {"backbone", name + "/w", name + "/b"}, head_attrs);
+  }
+  Result<Model> r = import_tfjs(g_.write(dir_));
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  ASSERT_EQ(r->outputs.size(), 4u);
+  const char* names[] = {"heatmap", "offsets", "displacement_fwd", "displacement_bwd"};
+  const int channels[] = {17, 34, 32, 32};
+  Result<std::vector<Shape>> shapes = r->infer_shapes({1, 33, 33, 3});
+  ASSERT_TRUE(shapes.ok()) << shapes.error().message();
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(r->outputs[i].name, names[i]);
+    EXPECT_EQ((*shapes)[static_cast<std::size_t>(r->outputs[i].value)],
+              (Shape{1, 17, 17, channels[i]}));
+  }
+}
+
+TEST_F(TfjsImportTest, StandalonePreluFoldsWithReshapedSlopes) {
+  g_.placeholder("x", {1, 4, 4, 2});
+  g_.const_f("w", {1, 1, 2, 3}, ramp(6, 1.0f, 1.0f));
+  g_.const_f("alpha", {1, 1, 3}, {0.1f, 0.2f, 0.3f});
+  g_.node("conv", "Conv2D", {"x", "w"}, conv_attrs(1, "SAME"));
+  g_.node("prelu", "Prelu", {"conv", "alpha"});
+  Result<Model> r = import_tfjs(g_.write(dir_));
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  ASSERT_EQ(r->layers.size(), 1u);
+  EXPECT_EQ(r->layers[0].activation, Activation::kPRelu);
+  EXPECT_EQ(r->layers[0].bias, -1);
+  ASSERT_GE(r->layers[0].alpha, 0);
+  EXPECT_EQ(r->tensors[static_cast<std::size_t>(r->layers[0].alpha)].shape, std::vector<int>{3});
+  EXPECT_EQ(r->outputs[0].name, "prelu");
+}
+
+TEST_F(TfjsImportTest, QuantizedWeightsAreDequantized) {
+  g_.placeholder("x", {1, 2, 2, 2});
+  g_.const_q("w", {1, 1, 2, 2}, {0, 1, 128, 255}, 1, 0.5f, -2.0f);
+  g_.const_q("b", {2}, {0, 65535}, 2, 0.25f, 1.0f);
+  Json attrs = conv_attrs(1, "SAME");
+  attrs["fused_ops"] = fused_attr({"BiasAdd"});
+  g_.node("conv", "_FusedConv2D", {"x", "w", "b"}, attrs);
+  Result<Model> r = import_tfjs(g_.write(dir_));
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  const Layer& l = r->layers[0];
+  EXPECT_EQ(r->tensors[static_cast<std::size_t>(l.weights)].data,
+            (std::vector<float>{-2.0f, -1.5f, 62.0f, 125.5f}));
+  EXPECT_EQ(r->tensors[static_cast<std::size_t>(l.bias)].data,
+            (std::vector<float>{1.0f, 65535.0f * 0.25f + 1.0f}));
+}
+
+TEST_F(TfjsImportTest, UnsupportedOpNamesTheNode) {
+  build_small_graph();
+  g_.node("net/softmax", "Softmax", {"net/sig"});
+  const std::filesystem::path json = g_.write(dir_);
+  const Error e = import_error(json);
+  EXPECT_EQ(e.code(), ErrorCode::kUnsupported);
+  EXPECT_THAT(e.message(),
+              AllOf(HasSubstr(json.string()), HasSubstr("net/softmax"), HasSubstr("Softmax")));
+}
+
+TEST_F(TfjsImportTest, UnfoldableBiasAddIsUnsupported) {
+  g_.placeholder("x", {1, 4, 4, 2});
+  g_.const_f("w", {1, 1, 2, 2}, ramp(4, 1.0f, 1.0f));
+  g_.const_f("b", {2}, {1.0f, 2.0f});
+  g_.node("conv", "Conv2D", {"x", "w"}, conv_attrs(1, "SAME"));
+  g_.node("bias", "BiasAdd", {"conv", "b"});
+  g_.node("other", "Relu", {"conv"});  // a second consumer of the convolution
+  const Error e = import_error(g_.write(dir_));
+  EXPECT_EQ(e.code(), ErrorCode::kUnsupported);
+  EXPECT_THAT(e.message(), AllOf(HasSubstr("node 'bias' (BiasAdd)"), HasSubstr("folded")));
+}
+
+TEST_F(TfjsImportTest, AttributeAndShapeErrors) {
+  struct Case {
+    const char* what;
+    Json attrs;
+    std::vector<int> size;
+    const char* expect;
+  };
+  Json dilated = conv_attrs(1, "SAME");
+  dilated["dilations"] = ints_attr({1, 2, 2, 1});
+  Json nchw = conv_attrs(1, "SAME");
+  nchw["data_format"] = s_attr("NCHW");
+  Json explicit_pad = conv_attrs(1, "EXPLICIT");
+  Json no_strides = conv_attrs(1, "SAME");
+  no_strides.erase("strides");
+  const Case cases[] = {
+      {"dilation", dilated, {}, "dilation 2"},
+      {"nchw", nchw, {}, "NCHW"},
+      {"explicit", explicit_pad, {}, "EXPLICIT"},
+      {"no strides", no_strides, {}, "missing attribute 'strides'"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    TfjsGraph g;
+    g.placeholder("x", {1, 4, 4, 2});
+    g.const_f("w", {1, 1, 2, 2}, ramp(4, 1.0f, 1.0f));
+    g.node("conv", "Conv2D", {"x", "w"}, c.attrs);
+    Result<Model> r = import_tfjs(g.write(dir_));
+    ASSERT_FALSE(r.ok());
+    EXPECT_THAT(r.error().message(), AllOf(HasSubstr("node 'conv' (Conv2D)"), HasSubstr(c.expect)));
+  }
+  {
+    TfjsGraph g;  // filter channels disagree with the input
+    g.placeholder("x", {1, 4, 4, 5});
+    g.const_f("w", {1, 1, 2, 2}, ramp(4, 1.0f, 1.0f));
+    g.node("conv", "Conv2D", {"x", "w"}, conv_attrs(1, "SAME"));
+    EXPECT_THAT(import_error(g.write(dir_)).message(), HasSubstr("2 input channels"));
+  }
+  {
+    TfjsGraph g;  // concatenation along width
+    g.placeholder("x", {1, 4, 4, 2});
+    g.const_i("axis", {}, {2});
+    g.node("relu", "Relu", {"x"});
+    g.node("cat", "ConcatV2", {"x", "relu", "axis"});
+    const Error e = import_error(g.write(dir_));
+    EXPECT_EQ(e.code(), ErrorCode::kUnsupported);
+    EXPECT_THAT(e.message(), AllOf(HasSubstr("node 'cat'"), HasSubstr("axis 2")));
+  }
+  {
+    TfjsGraph g;  // 4x4 -> 10x10 is not an integer factor
+    g.placeholder("x", {1, 4, 4, 2});
+    g.const_i("size", {2}, {10, 10});
+    g.node("up", "ResizeNearestNeighbor", {"x", "size"});
+    EXPECT_THAT(import_error(g.write(dir_)).message(),
+                AllOf(HasSubstr("node 'up'"), HasSubstr("integer factor")));
+  }
+  {
+    TfjsGraph g;  // legacy bilinear sampling
+    g.placeholder("x", {1, 4, 4, 2});
+    g.const_i("size", {2}, {8, 8});
+    g.node("up", "ResizeBilinear", {"x", "size"});
+    EXPECT_THAT(import_error(g.write(dir_)).message(), HasSubstr("half_pixel_centers"));
+  }
+  {
+    TfjsGraph g;  // a Const with no manifest entry
+    g.placeholder("x", {1, 4, 4, 2});
+    g.node("w", "Const", {});
+    g.node("conv", "Conv2D", {"x", "w"}, conv_attrs(1, "SAME"));
+    EXPECT_THAT(import_error(g.write(dir_)).message(),
+                AllOf(HasSubstr("node 'w' (Const)"), HasSubstr("weights manifest")));
+  }
+  {
+    TfjsGraph g;  // an input that is not a node
+    g.placeholder("x", {1, 4, 4, 2});
+    g.node("relu", "Relu", {"nothing"});
+    EXPECT_THAT(import_error(g.write(dir_)).message(),
+                AllOf(HasSubstr("node 'relu'"), HasSubstr("'nothing' is not a node")));
+  }
+  {
+    TfjsGraph g;  // a cycle
+    g.placeholder("x", {1, 4, 4, 2});
+    g.node("a", "AddV2", {"x", "b"});
+    g.node("b", "Relu", {"a"});
+    g.node("out", "Relu", {"b"});
+    EXPECT_THAT(import_error(g.write(dir_)).message(), HasSubstr("cycle"));
+  }
+}
+
+TEST_F(TfjsImportTest, UnsupportedWeightEncodings) {
+  {
+    TfjsGraph g;
+    g.placeholder("x", {1, 2, 2, 2});
+    g.const_q("w", {1, 1, 2, 2}, {0, 1, 2, 3}, 1, 0.5f, 0.0f);
+    g.node("conv", "Conv2D", {"x", "w"}, conv_attrs(1, "SAME"));
+    const std::filesystem::path json = g.write(dir_);
+    // Rewrite the quantization dtype to float16.
+    Json doc = Json::parse(std::ifstream(json));
+    doc["weightsManifest"][0]["weights"][0]["quantization"]["dtype"] = "float16";
+    std::ofstream(json) << doc.dump();
+    const Error e = import_error(json);
+    EXPECT_EQ(e.code(), ErrorCode::kUnsupported);
+    EXPECT_THAT(e.message(), AllOf(HasSubstr("weight 'w'"), HasSubstr("float16")));
+    doc["weightsManifest"][0]["weights"][0].erase("quantization");
+    doc["weightsManifest"][0]["weights"][0]["dtype"] = "bool";
+    std::ofstream(json) << doc.dump();
+    EXPECT_THAT(import_error(json).message(), AllOf(HasSubstr("weight 'w'"), HasSubstr("bool")));
+  }
+}
+
+TEST_F(TfjsImportTest, MissingOrShortWeightFile) {
+  build_small_graph();
+  const std::filesystem::path json = g_.write(dir_);
+  const std::filesystem::path bin = dir_ / "weights.bin";
+  const auto size = std::filesystem::file_size(bin);
+
+  std::filesystem::resize_file(bin, size - 4);
+  Error e = import_error(json);
+  EXPECT_EQ(e.code(), ErrorCode::kParse);
+  EXPECT_THAT(e.message(), AllOf(HasSubstr(bin.string()), HasSubstr("truncated"),
+                                 HasSubstr(std::to_string(size))));
+
+  std::filesystem::resize_file(bin, size + 4);
+  EXPECT_THAT(import_error(json).message(), HasSubstr(std::to_string(size + 4) + " bytes"));
+
+  std::filesystem::remove(bin);
+  e = import_error(json);
+  EXPECT_EQ(e.code(), ErrorCode::kNotFound);
+  EXPECT_THAT(e.message(), AllOf(HasSubstr(json.string()), HasSubstr(bin.string())));
+}
+
+TEST_F(TfjsImportTest, MissingOrMalformedJson) {
+  Error e = import_error(dir_ / "absent.json");
+  EXPECT_EQ(e.code(), ErrorCode::kNotFound);
+  EXPECT_THAT(e.message(), HasSubstr("absent.json"));
+
+  const std::filesystem::path json = dir_ / "broken.json";
+  std::ofstream(json) << "{\"modelTopology\": {\"node\": [";
+  e = import_error(json);
+  EXPECT_EQ(e.code(), ErrorCode::kParse);
+  EXPECT_THAT(e.message(), AllOf(HasSubstr("broken.json"), HasSubstr("not valid JSON")));
+
+  std::ofstream(json) << "{\"weightsManifest\": []}";
+  EXPECT_THAT(import_error(json).message(), HasSubstr("modelTopology"));
+  std::ofstream(json) << "{\"modelTopology\": {\"node\": [{\"name\": \"a\"}]}, "
+                         "\"weightsManifest\": []}";
+  EXPECT_THAT(import_error(json).message(), HasSubstr("node 'a' has no string 'op'"));
+  std::ofstream(json) << "{\"format\": \"layers-model\"}";
+  EXPECT_EQ(import_error(json).code(), ErrorCode::kUnsupported);
+}
+
+// The real PoseNet (tools/fetch_models.sh puts it in models/). Skipped when absent, except in CI.
+TEST(TfjsImportPoseNetTest, ImportsTheRealPoseNet) {
+  const std::filesystem::path json =
+      std::filesystem::path(MOCAP_SOURCE_DIR) / "models/posenet.json";
+  if (!std::filesystem::exists(json)) {
+    const char* ci = std::getenv("CI");
+    const std::string why = json.string() + " not found (run tools/fetch_models.sh)";
+    if (ci != nullptr && std::string(ci) == "true") FAIL() << why;
+    GTEST_SKIP() << why;
+  }
+  Result<Model> r = import_tfjs(json);
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  const Model& m = *r;
+  EXPECT_TRUE(m.validate().ok());
+  EXPECT_EQ(m.name, "posenet");
+  EXPECT_EQ(m.input_channels, 3);
+  ASSERT_EQ(m.layers.size(), 31u);
+  EXPECT_EQ(m.parameter_count(), 1258195);
+  EXPECT_EQ(m.layers[0].op, OpType::kConv2D);
+  EXPECT_EQ(m.layers[0].stride_h, 2);
+  EXPECT_EQ(m.layers[0].kernel_h, 3);
+  EXPECT_EQ(m.layers[0].out_channels, 24);
+  EXPECT_EQ(m.layers[0].activation, Activation::kRelu6);
+  for (std::size_t b = 0; b < 13; ++b) {
+    const Layer& dw = m.layers[1 + 2 * b];
+    const Layer& pw = m.layers[2 + 2 * b];
+    EXPECT_EQ(dw.op, OpType::kDepthwiseConv2D) << dw.name;
+    EXPECT_EQ(dw.kernel_h, 3) << dw.name;
+    EXPECT_EQ(dw.activation, Activation::kRelu6) << dw.name;
+    EXPECT_EQ(pw.op, OpType::kConv2D) << pw.name;
+    EXPECT_EQ(pw.kernel_h, 1) << pw.name;
+    EXPECT_EQ(pw.activation, Activation::kRelu6) << pw.name;
+  }
+  ASSERT_EQ(m.outputs.size(), 4u);
+  const char* names[] = {"heatmap", "offsets", "displacement_fwd", "displacement_bwd"};
+  const int channels[] = {17, 34, 32, 32};
+  Result<std::vector<Shape>> shapes = m.infer_shapes({1, 257, 257, 3});
+  ASSERT_TRUE(shapes.ok()) << shapes.error().message();
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(m.outputs[i].name, names[i]);
+    const Layer& head = m.layers[static_cast<std::size_t>(m.outputs[i].value - 1)];
+    EXPECT_EQ(head.activation, Activation::kNone) << head.name;
+    EXPECT_GE(head.bias, 0) << head.name;
+    EXPECT_EQ((*shapes)[static_cast<std::size_t>(m.outputs[i].value)],
+              (Shape{1, 17, 17, channels[i]}))
+        << names[i];
+  }
+  // And through the model file, bit-exactly.
+  const std::vector<std::uint8_t> bytes = serialize_model(m);
+  Result<Model> back = parse_model_bytes(bytes, "posenet.mcnn");
+  ASSERT_TRUE(back.ok()) << back.error().message();
+  ASSERT_EQ(back->tensors.size(), m.tensors.size());
+  for (std::size_t t = 0; t < m.tensors.size(); ++t) {
+    ASSERT_EQ(std::memcmp(back->tensors[t].data.data(), m.tensors[t].data.data(),
+                          m.tensors[t].data.size() * sizeof(float)),
+              0)
+        << m.tensors[t].name;
+  }
+}
+
+}  // namespace
+}  // namespace mocap::nn

@@ -1,0 +1,303 @@
+// mocap infer --model FILE --input-f32 FILE --size S --dump DIR [--backend vulkan|cpu]
+// mocap bench cnn --model FILE --size S --batch B
+#include <unistd.h>
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "runtime/gpu/context.h"
+#include "runtime/gpu/network.h"
+#include "runtime/nn/cpu_ops.h"
+#include "runtime/nn/model_file.h"
+#include "runtime/nn/tfjs_import.h"
+#include "tools/common/cli.h"
+#include "tools/mocap/commands.h"
+
+namespace mocap::tools {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A .json model is imported from TF.js on the fly; anything else is a project model file.
+Result<nn::Model> load_model(const std::string& path) {
+  if (fs::path(path).extension() == ".json") return nn::import_tfjs(path);
+  return nn::read_model_file(path);
+}
+
+Result<std::vector<float>> read_f32(const std::string& path, long expected) {
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  if (ec) return Error(ErrorCode::kNotFound, path + ": cannot read (" + ec.message() + ")");
+  if (static_cast<long>(size) != expected * 4) {
+    return Error(ErrorCode::kInvalidArgument,
+                 path + ": holds " + std::to_string(size) + " bytes, the input needs " +
+                     std::to_string(expected * 4) + " (" + std::to_string(expected) +
+                     " float32 values, NHWC)");
+  }
+  std::vector<float> v(static_cast<std::size_t>(expected));
+  std::ifstream f(path, std::ios::binary);
+  if (!f.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(size))) {
+    return Error(ErrorCode::kIo, path + ": read failed");
+  }
+  return v;
+}
+
+Status write_f32(const fs::path& path, const std::vector<float>& v) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  if (!f || !f.write(reinterpret_cast<const char*>(v.data()),
+                     static_cast<std::streamsize>(v.size() * sizeof(float)))) {
+    return Error(ErrorCode::kIo, path.string() + ": cannot write");
+  }
+  return Status::Ok();
+}
+
+// Runs the model on `input` with the chosen backend; outputs in Model::outputs order.
+struct Runner {
+  std::string backend;
+  std::unique_ptr<gpu::Context> ctx;
+  std::unique_ptr<gpu::Network> net;
+  const nn::Model* model = nullptr;
+  nn::Shape shape;
+
+  Status init(const nn::Model& m, const nn::Shape& s, const std::string& device) {
+    model = &m;
+    shape = s;
+    if (backend == "cpu") {
+      std::fprintf(stderr, "backend: CPU reference kernels (single thread, slow)\n");
+      return Status::Ok();
+    }
+    if (backend != "vulkan") {
+      return Error(ErrorCode::kInvalidArgument,
+                   "--backend must be vulkan or cpu, got '" + backend + "'");
+    }
+    gpu::GpuOptions go;
+    go.device = device;
+    auto c = gpu::Context::create(go);
+    if (!c.ok()) return c.error();
+    ctx = std::move(*c);
+    std::fprintf(stderr, "backend: Vulkan on %s (%s)\n", ctx->device_info().name.c_str(),
+                 ctx->device_info().type_name().c_str());
+    gpu::NetworkOptions no;
+    no.batch = s.n;
+    no.height_px = s.h;
+    no.width_px = s.w;
+    auto n = gpu::Network::create(*ctx, m, no);
+    if (!n.ok()) return n.error();
+    net = std::move(*n);
+    return Status::Ok();
+  }
+
+  Status run(const std::vector<float>& input, std::vector<nn::Tensor>* outputs) {
+    if (net) {
+      if (Status s = net->run(input); !s.ok()) return s;
+      if (outputs) {
+        outputs->resize(net->output_count());
+        for (std::size_t i = 0; i < net->output_count(); ++i) {
+          if (Status s = net->read_output(i, (*outputs)[i]); !s.ok()) return s;
+        }
+      }
+      return Status::Ok();
+    }
+    nn::Tensor in(shape);
+    in.data = input;
+    auto r = nn::run_model_cpu(*model, in);
+    if (!r.ok()) return r.error();
+    if (outputs) {
+      outputs->clear();
+      for (const nn::ModelOutput& o : model->outputs) {
+        outputs->push_back(std::move((*r)[static_cast<std::size_t>(o.value)]));
+      }
+    }
+    return Status::Ok();
+  }
+};
+
+int fail(const Error& e) {
+  std::fprintf(stderr, "error: %s\n", e.message().c_str());
+  return 1;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
+}
+
+}  // namespace
+
+int run_infer(Args args) {
+  std::string model_path, input_path, image_path, dump_dir, detections_out;
+  std::string backend = "vulkan", device;
+  int size = 257;
+  cli::ArgParser p("mocap infer",
+                   "Runs the pose CNN. With --input-f32: on a raw NHWC float32 tensor [1,S,S,C]\n"
+                   "(already normalised), writing each output as DIR/<name>.f32 (raw NHWC\n"
+                   "float32; PoseNet: heatmap, offsets, displacement_fwd, displacement_bwd).");
+  p.option("--model", &model_path, "FILE", "model file (.mcnn) or a TF.js model.json");
+  p.option("--input-f32", &input_path, "FILE", "raw float32 NHWC input tensor");
+  p.option("--size", &size, "S", "input height and width (default 257)");
+  p.option("--dump", &dump_dir, "DIR", "write the outputs here");
+  p.option("--image", &image_path, "PATH", "photo input (full GPU path with detections)");
+  p.option("--detections-out", &detections_out, "FILE", "candidates + affinities (with --image)");
+  p.option("--backend", &backend, "NAME", "vulkan (default) or cpu");
+  p.option("--device", &device, "NAME", "Vulkan device index or name substring");
+  if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
+  if (model_path.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--model is required"));
+  if (!image_path.empty()) {
+    std::fprintf(stderr,
+                 "mocap infer --image: the image path (GPU pre-processing, peak extraction and "
+                 "limb affinities) is not in this build yet (issue #4 continues); use "
+                 "--input-f32\n");
+    return 2;
+  }
+  if (input_path.empty() || dump_dir.empty()) {
+    return fail(Error(ErrorCode::kInvalidArgument, "--input-f32 FILE and --dump DIR are required"));
+  }
+  if (size < 1 || size > 4096)
+    return fail(Error(ErrorCode::kInvalidArgument, "--size must be in [1, 4096]"));
+  auto model = load_model(model_path);
+  if (!model.ok()) return fail(model.error());
+  const nn::Shape shape{1, size, size, model->input_channels};
+  auto input = read_f32(input_path, shape.elements());
+  if (!input.ok()) return fail(input.error());
+  Runner r{backend, nullptr, nullptr, nullptr, {}};
+  if (Status s = r.init(*model, shape, device); !s.ok()) return fail(s.error());
+  std::vector<nn::Tensor> outs;
+  if (Status s = r.run(*input, &outs); !s.ok()) return fail(s.error());
+  std::error_code ec;
+  fs::create_directories(dump_dir, ec);
+  for (std::size_t i = 0; i < outs.size(); ++i) {
+    const fs::path out = fs::path(dump_dir) / (model->outputs[i].name + ".f32");
+    if (Status s = write_f32(out, outs[i].data); !s.ok()) return fail(s.error());
+    const nn::Shape& s = outs[i].shape;
+    std::printf("%s [%d,%d,%d,%d]\n", out.string().c_str(), s.n, s.h, s.w, s.c);
+  }
+  return 0;
+}
+
+int run_bench_cnn(Args args) {
+  std::string model_path, backend = "vulkan", device;
+  std::string tfjs_model = std::string(MOCAP_SOURCE_DIR) + "/models/posenet.json";
+  int size = 257, batch = 1, runs = 20, warmup = 3, tfjs_threads = 1;
+  bool no_tfjs = false;
+  cli::ArgParser p("mocap bench cnn",
+                   "Per-frame time of the pose CNN: median (and p90) of --runs runs after\n"
+                   "--warmup, wall clock per submission divided by the batch, and the GPU time of\n"
+                   "every layer (timestamps, median). When Node and tools/tfjs_ref are installed,\n"
+                   "runs the TF.js wasm reference on the same input in the same run and ends with\n"
+                   "vulkan_over_tfjs_wasm=R.RR (< 1: faster than TF.js).");
+  p.option("--model", &model_path, "FILE", "model file (.mcnn) or a TF.js model.json");
+  p.option("--size", &size, "S", "input height and width (default 257)");
+  p.option("--batch", &batch, "B", "views per submission (default 1)");
+  p.option("--runs", &runs, "N", "timed runs (default 20, at least 20)");
+  p.option("--warmup", &warmup, "N", "untimed runs first (default 3)");
+  p.option("--backend", &backend, "NAME", "vulkan (default) or cpu");
+  p.option("--device", &device, "NAME", "Vulkan device index or name substring");
+  p.option("--tfjs-model", &tfjs_model, "FILE", "TF.js model.json for the reference");
+  p.option("--tfjs-threads", &tfjs_threads, "N", "TF.js wasm threads (default 1)");
+  p.flag("--no-tfjs", &no_tfjs, "skip the TF.js reference");
+  if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
+  if (model_path.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--model is required"));
+  if (runs < 20 || warmup < 0 || batch < 1 || batch > 64 || size < 1 || size > 4096) {
+    return fail(Error(ErrorCode::kInvalidArgument,
+                      "need --runs >= 20, --warmup >= 0, --batch in [1, 64], --size in [1, 4096]"));
+  }
+  auto model = load_model(model_path);
+  if (!model.ok()) return fail(model.error());
+  const nn::Shape shape{batch, size, size, model->input_channels};
+  std::vector<float> input(static_cast<std::size_t>(shape.elements()));
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  for (float& v : input) v = u(rng);
+  Runner r{backend, nullptr, nullptr, nullptr, {}};
+  if (Status s = r.init(*model, shape, device); !s.ok()) return fail(s.error());
+  const char* threads = std::getenv("LP_NUM_THREADS");
+  std::printf("cnn: %s, input %dx%d, batch %d, backend %s%s%s\n", model->name.c_str(), size, size,
+              batch, backend.c_str(), r.ctx ? (" on " + r.ctx->device_info().name).c_str() : "",
+              threads ? (std::string(", LP_NUM_THREADS=") + threads).c_str() : "");
+  for (int i = 0; i < warmup; ++i) {
+    if (Status s = r.run(input, nullptr); !s.ok()) return fail(s.error());
+  }
+  std::vector<double> wall_ms, gpu_ms;
+  std::vector<std::vector<double>> layer_ms(r.net ? r.net->layer_times().size() : 0);
+  for (int i = 0; i < runs; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (Status s = r.run(input, nullptr); !s.ok()) return fail(s.error());
+    wall_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    if (r.net) {
+      gpu_ms.push_back(r.net->gpu_ms());
+      for (std::size_t l = 0; l < layer_ms.size(); ++l) {
+        layer_ms[l].push_back(r.net->layer_times()[l].ms);
+      }
+    }
+  }
+  if (!layer_ms.empty() && r.net->gpu_ms() > 0) {
+    std::printf("%-4s %-62s %-18s %9s\n", "#", "layer", "kernel", "gpu ms");
+    for (std::size_t l = 0; l < layer_ms.size(); ++l) {
+      std::printf("%-4zu %-62s %-18s %9.3f\n", l, r.net->layer_times()[l].name.c_str(),
+                  r.net->layer_times()[l].kernel.c_str(), median(layer_ms[l]));
+    }
+    std::printf("gpu_total_ms=%.3f (median, whole command buffer)\n", median(gpu_ms));
+  }
+  const double med = median(wall_ms) / batch;
+  std::printf("ms_per_frame=%.3f (median of %d, p90 %.3f; wall clock per submission / batch)\n",
+              med, runs, percentile(wall_ms, 0.9) / batch);
+
+  if (no_tfjs || batch != 1) {
+    if (!no_tfjs) std::printf("tfjs reference: only at --batch 1\n");
+    return 0;
+  }
+  const fs::path script = fs::path(MOCAP_SOURCE_DIR) / "tools/tfjs_ref/posenet_ref.mjs";
+  const fs::path modules = fs::path(MOCAP_SOURCE_DIR) / "tools/tfjs_ref/node_modules";
+  if (!fs::exists(script) || !fs::exists(modules) || !fs::exists(tfjs_model) ||
+      std::system("command -v node >/dev/null 2>&1") != 0) {
+    std::printf(
+        "tfjs reference: not installed (node, tools/tfjs_ref/node_modules and %s are "
+        "needed; tools/setup.sh installs them)\n",
+        tfjs_model.c_str());
+    return 0;
+  }
+  const fs::path tmp =
+      fs::temp_directory_path() / ("mocap-bench-cnn-" + std::to_string(::getpid()));
+  std::error_code ec;
+  fs::create_directories(tmp, ec);
+  if (Status s = write_f32(tmp / "input.f32", input); !s.ok()) return fail(s.error());
+  const std::string cmd =
+      "node '" + script.string() + "' --model '" + tfjs_model + "' --input-f32 '" +
+      (tmp / "input.f32").string() + "' --size " + std::to_string(size) + " --out '" +
+      (tmp / "out").string() + "' --backend wasm --threads " + std::to_string(tfjs_threads) +
+      " --bench " + std::to_string(runs) + " --warmup " + std::to_string(warmup) + " 2>/dev/null";
+  std::FILE* pipe = popen(cmd.c_str(), "r");
+  std::string out;
+  if (pipe) {
+    char buf[512];
+    while (std::fgets(buf, sizeof buf, pipe)) out += buf;
+    pclose(pipe);
+  }
+  fs::remove_all(tmp, ec);
+  const auto pos = out.find("\"median_ms\":");
+  if (pos == std::string::npos) {
+    std::printf("tfjs reference: failed to run (%s)\n", cmd.c_str());
+    return 1;
+  }
+  const double tfjs_ms = std::atof(out.c_str() + pos + 12);
+  std::printf("tfjs_wasm_ms_per_frame=%.3f (%d thread%s, median of %d)\n", tfjs_ms, tfjs_threads,
+              tfjs_threads == 1 ? "" : "s", runs);
+  std::printf("vulkan_over_tfjs_wasm=%.2f\n", tfjs_ms > 0 ? med / tfjs_ms : 0.0);
+  return 0;
+}
+
+}  // namespace mocap::tools
