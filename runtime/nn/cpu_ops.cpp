@@ -40,7 +40,7 @@ void conv2d(const Model& m, const Layer& l, const Tensor& in, Tensor& out) {
             const float* wk =
                 w.data.data() + ix((static_cast<long>(ky) * l.kernel_w + kx) * cin * cout);
             for (int ci = 0; ci < cin; ++ci) {
-              const double v = src[ci];
+              const double v = static_cast<double>(src[ci]);
               const float* wr = wk + ix(static_cast<long>(ci) * cout);
               for (int co = 0; co < cout; ++co) acc[ix(co)] += v * static_cast<double>(wr[co]);
             }

@@ -652,6 +652,16 @@ Result<std::optional<bool>> Importer::attr_bool(const TfNode& n, const char* key
 }
 
 Status Importer::check_common_attrs(const TfNode& n) const {
+  if (n.attr != nullptr) {
+    auto t = n.attr->find("T");
+    if (t != n.attr->end()) {
+      auto type = t->is_object() ? t->find("type") : t->end();
+      if (type == t->end() || !type->is_string() || type->get<std::string>() != "DT_FLOAT") {
+        return node_error(n, "attribute 'T' must be DT_FLOAT (only float32 is supported)",
+                          ErrorCode::kUnsupported);
+      }
+    }
+  }
   Result<std::optional<std::string>> format = attr_string(n, "data_format");
   if (!format.ok()) return format.error();
   if (*format && **format != "NHWC") {
@@ -953,6 +963,7 @@ Status Importer::map_bias_add(const TfNode& n, const std::string& x, const std::
 }
 
 Status Importer::map_activation(const TfNode& n, Activation a) {
+  if (Status s = check_common_attrs(n); !s.ok()) return s;
   const std::size_t want_inputs = a == Activation::kPRelu ? 2 : 1;
   if (n.inputs.size() != want_inputs) {
     return node_error(n, "has " + std::to_string(n.inputs.size()) + " inputs, needs " +
@@ -986,6 +997,7 @@ Status Importer::map_activation(const TfNode& n, Activation a) {
 }
 
 Status Importer::map_add(const TfNode& n) {
+  if (Status s = check_common_attrs(n); !s.ok()) return s;
   if (n.inputs.size() != 2) {
     return node_error(n, "has " + std::to_string(n.inputs.size()) + " inputs, needs 2");
   }
@@ -1014,6 +1026,7 @@ Status Importer::map_add(const TfNode& n) {
 }
 
 Status Importer::map_concat(const TfNode& n) {
+  if (Status s = check_common_attrs(n); !s.ok()) return s;
   if (n.inputs.size() < 2) return node_error(n, "needs at least one value and the axis");
   Result<const NodeValue*> axis = const_input(n, n.inputs.size() - 1);
   if (!axis.ok()) return axis.error();
@@ -1086,6 +1099,7 @@ Status Importer::map_max_pool(const TfNode& n) {
 }
 
 Status Importer::map_resize(const TfNode& n) {
+  if (Status s = check_common_attrs(n); !s.ok()) return s;
   const bool bilinear = n.op == "ResizeBilinear";
   if (n.inputs.size() != 2) {
     return node_error(n, "has " + std::to_string(n.inputs.size()) + " inputs, needs 2");

@@ -459,7 +459,10 @@ TEST_F(TfjsImportTest, AttributeAndShapeErrors) {
   Json explicit_pad = conv_attrs(1, "EXPLICIT");
   Json no_strides = conv_attrs(1, "SAME");
   no_strides.erase("strides");
+  Json half = conv_attrs(1, "SAME");
+  half["T"] = Json{{"type", "DT_HALF"}};
   const Case cases[] = {
+      {"half", half, {}, "DT_FLOAT"},
       {"dilation", dilated, {}, "dilation 2"},
       {"nchw", nchw, {}, "NCHW"},
       {"explicit", explicit_pad, {}, "EXPLICIT"},
