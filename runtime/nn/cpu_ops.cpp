@@ -16,99 +16,82 @@ const float* tensor_data(const Model& m, int t) {
 
 float alpha_of(const float* alpha, int c) { return alpha ? alpha[c] : 0.f; }
 
-void conv2d(const Model& m, const Layer& l, const Tensor& in, Tensor& out) {
-  const ConstTensor& w = m.tensors[ix(l.weights)];
+// Walks the windows of a windowed op (conv, depthwise, max-pool): for every output pixel,
+// begin(dst) with the pixel's output channels, tap(dst, k, src) for each tap inside the input
+// (k = ky * kernel_w + kx, src = that input pixel's channels), then end(dst).
+template <typename Begin, typename Tap, typename End>
+void for_each_window(const Layer& l, const Tensor& in, Tensor& out, Begin&& begin, Tap&& tap,
+                     End&& end) {
+  const int pt = conv_pad_before(in.shape.h, l.kernel_h, l.stride_h, l.padding);
+  const int pl = conv_pad_before(in.shape.w, l.kernel_w, l.stride_w, l.padding);
+  for (int n = 0; n < out.shape.n; ++n) {
+    for (int oy = 0; oy < out.shape.h; ++oy) {
+      for (int ox = 0; ox < out.shape.w; ++ox) {
+        float* dst = &out.at(n, oy, ox, 0);
+        begin(dst);
+        for (int ky = 0; ky < l.kernel_h; ++ky) {
+          const int iy = oy * l.stride_h - pt + ky;
+          if (iy < 0 || iy >= in.shape.h) continue;
+          for (int kx = 0; kx < l.kernel_w; ++kx) {
+            const int ixx = ox * l.stride_w - pl + kx;
+            if (ixx < 0 || ixx >= in.shape.w) continue;
+            tap(dst, ky * l.kernel_w + kx, in.pixel(n, iy, ixx));
+          }
+        }
+        end(dst);
+      }
+    }
+  }
+}
+
+// Convolution (depthwise or not) with bias and fused activation. Double accumulators: the
+// reference is then closer to exact than any fp32 kernel.
+void convolution(const Model& m, const Layer& l, const Tensor& in, Tensor& out) {
+  const float* w = m.tensors[ix(l.weights)].data.data();
+  const bool depthwise = l.op == OpType::kDepthwiseConv2D;
   const int cin = in.shape.c;
   const int cout = out.shape.c;
   const float* bias = tensor_data(m, l.bias);
   const float* alpha = tensor_data(m, l.alpha);
-  const int pt = conv_pad_before(in.shape.h, l.kernel_h, l.stride_h, l.padding);
-  const int pl = conv_pad_before(in.shape.w, l.kernel_w, l.stride_w, l.padding);
-  // Double accumulators: the reference is then closer to exact than any fp32 kernel.
   std::vector<double> acc(ix(cout));
-  for (int n = 0; n < out.shape.n; ++n) {
-    for (int oy = 0; oy < out.shape.h; ++oy) {
-      for (int ox = 0; ox < out.shape.w; ++ox) {
-        for (int co = 0; co < cout; ++co) acc[ix(co)] = bias ? static_cast<double>(bias[co]) : 0.0;
-        for (int ky = 0; ky < l.kernel_h; ++ky) {
-          const int iy = oy * l.stride_h - pt + ky;
-          if (iy < 0 || iy >= in.shape.h) continue;
-          for (int kx = 0; kx < l.kernel_w; ++kx) {
-            const int ixx = ox * l.stride_w - pl + kx;
-            if (ixx < 0 || ixx >= in.shape.w) continue;
-            const float* src = in.pixel(n, iy, ixx);
-            const float* wk =
-                w.data.data() + ix((static_cast<long>(ky) * l.kernel_w + kx) * cin * cout);
-            for (int ci = 0; ci < cin; ++ci) {
-              const double v = static_cast<double>(src[ci]);
-              const float* wr = wk + ix(static_cast<long>(ci) * cout);
-              for (int co = 0; co < cout; ++co) acc[ix(co)] += v * static_cast<double>(wr[co]);
-            }
-          }
+  for_each_window(
+      l, in, out,
+      [&](float*) {
+        for (int co = 0; co < cout; ++co) {
+          acc[ix(co)] = bias ? static_cast<double>(bias[co]) : 0.0;
         }
-        float* dst = &out.at(n, oy, ox, 0);
-        for (int co = 0; co < cout; ++co)
+      },
+      [&](float*, int k, const float* src) {
+        if (depthwise) {
+          const float* wk = w + ix(static_cast<long>(k) * cout);
+          for (int ch = 0; ch < cout; ++ch) {
+            acc[ix(ch)] += static_cast<double>(src[ch]) * static_cast<double>(wk[ch]);
+          }
+          return;
+        }
+        const float* wk = w + ix(static_cast<long>(k) * cin * cout);
+        for (int ci = 0; ci < cin; ++ci) {
+          const double v = static_cast<double>(src[ci]);
+          const float* wr = wk + ix(static_cast<long>(ci) * cout);
+          for (int co = 0; co < cout; ++co) acc[ix(co)] += v * static_cast<double>(wr[co]);
+        }
+      },
+      [&](float* dst) {
+        for (int co = 0; co < cout; ++co) {
           dst[co] = activate(static_cast<float>(acc[ix(co)]), l.activation, alpha_of(alpha, co));
-      }
-    }
-  }
-}
-
-void depthwise(const Model& m, const Layer& l, const Tensor& in, Tensor& out) {
-  const ConstTensor& w = m.tensors[ix(l.weights)];
-  const int c = in.shape.c;
-  const float* bias = tensor_data(m, l.bias);
-  const float* alpha = tensor_data(m, l.alpha);
-  const int pt = conv_pad_before(in.shape.h, l.kernel_h, l.stride_h, l.padding);
-  const int pl = conv_pad_before(in.shape.w, l.kernel_w, l.stride_w, l.padding);
-  std::vector<double> acc(ix(c));
-  for (int n = 0; n < out.shape.n; ++n) {
-    for (int oy = 0; oy < out.shape.h; ++oy) {
-      for (int ox = 0; ox < out.shape.w; ++ox) {
-        for (int ch = 0; ch < c; ++ch) acc[ix(ch)] = bias ? static_cast<double>(bias[ch]) : 0.0;
-        for (int ky = 0; ky < l.kernel_h; ++ky) {
-          const int iy = oy * l.stride_h - pt + ky;
-          if (iy < 0 || iy >= in.shape.h) continue;
-          for (int kx = 0; kx < l.kernel_w; ++kx) {
-            const int ixx = ox * l.stride_w - pl + kx;
-            if (ixx < 0 || ixx >= in.shape.w) continue;
-            const float* src = in.pixel(n, iy, ixx);
-            const float* wk = w.data.data() + ix((static_cast<long>(ky) * l.kernel_w + kx) * c);
-            for (int ch = 0; ch < c; ++ch) {
-              acc[ix(ch)] += static_cast<double>(src[ch]) * static_cast<double>(wk[ch]);
-            }
-          }
         }
-        float* dst = &out.at(n, oy, ox, 0);
-        for (int ch = 0; ch < c; ++ch)
-          dst[ch] = activate(static_cast<float>(acc[ix(ch)]), l.activation, alpha_of(alpha, ch));
-      }
-    }
-  }
+      });
 }
 
+// Padding never wins: only taps inside the input count.
 void max_pool(const Layer& l, const Tensor& in, Tensor& out) {
-  const int pt = conv_pad_before(in.shape.h, l.kernel_h, l.stride_h, l.padding);
-  const int pl = conv_pad_before(in.shape.w, l.kernel_w, l.stride_w, l.padding);
-  for (int n = 0; n < out.shape.n; ++n) {
-    for (int oy = 0; oy < out.shape.h; ++oy) {
-      for (int ox = 0; ox < out.shape.w; ++ox) {
-        for (int ch = 0; ch < in.shape.c; ++ch) {
-          float best = -std::numeric_limits<float>::infinity();
-          for (int ky = 0; ky < l.kernel_h; ++ky) {
-            const int iy = oy * l.stride_h - pt + ky;
-            if (iy < 0 || iy >= in.shape.h) continue;
-            for (int kx = 0; kx < l.kernel_w; ++kx) {
-              const int ixx = ox * l.stride_w - pl + kx;
-              if (ixx < 0 || ixx >= in.shape.w) continue;
-              best = std::max(best, in.at(n, iy, ixx, ch));
-            }
-          }
-          out.at(n, oy, ox, ch) = best;
-        }
-      }
-    }
-  }
+  const int c = in.shape.c;
+  for_each_window(
+      l, in, out, [&](float* dst) { std::fill_n(dst, c, -std::numeric_limits<float>::infinity()); },
+      [&](float* dst, int, const float* src) {
+        for (int ch = 0; ch < c; ++ch) dst[ch] = std::max(dst[ch], src[ch]);
+      },
+      [](float*) {});
 }
 
 // Bilinear with half-pixel centres: source coordinate (d + 0.5) / f - 0.5, clamped to the edge.
@@ -161,54 +144,19 @@ float activate(float x, Activation a, float alpha) {
 
 Status run_layer_cpu(const Model& model, const Layer& l, std::span<const Tensor* const> inputs,
                      Tensor& out) {
-  if (inputs.size() != l.inputs.size()) {
-    return Error(ErrorCode::kInvalidArgument,
-                 "layer '" + l.name + "': " + std::to_string(inputs.size()) + " inputs given, " +
-                     std::to_string(l.inputs.size()) + " expected");
-  }
+  std::vector<Shape> in_shapes;
+  for (const Tensor* t : inputs) in_shapes.push_back(t->shape);
+  Result<Shape> shape = layer_output_shape(model, l, in_shapes);
+  if (!shape.ok()) return Error(ErrorCode::kInvalidArgument, shape.error().message());
+  const Shape os = *shape;
   const Tensor& in = *inputs[0];
-  Shape os = in.shape;
-  switch (l.op) {
-    case OpType::kConv2D:
-    case OpType::kDepthwiseConv2D:
-    case OpType::kMaxPool:
-      os.h = conv_out_size(in.shape.h, l.kernel_h, l.stride_h, l.padding);
-      os.w = conv_out_size(in.shape.w, l.kernel_w, l.stride_w, l.padding);
-      if (l.op == OpType::kConv2D) os.c = l.out_channels;
-      if (l.op != OpType::kMaxPool && model.tensors[ix(l.weights)].shape[2] != in.shape.c) {
-        return Error(ErrorCode::kInvalidArgument,
-                     "layer '" + l.name + "': input has " + std::to_string(in.shape.c) +
-                         " channels, weights expect " +
-                         std::to_string(model.tensors[ix(l.weights)].shape[2]));
-      }
-      break;
-    case OpType::kConcat:
-      os.c = 0;
-      for (const Tensor* t : inputs) os.c += t->shape.c;
-      break;
-    case OpType::kResizeBilinear:
-    case OpType::kResizeNearest:
-      os.h *= l.resize_factor;
-      os.w *= l.resize_factor;
-      break;
-    case OpType::kAdd:
-      if (!(inputs[1]->shape == in.shape)) {
-        return Error(ErrorCode::kInvalidArgument,
-                     "layer '" + l.name + "': add of different shapes");
-      }
-      break;
-    case OpType::kActivation:
-      break;
-  }
   out.shape = os;
   out.data.assign(ix(os.elements()), 0.f);
   const float* alpha = tensor_data(model, l.alpha);
   switch (l.op) {
     case OpType::kConv2D:
-      conv2d(model, l, in, out);
-      return Status::Ok();
     case OpType::kDepthwiseConv2D:
-      depthwise(model, l, in, out);
+      convolution(model, l, in, out);
       return Status::Ok();
     case OpType::kMaxPool:
       max_pool(l, in, out);
@@ -225,10 +173,6 @@ Status run_layer_cpu(const Model& model, const Layer& l, std::span<const Tensor*
       const long pixels = static_cast<long>(os.n) * os.h * os.w;
       int c0 = 0;
       for (const Tensor* t : inputs) {
-        if (t->shape.n != os.n || t->shape.h != os.h || t->shape.w != os.w) {
-          return Error(ErrorCode::kInvalidArgument,
-                       "layer '" + l.name + "': concat inputs differ in N, H or W");
-        }
         for (long p = 0; p < pixels; ++p) {
           std::copy_n(t->data.begin() + static_cast<std::ptrdiff_t>(p * t->shape.c), t->shape.c,
                       out.data.begin() + static_cast<std::ptrdiff_t>(p * os.c + c0));

@@ -38,7 +38,7 @@ float activate(float x, Activation a, float alpha);
 
 // One layer on the CPU. `inputs` are the layer's input values (in Layer::inputs order) and
 // `out` is resized to the layer's output shape. Shapes must already be consistent
-// (Model::infer_shapes); a mismatch is reported, not assumed.
+// (layer_output_shape, the rule Model::infer_shapes uses); a mismatch is reported, not assumed.
 Status run_layer_cpu(const Model& model, const Layer& layer, std::span<const Tensor* const> inputs,
                      Tensor& out);
 

@@ -7,9 +7,12 @@ namespace {
 
 inline std::size_t ix(int i) { return static_cast<std::size_t>(i); }
 
+Error layer_error(long i, const Layer& l, const std::string& what) {
+  return Error(ErrorCode::kParse, "layer " + (i >= 0 ? std::to_string(i) + " " : std::string()) +
+                                      "'" + l.name + "' (" + to_string(l.op) + "): " + what);
+}
 Error layer_error(std::size_t i, const Layer& l, const std::string& what) {
-  return Error(ErrorCode::kParse, "layer " + std::to_string(i) + " '" + l.name + "' (" +
-                                      to_string(l.op) + "): " + what);
+  return layer_error(static_cast<long>(i), l, what);
 }
 
 }  // namespace
@@ -190,55 +193,69 @@ Result<std::vector<Shape>> Model::infer_shapes(const Shape& input) const {
   }
   std::vector<Shape> v{input};
   v.reserve(layers.size() + 1);
+  std::vector<Shape> in;
   for (std::size_t i = 0; i < layers.size(); ++i) {
-    const Layer& l = layers[i];
-    const Shape& in = v[ix(l.inputs[0])];
-    Shape out = in;
-    switch (l.op) {
-      case OpType::kConv2D:
-      case OpType::kDepthwiseConv2D:
-      case OpType::kMaxPool: {
-        if (l.op != OpType::kMaxPool) {
-          const int cin = tensors[ix(l.weights)].shape[2];
-          if (cin != in.c) {
-            return layer_error(i, l,
-                               "weights expect " + std::to_string(cin) +
-                                   " input channels, the input has " + std::to_string(in.c));
-          }
-        }
-        out.h = conv_out_size(in.h, l.kernel_h, l.stride_h, l.padding);
-        out.w = conv_out_size(in.w, l.kernel_w, l.stride_w, l.padding);
-        if (l.op == OpType::kConv2D) out.c = l.out_channels;
-        break;
-      }
-      case OpType::kAdd:
-        if (!(v[ix(l.inputs[1])] == in)) return layer_error(i, l, "inputs differ in shape");
-        break;
-      case OpType::kConcat:
-        out.c = 0;
-        for (int u : l.inputs) {
-          const Shape& s = v[ix(u)];
-          if (s.n != in.n || s.h != in.h || s.w != in.w) {
-            return layer_error(i, l, "inputs differ in N, H or W");
-          }
-          out.c += s.c;
-        }
-        break;
-      case OpType::kResizeBilinear:
-      case OpType::kResizeNearest:
-        out.h = in.h * l.resize_factor;
-        out.w = in.w * l.resize_factor;
-        break;
-      case OpType::kActivation:
-        break;
-    }
-    if (l.activation == Activation::kPRelu && tensors[ix(l.alpha)].shape[0] != out.c) {
-      return layer_error(i, l, "PReLU slopes do not match " + std::to_string(out.c) + " channels");
-    }
-    if (out.h <= 0 || out.w <= 0) return layer_error(i, l, "output size collapses to zero");
-    v.push_back(out);
+    in.clear();
+    for (int u : layers[i].inputs) in.push_back(v[ix(u)]);
+    Result<Shape> out = layer_output_shape(*this, layers[i], in, static_cast<long>(i));
+    if (!out.ok()) return out.error();
+    v.push_back(*out);
   }
   return v;
+}
+
+Result<Shape> layer_output_shape(const Model& model, const Layer& l,
+                                 std::span<const Shape> input_shapes, long index) {
+  if (input_shapes.size() != l.inputs.size() || input_shapes.empty()) {
+    return layer_error(index, l,
+                       std::to_string(input_shapes.size()) + " input shapes given, " +
+                           std::to_string(l.inputs.size()) + " expected");
+  }
+  const Shape& in = input_shapes[0];
+  Shape out = in;
+  switch (l.op) {
+    case OpType::kConv2D:
+    case OpType::kDepthwiseConv2D:
+    case OpType::kMaxPool: {
+      if (l.op != OpType::kMaxPool) {
+        const int cin = model.tensors[ix(l.weights)].shape[2];
+        if (cin != in.c) {
+          return layer_error(index, l,
+                             "weights expect " + std::to_string(cin) +
+                                 " input channels, the input has " + std::to_string(in.c));
+        }
+      }
+      out.h = conv_out_size(in.h, l.kernel_h, l.stride_h, l.padding);
+      out.w = conv_out_size(in.w, l.kernel_w, l.stride_w, l.padding);
+      if (l.op == OpType::kConv2D) out.c = l.out_channels;
+      break;
+    }
+    case OpType::kAdd:
+      if (!(input_shapes[1] == in)) return layer_error(index, l, "inputs differ in shape");
+      break;
+    case OpType::kConcat:
+      out.c = 0;
+      for (const Shape& s : input_shapes) {
+        if (s.n != in.n || s.h != in.h || s.w != in.w) {
+          return layer_error(index, l, "inputs differ in N, H or W");
+        }
+        out.c += s.c;
+      }
+      break;
+    case OpType::kResizeBilinear:
+    case OpType::kResizeNearest:
+      out.h = in.h * l.resize_factor;
+      out.w = in.w * l.resize_factor;
+      break;
+    case OpType::kActivation:
+      break;
+  }
+  if (l.activation == Activation::kPRelu && model.tensors[ix(l.alpha)].shape[0] != out.c) {
+    return layer_error(index, l,
+                       "PReLU slopes do not match " + std::to_string(out.c) + " channels");
+  }
+  if (out.h <= 0 || out.w <= 0) return layer_error(index, l, "output size collapses to zero");
+  return out;
 }
 
 }  // namespace mocap::nn

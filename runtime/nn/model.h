@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -94,6 +95,13 @@ struct Model {
   Result<std::vector<Shape>> infer_shapes(const Shape& input) const;
   long parameter_count() const;
 };
+
+// Output shape of `layer` (a layer of `model`) for inputs of `input_shapes` (Layer::inputs
+// order): the rule Model::infer_shapes applies to every layer and the CPU backend to one.
+// The model must be valid (Model::validate). `index` (the layer's position, -1 = unknown)
+// only labels the error, which names the layer.
+Result<Shape> layer_output_shape(const Model& model, const Layer& layer,
+                                 std::span<const Shape> input_shapes, long index = -1);
 
 // Output size of a convolution/pool along one axis, and the padding before the first element.
 int conv_out_size(int in, int kernel, int stride, Padding padding);
