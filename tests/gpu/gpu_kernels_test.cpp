@@ -14,14 +14,11 @@
 #include "runtime/gpu/context.h"
 #include "runtime/gpu/network.h"
 #include "runtime/nn/cpu_ops.h"
+#include "tests/support/data.h"
+#include "tests/support/tensor_compare.h"
 
 namespace mocap::gpu {
 namespace {
-
-bool in_ci() {
-  const char* ci = std::getenv("CI");
-  return ci && std::string(ci) == "true";
-}
 
 std::filesystem::path temp_cache(const std::string& name) {
   return std::filesystem::temp_directory_path() /
@@ -36,8 +33,7 @@ class GpuTest : public ::testing::Test {
     o.pipeline_cache_path = temp_cache("kernels");
     auto c = Context::create(o);
     if (!c.ok()) {
-      if (in_ci()) FAIL() << "CI=true but no Vulkan device: " << c.error().message();
-      GTEST_SKIP() << "no Vulkan device here: " << c.error().message();
+      MOCAP_SKIP_OR_FAIL_IN_CI("no Vulkan device here: " + c.error().message());
     }
     ctx_ = std::move(*c);
   }
@@ -125,13 +121,7 @@ double compare(Context& ctx, const nn::Model& m, const nn::Tensor& in, std::stri
     *what = "shape mismatch";
     return 1e9;
   }
-  double max_ref = 1e-12;
-  double max_err = 0;
-  for (std::size_t i = 0; i < ref.data.size(); ++i) {
-    max_ref = std::max(max_ref, static_cast<double>(std::fabs(ref.data[i])));
-    max_err = std::max(max_err, static_cast<double>(std::fabs(got.data[i] - ref.data[i])));
-  }
-  return max_err / max_ref;
+  return ::mocap::testing::max_relative_error(got.data, ref.data);
 }
 
 constexpr double kTolerance = 1e-5;
@@ -247,12 +237,8 @@ TEST_F(GpuTest, ChainedLayersAndRepeatedRunsMatchCpu) {
       ASSERT_TRUE((*net)->read_output(o, got).ok());
       const nn::Tensor& ref = (*want)[static_cast<std::size_t>(m.outputs[o].value)];
       ASSERT_EQ(got.shape, ref.shape);
-      double max_ref = 1e-12, max_err = 0;
-      for (std::size_t i = 0; i < ref.data.size(); ++i) {
-        max_ref = std::max(max_ref, static_cast<double>(std::fabs(ref.data[i])));
-        max_err = std::max(max_err, static_cast<double>(std::fabs(got.data[i] - ref.data[i])));
-      }
-      EXPECT_LT(max_err / max_ref, kTolerance) << "run " << run << " output " << o;
+      EXPECT_LT(::mocap::testing::max_relative_error(got.data, ref.data), kTolerance)
+          << "run " << run << " output " << o;
     }
   }
   EXPECT_EQ((*net)->layer_times().size(), 5u);
@@ -291,7 +277,8 @@ TEST(GpuContextTest, UnknownDeviceNameIsAnErrorListingDevices) {
   o.persist_pipeline_cache = false;
   auto c = Context::create(o);
   ASSERT_FALSE(c.ok());
-  if (c.error().code() == ErrorCode::kUnsupported && !in_ci()) GTEST_SKIP() << "no Vulkan driver";
+  if (c.error().code() == ErrorCode::kUnsupported && !::mocap::testing::running_in_ci())
+    GTEST_SKIP() << "no Vulkan driver";
   EXPECT_EQ(c.error().code(), ErrorCode::kNotFound);
   EXPECT_NE(c.error().message().find("no-such-gpu-xyz"), std::string::npos) << c.error().message();
 }
@@ -307,8 +294,7 @@ TEST(GpuContextTest, PipelineCacheIsPersistedAndGarbageIsIgnored) {
   {
     auto c = Context::create(o);
     if (!c.ok()) {
-      if (in_ci()) FAIL() << c.error().message();
-      GTEST_SKIP() << c.error().message();
+      MOCAP_SKIP_OR_FAIL_IN_CI(c.error().message());
     }
     std::mt19937 rng(6);
     const nn::Model m =

@@ -20,6 +20,8 @@
 #include "runtime/nn/cpu_ops.h"
 #include "runtime/nn/preprocess.h"
 #include "runtime/nn/tfjs_import.h"
+#include "tests/support/data.h"
+#include "tests/support/tensor_compare.h"
 
 namespace mocap::gpu {
 namespace {
@@ -29,17 +31,6 @@ namespace fs = std::filesystem;
 const fs::path kSource = MOCAP_SOURCE_DIR;
 constexpr double kTolerance = 1e-4;
 
-bool in_ci() {
-  const char* ci = std::getenv("CI");
-  return ci && std::string(ci) == "true";
-}
-
-#define SKIP_OR_FAIL(why)                        \
-  do {                                           \
-    if (in_ci()) FAIL() << "CI=true: " << (why); \
-    GTEST_SKIP() << (why);                       \
-  } while (0)
-
 std::vector<float> read_f32(const fs::path& p) {
   std::vector<float> v(static_cast<std::size_t>(fs::file_size(p) / 4));
   std::ifstream f(p, std::ios::binary);
@@ -47,28 +38,19 @@ std::vector<float> read_f32(const fs::path& p) {
   return v;
 }
 
-double rel_error(const std::vector<float>& got, const std::vector<float>& ref) {
-  if (got.size() != ref.size()) return 1e9;
-  double max_ref = 1e-12, max_err = 0;
-  for (std::size_t i = 0; i < ref.size(); ++i) {
-    max_ref = std::max(max_ref, static_cast<double>(std::fabs(ref[i])));
-    max_err = std::max(max_err, static_cast<double>(std::fabs(got[i] - ref[i])));
-  }
-  return max_err / max_ref;
-}
-
 TEST(PosenetTfjsTest, VulkanAndCpuMatchTfjsOnPhotos) {
   const fs::path model_json = kSource / "models/posenet.json";
   const fs::path script = kSource / "tools/tfjs_ref/posenet_ref.mjs";
-  if (!fs::exists(model_json)) SKIP_OR_FAIL("models/posenet.json missing (tools/fetch_models.sh)");
+  if (!fs::exists(model_json))
+    MOCAP_SKIP_OR_FAIL_IN_CI("models/posenet.json missing (tools/fetch_models.sh)");
   if (!fs::exists(kSource / "tools/tfjs_ref/node_modules") ||
       std::system("command -v node >/dev/null 2>&1") != 0) {
-    SKIP_OR_FAIL("Node or tools/tfjs_ref/node_modules missing (tools/setup.sh)");
+    MOCAP_SKIP_OR_FAIL_IN_CI("Node or tools/tfjs_ref/node_modules missing (tools/setup.sh)");
   }
   const std::vector<std::string> photos = {"messi5.jpg", "basketball1.png"};
   for (const auto& p : photos) {
     if (!fs::exists(kSource / ".cache/photos" / p)) {
-      SKIP_OR_FAIL(".cache/photos/" + p + " missing (tools/fetch_test_photos.sh)");
+      MOCAP_SKIP_OR_FAIL_IN_CI(".cache/photos/" + p + " missing (tools/fetch_test_photos.sh)");
     }
   }
   auto model = nn::import_tfjs(model_json);
@@ -76,7 +58,7 @@ TEST(PosenetTfjsTest, VulkanAndCpuMatchTfjsOnPhotos) {
   GpuOptions go;
   go.validation = true;
   auto ctx = Context::create(go);
-  if (!ctx.ok()) SKIP_OR_FAIL("no Vulkan device: " + ctx.error().message());
+  if (!ctx.ok()) MOCAP_SKIP_OR_FAIL_IN_CI("no Vulkan device: " + ctx.error().message());
 
   const fs::path tmp = fs::temp_directory_path() / ("mocap-posenet-" + std::to_string(::getpid()));
   fs::create_directories(tmp);
@@ -116,13 +98,13 @@ TEST(PosenetTfjsTest, VulkanAndCpuMatchTfjsOnPhotos) {
         const std::vector<float> ref = read_f32(ref_dir / (name + ".f32"));
         nn::Tensor got;
         ASSERT_TRUE((*net)->read_output(o, got).ok());
-        const double err = rel_error(got.data, ref);
+        const double err = ::mocap::testing::max_relative_error(got.data, ref);
         EXPECT_LT(err, kTolerance) << "vulkan " << name;
         std::printf("[ posenet ] %s %d %-17s vulkan rel err %.2e", photo.c_str(), size,
                     name.c_str(), err);
         if (!cpu_values.empty()) {
           const auto& cpu = cpu_values[static_cast<std::size_t>(model->outputs[o].value)].data;
-          const double cerr = rel_error(cpu, ref);
+          const double cerr = ::mocap::testing::max_relative_error(cpu, ref);
           EXPECT_LT(cerr, kTolerance) << "cpu " << name;
           std::printf("  cpu rel err %.2e", cerr);
         }

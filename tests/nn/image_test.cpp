@@ -2,6 +2,7 @@
 // TurboJPEG into a temporary directory; the real photos (tools/fetch_test_photos.sh) are
 // checked when present under <source>/.cache/photos.
 #include "runtime/image/image.h"
+#include "tests/support/data.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -545,18 +546,12 @@ fs::path photo_path(const std::string& name, bool* present) {
   return path;
 }
 
-bool running_in_ci() {
-  const char* ci = std::getenv("CI");
-  return ci != nullptr && std::string(ci) == "true";
-}
-
 #define MOCAP_REQUIRE_PHOTO(path_var, name)                                                    \
   bool present_##path_var = false;                                                             \
   const fs::path path_var = photo_path(name, &present_##path_var);                             \
   if (!present_##path_var) {                                                                   \
     const std::string why = path_var.string() + " not found (run tools/fetch_test_photos.sh)"; \
-    if (running_in_ci()) FAIL() << why;                                                        \
-    GTEST_SKIP() << why;                                                                       \
+    MOCAP_SKIP_OR_FAIL_IN_CI(why);                                                             \
   }
 
 TEST(ImagePhotos, Messi5Jpeg) {

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "runtime/nn/model_file.h"
+#include "tests/support/data.h"
 
 namespace mocap::nn {
 namespace {
@@ -602,10 +603,7 @@ TEST(TfjsImportPoseNetTest, ImportsTheRealPoseNet) {
   const std::filesystem::path json =
       std::filesystem::path(MOCAP_SOURCE_DIR) / "models/posenet.json";
   if (!std::filesystem::exists(json)) {
-    const char* ci = std::getenv("CI");
-    const std::string why = json.string() + " not found (run tools/fetch_models.sh)";
-    if (ci != nullptr && std::string(ci) == "true") FAIL() << why;
-    GTEST_SKIP() << why;
+    MOCAP_SKIP_OR_FAIL_IN_CI(json.string() + " not found (run tools/fetch_models.sh)");
   }
   Result<Model> r = import_tfjs(json);
   ASSERT_TRUE(r.ok()) << r.error().message();

@@ -20,6 +20,14 @@ inline bool running_in_ci() {
 
 }  // namespace mocap::testing
 
+// Skips the test with `why`, or fails it when running in CI (CI=true), where every input a
+// test needs must be present.
+#define MOCAP_SKIP_OR_FAIL_IN_CI(why)                                      \
+  do {                                                                     \
+    if (::mocap::testing::running_in_ci()) FAIL() << "CI=true: " << (why); \
+    GTEST_SKIP() << (why);                                                 \
+  } while (0)
+
 // Declares `path_var` = <data dir>/<sub>, or skips (fails in CI) when it is absent.
 #define MOCAP_REQUIRE_DATA(path_var, sub)                                           \
   std::filesystem::path path_var;                                                   \
@@ -29,8 +37,7 @@ inline bool running_in_ci() {
       std::string why_ = std::string("data set '") + (sub) + "' not found under " + \
                          ::mocap::default_data_dir().string() +                     \
                          " (set MOCAP_DATA_DIR to the shared data folder)";         \
-      if (::mocap::testing::running_in_ci()) FAIL() << why_;                        \
-      GTEST_SKIP() << why_;                                                         \
+      MOCAP_SKIP_OR_FAIL_IN_CI(why_);                                               \
     }                                                                               \
     path_var = *found_;                                                             \
   } while (0)
