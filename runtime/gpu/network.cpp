@@ -72,14 +72,20 @@ Result<Buffer> Network::upload(std::span<const float> data) {
   std::memcpy(staging->mapped(), data.data(), data.size_bytes());
   auto dev = ctx_.create_buffer(bytes, false);
   if (!dev.ok()) return dev.error();
-  const VkBuffer src = staging->handle();
-  const VkBuffer dst = dev->handle();
-  Status s = ctx_.run_once([&](VkCommandBuffer cb) {
-    VkBufferCopy c{0, 0, bytes};
-    vkCmdCopyBuffer(cb, src, dst, 1, &c);
-  });
-  if (!s.ok()) return s.error();
+  pending_uploads_.push_back(PendingUpload{std::move(*staging), dev->handle(), bytes});
   return std::move(*dev);
+}
+
+Status Network::flush_uploads() {
+  if (pending_uploads_.empty()) return Status::Ok();
+  Status s = ctx_.run_once([&](VkCommandBuffer cb) {
+    for (const PendingUpload& u : pending_uploads_) {
+      VkBufferCopy c{0, 0, u.bytes};
+      vkCmdCopyBuffer(cb, u.staging.handle(), u.dst, 1, &c);
+    }
+  });
+  pending_uploads_.clear();
+  return s;
 }
 
 Status Network::build(const nn::Model& model, const NetworkOptions& options) {
@@ -138,6 +144,11 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
     std::vector<float> w;
     std::vector<float> bias;
     int bias_groups = cout4;
+    // conv2d.comp and depthwise_conv2d.comp: one invocation per output pixel and vec4 group.
+    const int pad_top = nn::conv_pad_before(is.h, l.kernel_h, l.stride_h, l.padding);
+    const int pad_left = nn::conv_pad_before(is.w, l.kernel_w, l.stride_w, l.padding);
+    const std::uint32_t window_groups = div_up(static_cast<long>(os.n) * os.h * os.w * cout4,
+                                               static_cast<long>(options.workgroup_size));
     if (l.op == nn::OpType::kConv2D && l.kernel_h == 1 && l.kernel_w == 1 && l.stride_h == 1 &&
         l.stride_w == 1) {
       shader = static_cast<int>(Shader::kPointwiseConv2D);
@@ -171,22 +182,9 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
           }
         }
       }
-      step.push = {os.n,
-                   is.h,
-                   is.w,
-                   cin4,
-                   cin4,
-                   os.h,
-                   os.w,
-                   cout4,
-                   cout4,
-                   0,
-                   l.stride_h,
-                   l.stride_w,
-                   nn::conv_pad_before(is.h, l.kernel_h, l.stride_h, l.padding),
-                   nn::conv_pad_before(is.w, l.kernel_w, l.stride_w, l.padding)};
-      step.groups = div_up(static_cast<long>(os.n) * os.h * os.w * cout4,
-                           static_cast<long>(options.workgroup_size));
+      step.push = {os.n,  is.h,  is.w, cin4,       cin4,       os.h,    os.w,
+                   cout4, cout4, 0,    l.stride_h, l.stride_w, pad_top, pad_left};
+      step.groups = window_groups;
     } else if (l.op == nn::OpType::kDepthwiseConv2D) {
       shader = static_cast<int>(Shader::kDepthwiseConv2D);
       const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
@@ -197,20 +195,9 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
           w[ix(static_cast<long>(k) * cin4 * 4 + ch)] = wt.data[ix(static_cast<long>(k) * c + ch)];
         }
       }
-      step.push = {os.n,
-                   is.h,
-                   is.w,
-                   cin4,
-                   cin4,
-                   os.h,
-                   os.w,
-                   cout4,
-                   l.stride_h,
-                   l.stride_w,
-                   nn::conv_pad_before(is.h, l.kernel_h, l.stride_h, l.padding),
-                   nn::conv_pad_before(is.w, l.kernel_w, l.stride_w, l.padding)};
-      step.groups = div_up(static_cast<long>(os.n) * os.h * os.w * cout4,
-                           static_cast<long>(options.workgroup_size));
+      step.push = {os.n, is.h,  is.w,       cin4,       cin4,    os.h,
+                   os.w, cout4, l.stride_h, l.stride_w, pad_top, pad_left};
+      step.groups = window_groups;
     } else {
       return Error(ErrorCode::kUnsupported, std::string("the Vulkan backend has no kernel for ") +
                                                 nn::to_string(l.op) + " yet (layer '" + l.name +
@@ -276,6 +263,8 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
     steps_.push_back(std::move(step));
     layer_times_.push_back(LayerTime{l.name, shader_name(static_cast<Shader>(shader)), 0});
   }
+  // All weights in one submission.
+  if (Status s = flush_uploads(); !s.ok()) return s;
   return record();
 }
 

@@ -70,7 +70,10 @@ class Network {
   };
   Status build(const nn::Model& model, const NetworkOptions& options);
   Result<const Kernel*> kernel(int shader, std::vector<std::int32_t> spec);
+  // A device buffer holding `data`: the copy from its staging buffer is queued and runs with
+  // every other queued upload in one submission (flush_uploads).
   Result<Buffer> upload(std::span<const float> data);
+  Status flush_uploads();
   Status record();
 
   Context& ctx_;
@@ -89,6 +92,12 @@ class Network {
   };
   std::vector<KernelEntry> kernels_;
   std::vector<Step> steps_;
+  struct PendingUpload {
+    Buffer staging;
+    VkBuffer dst = VK_NULL_HANDLE;
+    VkDeviceSize bytes = 0;
+  };
+  std::vector<PendingUpload> pending_uploads_;
   VkDescriptorPool pool_ = VK_NULL_HANDLE;
   VkQueryPool queries_ = VK_NULL_HANDLE;
   VkCommandBuffer cb_ = VK_NULL_HANDLE;
