@@ -173,4 +173,24 @@ int handle_parse(ArgParser& parser, std::span<const std::string_view> args) {
   return -1;
 }
 
+int dispatch_subcommand(std::string_view command, const char* usage,
+                        std::span<const Subcommand> subcommands,
+                        std::span<const std::string_view> args) {
+  if (args.empty()) {
+    std::fputs(usage, stderr);
+    return 2;
+  }
+  const std::string_view sub = args[0];
+  if (sub == "--help" || sub == "-h" || sub == "help") {
+    std::fputs(usage, stdout);
+    return 0;
+  }
+  for (const Subcommand& s : subcommands) {
+    if (s.name == sub) return s.run(args.subspan(1));
+  }
+  std::fprintf(stderr, "%s: unknown subcommand '%s'\n\n%s", std::string(command).c_str(),
+               std::string(sub).c_str(), usage);
+  return 2;
+}
+
 }  // namespace mocap::cli

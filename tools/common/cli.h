@@ -56,4 +56,17 @@ Result<std::vector<int>> parse_int_list(std::string_view text);
 // Returns -1 when the command should go on.
 int handle_parse(ArgParser& parser, std::span<const std::string_view> args);
 
+// A command with subcommands (`mocap calib show|check`, `mocap model convert|info`).
+struct Subcommand {
+  std::string_view name;
+  int (*run)(std::span<const std::string_view> args);
+};
+
+// Runs the subcommand named by args[0] with the rest. No argument: `usage` to stderr, exit 2;
+// --help/-h/help: `usage` to stdout, exit 0; an unknown name: an error naming `command` and
+// the usage, exit 2.
+int dispatch_subcommand(std::string_view command, const char* usage,
+                        std::span<const Subcommand> subcommands,
+                        std::span<const std::string_view> args);
+
 }  // namespace mocap::cli

@@ -75,21 +75,8 @@ int run_check(Args args) {
 }  // namespace
 
 int run_calib(Args args) {
-  if (args.empty()) {
-    std::fputs(kUsage, stderr);
-    return 2;
-  }
-  const std::string_view sub = args[0];
-  if (sub == "--help" || sub == "-h" || sub == "help") {
-    std::fputs(kUsage, stdout);
-    return 0;
-  }
-  const Args rest = args.subspan(1);
-  if (sub == "show") return run_show(rest);
-  if (sub == "check") return run_check(rest);
-  std::fprintf(stderr, "mocap calib: unknown subcommand '%s'\n\n%s", std::string(sub).c_str(),
-               kUsage);
-  return 2;
+  static constexpr cli::Subcommand kSubcommands[] = {{"show", run_show}, {"check", run_check}};
+  return cli::dispatch_subcommand("mocap calib", kUsage, kSubcommands, args);
 }
 
 }  // namespace mocap::tools

@@ -195,21 +195,8 @@ int run_info(Args args) {
 }  // namespace
 
 int run_model(Args args) {
-  if (args.empty()) {
-    std::fputs(kUsage, stderr);
-    return 2;
-  }
-  const std::string_view sub = args[0];
-  if (sub == "--help" || sub == "-h" || sub == "help") {
-    std::fputs(kUsage, stdout);
-    return 0;
-  }
-  const Args rest = args.subspan(1);
-  if (sub == "convert") return run_convert(rest);
-  if (sub == "info") return run_info(rest);
-  std::fprintf(stderr, "mocap model: unknown subcommand '%s'\n\n%s", std::string(sub).c_str(),
-               kUsage);
-  return 2;
+  static constexpr cli::Subcommand kSubcommands[] = {{"convert", run_convert}, {"info", run_info}};
+  return cli::dispatch_subcommand("mocap model", kUsage, kSubcommands, args);
 }
 
 }  // namespace mocap::tools
