@@ -191,6 +191,10 @@ class Importer {
   Result<std::optional<std::vector<std::int64_t>>> attr_ints(const TfNode& n,
                                                              const char* key) const;
   Result<std::optional<bool>> attr_bool(const TfNode& n, const char* key) const;
+  template <typename T, typename Parse>
+  Result<std::optional<std::vector<T>>> attr_list(const TfNode& n, const char* key,
+                                                  const char* field, const char* what,
+                                                  Parse&& parse) const;
   Status check_common_attrs(const TfNode& n) const;
   Result<Padding> padding_attr(const TfNode& n) const;
   Result<std::array<int, 2>> window_attr(const TfNode& n, const char* key, bool required) const;
@@ -572,94 +576,110 @@ const TfNode* Importer::resolve_passthrough(const TfNode* n) const {
   return n;
 }
 
-Result<std::optional<std::string>> Importer::attr_string(const TfNode& n, const char* key) const {
-  if (n.attr == nullptr) return std::optional<std::string>();
+// The attribute `key` of n (nullptr when absent), and `field` of an attribute value (nullptr
+// when the value is no object or lacks it). TF.js attributes are {"s": ...}, {"b": ...},
+// {"type": ...} or {"list": {"s"|"i": [...]}}.
+const Json* find_attr(const TfNode& n, const char* key) {
+  if (n.attr == nullptr) return nullptr;
   auto a = n.attr->find(key);
-  if (a == n.attr->end()) return std::optional<std::string>();
-  auto s = a->is_object() ? a->find("s") : a->end();
-  if (s == a->end() || !s->is_string()) {
-    return node_error(n, std::string("attribute '") + key + "' must hold a string 's'");
-  }
+  return a == n.attr->end() ? nullptr : &*a;
+}
+const Json* field_of(const Json& value, const char* field) {
+  if (!value.is_object()) return nullptr;
+  auto f = value.find(field);
+  return f == value.end() ? nullptr : &*f;
+}
+
+std::string attr_text(const char* key, const char* what) {
+  return std::string("attribute '") + key + "' " + what;
+}
+
+Result<std::optional<std::string>> Importer::attr_string(const TfNode& n, const char* key) const {
+  const Json* a = find_attr(n, key);
+  if (a == nullptr) return std::optional<std::string>();
+  const Json* s = field_of(*a, "s");
+  if (s == nullptr || !s->is_string())
+    return node_error(n, attr_text(key, "must hold a string 's'"));
   std::optional<std::string> decoded = base64_decode(s->get<std::string>());
-  if (!decoded) return node_error(n, std::string("attribute '") + key + "' is not base64");
+  if (!decoded) return node_error(n, attr_text(key, "is not base64"));
   return decoded;
+}
+
+// A list attribute {"list": {field: [items]}}: each item through `parse`, which returns an
+// error text or nullopt. An absent field is an empty list (protobuf omits empty lists).
+template <typename T, typename Parse>
+Result<std::optional<std::vector<T>>> Importer::attr_list(const TfNode& n, const char* key,
+                                                          const char* field, const char* what,
+                                                          Parse&& parse) const {
+  using Out = std::optional<std::vector<T>>;
+  const Json* a = find_attr(n, key);
+  if (a == nullptr) return Out();
+  const std::string bad = attr_text(key, what);
+  const Json* list = field_of(*a, "list");
+  if (list == nullptr || !list->is_object()) return node_error(n, bad);
+  std::vector<T> out;
+  if (const Json* items = field_of(*list, field)) {
+    if (!items->is_array()) return node_error(n, bad);
+    for (const Json& item : *items) {
+      T v{};
+      if (std::optional<std::string> e = parse(item, v)) return node_error(n, *e);
+      out.push_back(std::move(v));
+    }
+  }
+  return Out(std::move(out));
 }
 
 Result<std::optional<std::vector<std::string>>> Importer::attr_strings(const TfNode& n,
                                                                        const char* key) const {
-  using Out = std::optional<std::vector<std::string>>;
-  if (n.attr == nullptr) return Out();
-  auto a = n.attr->find(key);
-  if (a == n.attr->end()) return Out();
-  const std::string bad = std::string("attribute '") + key + "' must be a list of strings";
-  auto list = a->is_object() ? a->find("list") : a->end();
-  if (list == a->end() || !list->is_object()) return node_error(n, bad);
-  std::vector<std::string> out;
-  if (auto s = list->find("s"); s != list->end()) {
-    if (!s->is_array()) return node_error(n, bad);
-    for (const Json& item : *s) {
-      if (!item.is_string()) return node_error(n, bad);
-      std::optional<std::string> decoded = base64_decode(item.get<std::string>());
-      if (!decoded) return node_error(n, std::string("attribute '") + key + "' is not base64");
-      out.push_back(std::move(*decoded));
-    }
-  }
-  return Out(std::move(out));
+  const char* what = "must be a list of strings";
+  return attr_list<std::string>(
+      n, key, "s", what, [&](const Json& item, std::string& v) -> std::optional<std::string> {
+        if (!item.is_string()) return attr_text(key, what);
+        std::optional<std::string> decoded = base64_decode(item.get<std::string>());
+        if (!decoded) return attr_text(key, "is not base64");
+        v = std::move(*decoded);
+        return std::nullopt;
+      });
 }
 
 Result<std::optional<std::vector<std::int64_t>>> Importer::attr_ints(const TfNode& n,
                                                                      const char* key) const {
-  using Out = std::optional<std::vector<std::int64_t>>;
-  if (n.attr == nullptr) return Out();
-  auto a = n.attr->find(key);
-  if (a == n.attr->end()) return Out();
-  const std::string bad = std::string("attribute '") + key + "' must be a list of integers";
-  auto list = a->is_object() ? a->find("list") : a->end();
-  if (list == a->end() || !list->is_object()) return node_error(n, bad);
-  std::vector<std::int64_t> out;
-  if (auto is = list->find("i"); is != list->end()) {
-    if (!is->is_array()) return node_error(n, bad);
-    for (const Json& item : *is) {
-      // Protobuf's JSON mapping writes int64 as strings; accept numbers too.
-      std::int64_t v = 0;
-      if (item.is_number_integer() && !item.is_number_unsigned()) {
-        v = item.get<std::int64_t>();
-      } else if (item.is_number_unsigned() &&
-                 item.get<std::uint64_t>() <=
-                     static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
-        v = static_cast<std::int64_t>(item.get<std::uint64_t>());
-      } else if (item.is_string()) {
-        const std::string& s = item.get_ref<const std::string&>();
-        auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-        if (ec != std::errc() || p != s.data() + s.size()) return node_error(n, bad);
-      } else {
-        return node_error(n, bad);
-      }
-      out.push_back(v);
-    }
-  }
-  return Out(std::move(out));
+  const char* what = "must be a list of integers";
+  return attr_list<std::int64_t>(
+      n, key, "i", what, [&](const Json& item, std::int64_t& v) -> std::optional<std::string> {
+        // Protobuf's JSON mapping writes int64 as strings; accept numbers too.
+        if (item.is_number_integer() && !item.is_number_unsigned()) {
+          v = item.get<std::int64_t>();
+        } else if (item.is_number_unsigned() &&
+                   item.get<std::uint64_t>() <=
+                       static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
+          v = static_cast<std::int64_t>(item.get<std::uint64_t>());
+        } else if (item.is_string()) {
+          const std::string& s = item.get_ref<const std::string&>();
+          auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+          if (ec != std::errc() || p != s.data() + s.size()) return attr_text(key, what);
+        } else {
+          return attr_text(key, what);
+        }
+        return std::nullopt;
+      });
 }
 
 Result<std::optional<bool>> Importer::attr_bool(const TfNode& n, const char* key) const {
-  if (n.attr == nullptr) return std::optional<bool>();
-  auto a = n.attr->find(key);
-  if (a == n.attr->end()) return std::optional<bool>();
-  auto b = a->is_object() ? a->find("b") : a->end();
-  if (b == a->end()) return std::optional<bool>(false);  // protobuf omits false
-  if (!b->is_boolean()) return node_error(n, std::string("attribute '") + key + "' must be a bool");
+  const Json* a = find_attr(n, key);
+  if (a == nullptr) return std::optional<bool>();
+  const Json* b = field_of(*a, "b");
+  if (b == nullptr) return std::optional<bool>(false);  // protobuf omits false
+  if (!b->is_boolean()) return node_error(n, attr_text(key, "must be a bool"));
   return std::optional<bool>(b->get<bool>());
 }
 
 Status Importer::check_common_attrs(const TfNode& n) const {
-  if (n.attr != nullptr) {
-    auto t = n.attr->find("T");
-    if (t != n.attr->end()) {
-      auto type = t->is_object() ? t->find("type") : t->end();
-      if (type == t->end() || !type->is_string() || type->get<std::string>() != "DT_FLOAT") {
-        return node_error(n, "attribute 'T' must be DT_FLOAT (only float32 is supported)",
-                          ErrorCode::kUnsupported);
-      }
+  if (const Json* t = find_attr(n, "T")) {
+    const Json* type = field_of(*t, "type");
+    if (type == nullptr || !type->is_string() || type->get<std::string>() != "DT_FLOAT") {
+      return node_error(n, "attribute 'T' must be DT_FLOAT (only float32 is supported)",
+                        ErrorCode::kUnsupported);
     }
   }
   Result<std::optional<std::string>> format = attr_string(n, "data_format");
