@@ -2,7 +2,11 @@
 
 #include "spirv/conv2d.spv.h"
 #include "spirv/depthwise_conv2d.spv.h"
+#include "spirv/displacement_affinity.spv.h"
+#include "spirv/heatmap_peaks.spv.h"
+#include "spirv/paf_affinity.spv.h"
 #include "spirv/pointwise_conv2d.spv.h"
+#include "spirv/preprocess_frame.spv.h"
 
 namespace mocap::gpu {
 
@@ -14,6 +18,14 @@ std::span<const std::uint32_t> shader_spirv(Shader s) {
       return kSpirv_depthwise_conv2d;
     case Shader::kPointwiseConv2D:
       return kSpirv_pointwise_conv2d;
+    case Shader::kPreprocessFrame:
+      return kSpirv_preprocess_frame;
+    case Shader::kHeatmapPeaks:
+      return kSpirv_heatmap_peaks;
+    case Shader::kDisplacementAffinity:
+      return kSpirv_displacement_affinity;
+    case Shader::kPafAffinity:
+      return kSpirv_paf_affinity;
   }
   return {};
 }
@@ -26,6 +38,14 @@ const char* shader_name(Shader s) {
       return "depthwise_conv2d";
     case Shader::kPointwiseConv2D:
       return "pointwise_conv2d";
+    case Shader::kPreprocessFrame:
+      return "preprocess_frame";
+    case Shader::kHeatmapPeaks:
+      return "heatmap_peaks";
+    case Shader::kDisplacementAffinity:
+      return "displacement_affinity";
+    case Shader::kPafAffinity:
+      return "paf_affinity";
   }
   return "unknown";
 }

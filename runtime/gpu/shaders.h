@@ -6,7 +6,15 @@
 
 namespace mocap::gpu {
 
-enum class Shader { kConv2D, kDepthwiseConv2D, kPointwiseConv2D };
+enum class Shader {
+  kConv2D,
+  kDepthwiseConv2D,
+  kPointwiseConv2D,
+  kPreprocessFrame,
+  kHeatmapPeaks,
+  kDisplacementAffinity,
+  kPafAffinity,
+};
 
 std::span<const std::uint32_t> shader_spirv(Shader s);
 const char* shader_name(Shader s);

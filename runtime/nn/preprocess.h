@@ -1,13 +1,23 @@
-// CPU reference of the network input pre-processing: an RGB8 image letterboxed into an SxS
-// square (aspect kept, bilinear with half-pixel centres, centred, borders filled with black),
-// normalised to [-1, 1] (u8 / 127.5 - 1, PoseNet's convention), NHWC float32. The mapping back
-// from network-input pixels to image pixels is returned with it.
+// CPU reference of the network input pre-processing: a camera frame (RGB24, YUYV 4:2:2 or NV12
+// 4:2:0, any row stride) letterboxed into an SxS square (aspect kept, bilinear with half-pixel
+// centres, centred, borders filled with black), normalised to [-1, 1] (u8 / 127.5 - 1,
+// PoseNet's convention), NHWC float32. The mapping back from network-input pixels to image
+// pixels is returned with it. shaders/preprocess_frame.comp is the GPU version of
+// letterbox_frame and is tested against it.
+//
+// Colour: YUYV and NV12 are BT.601 limited range ("studio swing", Y in [16, 235]), the V4L2
+// default colourspace of UVC webcams (V4L2_COLORSPACE_SMPTE170M / V4L2_YCBCR_ENC_601 /
+// V4L2_QUANTIZATION_LIM_RANGE). Each source pixel is converted to RGB in float (clamped to
+// [0, 255], not rounded) before the bilinear filter; chroma is taken from the sample covering
+// the pixel (no chroma interpolation: YUYV shares U, V over a pixel pair, NV12 over 2x2).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <span>
 
 #include "runtime/core/error.h"
+#include "runtime/msg/messages.h"
 #include "runtime/nn/cpu_ops.h"
 
 namespace mocap::nn {
@@ -21,7 +31,51 @@ struct Letterbox {
   double image_y(double net_y) const { return (net_y - offset_y_px) / scale; }
 };
 
-// Writes batch item `n` of `out` (shape [N, S, S, 3], allocated by the caller).
+// The letterbox of a width x height image in an out_w x out_h input, with the half-open ranges
+// of output columns and rows whose centres fall on the image (the rest is black border). The
+// CPU reference and the GPU kernel both use these ranges, so they agree on every border pixel.
+struct LetterboxGrid {
+  Letterbox box;
+  int x_begin = 0;
+  int x_end = 0;
+  int y_begin = 0;
+  int y_end = 0;
+};
+LetterboxGrid letterbox_grid(int width_px, int height_px, int out_w_px, int out_h_px);
+
+// A camera frame's bytes as pre-processing reads them (no ownership).
+//  RGB24: 3 bytes per pixel (R, G, B).
+//  YUYV:  4 bytes per pixel pair (Y0, U, Y1, V); width must be even.
+//  NV12:  a Y plane (1 byte per pixel), then an interleaved U, V plane at half resolution in
+//         both directions with the same row stride; width and height must be even.
+struct FrameView {
+  std::span<const std::uint8_t> bytes;
+  int width_px = 0;
+  int height_px = 0;
+  int stride_bytes = 0;  // bytes per row of the first plane; 0 = tightly packed
+  PixelFormat format = PixelFormat::kRGB24;
+  // NV12 only: byte offset of the U, V plane; 0 = right after the Y plane (stride * height,
+  // V4L2 single-planar NV12).
+  std::size_t uv_offset_bytes = 0;
+};
+
+// The row stride a frame uses (stride_bytes, or the packed stride when 0) and the UV-plane
+// offset (NV12), after validate_frame succeeded.
+int frame_stride_bytes(const FrameView& frame);
+std::size_t frame_uv_offset_bytes(const FrameView& frame);
+
+// Checks size, format, parity, stride and byte count; the error says what is wrong and what
+// was expected. kUnsupported for formats pre-processing does not read (GREY, MJPEG).
+Status validate_frame(const FrameView& frame);
+
+// BT.601 limited range to RGB in [0, 255] (float, clamped), the conversion both the CPU
+// reference and the GPU kernel use.
+void yuv_to_rgb_bt601_limited(float y, float u, float v, float rgb[3]);
+
+// Writes batch item `n` of `out` (shape [N, H, W, 3], allocated by the caller).
+Result<Letterbox> letterbox_frame(const FrameView& frame, Tensor& out, int n = 0);
+
+// letterbox_frame of a packed RGB24 image.
 Result<Letterbox> letterbox_rgb8(std::span<const std::uint8_t> rgb, int width_px, int height_px,
                                  Tensor& out, int n = 0);
 
