@@ -70,6 +70,7 @@ DeviceInfo describe(VkPhysicalDevice pd, int index) {
   d.device_id = p.deviceID;
   d.subgroup_size = sub.subgroupSize;
   d.max_workgroup_invocations = p.limits.maxComputeWorkGroupInvocations;
+  d.max_texel_buffer_elements = p.limits.maxTexelBufferElements;
   if (VK_API_VERSION_MINOR(p.apiVersion) >= 2 || VK_API_VERSION_MAJOR(p.apiVersion) > 1) {
     d.driver = std::string(drv.driverName) + " " + drv.driverInfo;
   }
@@ -251,6 +252,25 @@ void Buffer::release() {
   memory_ = VK_NULL_HANDLE;
   mapped_ = nullptr;
   size_ = 0;
+}
+
+// --------------------------------------------------------------------------------- TexelView
+
+TexelView::TexelView(TexelView&& o) noexcept { *this = std::move(o); }
+TexelView& TexelView::operator=(TexelView&& o) noexcept {
+  if (this != &o) {
+    release();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    view_ = std::exchange(o.view_, VK_NULL_HANDLE);
+  }
+  return *this;
+}
+TexelView::~TexelView() { release(); }
+void TexelView::release() {
+  if (device_ == VK_NULL_HANDLE) return;
+  if (view_) vkDestroyBufferView(device_, view_, nullptr);
+  device_ = VK_NULL_HANDLE;
+  view_ = VK_NULL_HANDLE;
 }
 
 // ------------------------------------------------------------------------------------ Kernel
@@ -513,8 +533,8 @@ Result<Buffer> Context::create_buffer(VkDeviceSize bytes, bool host_visible) {
   b.size_ = std::max<VkDeviceSize>(bytes, 16);
   VkBufferCreateInfo bi{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
   bi.size = b.size_;
-  bi.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
-             VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  bi.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
+             VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
   if (VkResult r = vkCreateBuffer(device_, &bi, nullptr, &b.buffer_); r != VK_SUCCESS) {
     return vk_error(r, "creating a buffer of " + std::to_string(bytes) + " bytes");
@@ -559,10 +579,42 @@ Result<Buffer> Context::create_buffer(VkDeviceSize bytes, bool host_visible) {
   return b;
 }
 
+Result<TexelView> Context::create_texel_view(const Buffer& buffer) {
+  const VkDeviceSize texels = buffer.size_bytes() / 16;
+  if (buffer.size_bytes() % 16 != 0 || texels > info_.max_texel_buffer_elements) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "a texel view needs a buffer of whole 16-byte texels, at most " +
+                     std::to_string(info_.max_texel_buffer_elements) + " on " + info_.name +
+                     " (buffer is " + std::to_string(buffer.size_bytes()) + " bytes)");
+  }
+  TexelView v;
+  v.device_ = device_;
+  VkBufferViewCreateInfo ci{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+  ci.buffer = buffer.handle();
+  ci.format = VK_FORMAT_R32G32B32A32_SFLOAT;
+  ci.offset = 0;
+  ci.range = VK_WHOLE_SIZE;
+  if (VkResult r = vkCreateBufferView(device_, &ci, nullptr, &v.view_); r != VK_SUCCESS) {
+    return vk_error(r, "creating a texel buffer view");
+  }
+  return v;
+}
+
 Result<Kernel> Context::create_kernel(std::span<const std::uint32_t> spirv, const std::string& name,
                                       int bindings, std::uint32_t push_bytes,
                                       std::span<const std::int32_t> spec_constants,
                                       std::uint32_t workgroup_size) {
+  const std::vector<VkDescriptorType> types(static_cast<std::size_t>(std::max(bindings, 0)),
+                                            VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
+  return create_kernel(spirv, name, types, push_bytes, spec_constants, workgroup_size);
+}
+
+Result<Kernel> Context::create_kernel(std::span<const std::uint32_t> spirv, const std::string& name,
+                                      std::span<const VkDescriptorType> binding_types,
+                                      std::uint32_t push_bytes,
+                                      std::span<const std::int32_t> spec_constants,
+                                      std::uint32_t workgroup_size) {
+  const int bindings = static_cast<int>(binding_types.size());
   Kernel k;
   k.device_ = device_;
   k.bindings_ = bindings;
@@ -577,7 +629,7 @@ Result<Kernel> Context::create_kernel(std::span<const std::uint32_t> spirv, cons
   std::vector<VkDescriptorSetLayoutBinding> b(static_cast<std::size_t>(bindings));
   for (int i = 0; i < bindings; ++i) {
     b[static_cast<std::size_t>(i)] = VkDescriptorSetLayoutBinding{
-        static_cast<std::uint32_t>(i), VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+        static_cast<std::uint32_t>(i), binding_types[static_cast<std::size_t>(i)], 1,
         VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
   }
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};

@@ -44,14 +44,37 @@ struct DeviceInfo {
   double timestamp_period_ns = 0;  // 0 = no timestamps on the compute queue
   std::uint32_t subgroup_size = 0;
   std::uint32_t max_workgroup_invocations = 0;
+  std::uint32_t max_texel_buffer_elements = 0;
   bool is_cpu() const { return type == VK_PHYSICAL_DEVICE_TYPE_CPU; }
   std::string type_name() const;
 };
 
 class Context;
 
-// A storage buffer. Device-local when `host_visible` is false (activations, weights), else
-// host-visible and persistently mapped (staging for uploads and downloads).
+// A view of a buffer as a uniform texel buffer of RGBA32F texels (GLSL `samplerBuffer`,
+// texelFetch). On lavapipe a texel fetch is a branch-free gather, while a storage-buffer load
+// is a per-lane loop: kernels read their big inputs through these views (see docs/gpu.md).
+class TexelView {
+ public:
+  TexelView() = default;
+  TexelView(const TexelView&) = delete;
+  TexelView& operator=(const TexelView&) = delete;
+  TexelView(TexelView&& o) noexcept;
+  TexelView& operator=(TexelView&& o) noexcept;
+  ~TexelView();
+
+  VkBufferView handle() const { return view_; }
+
+ private:
+  friend class Context;
+  void release();
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkBufferView view_ = VK_NULL_HANDLE;
+};
+
+// A storage buffer (also usable as a uniform texel buffer through a TexelView). Device-local when
+// `host_visible` is false (activations, weights), else host-visible and persistently mapped
+// (staging for uploads and downloads).
 class Buffer {
  public:
   Buffer() = default;
@@ -124,8 +147,18 @@ class Context {
   int validation_errors() const;
 
   Result<Buffer> create_buffer(VkDeviceSize bytes, bool host_visible);
+  // An RGBA32F texel view of the whole buffer (its size must be a multiple of 16 bytes).
+  Result<TexelView> create_texel_view(const Buffer& buffer);
+  // Kernel whose bindings 0..n-1 are all storage buffers.
   Result<Kernel> create_kernel(std::span<const std::uint32_t> spirv, const std::string& name,
                                int bindings, std::uint32_t push_bytes,
+                               std::span<const std::int32_t> spec_constants,
+                               std::uint32_t workgroup_size);
+  // Kernel with one descriptor of the given type per binding (storage buffers and uniform
+  // texel buffers).
+  Result<Kernel> create_kernel(std::span<const std::uint32_t> spirv, const std::string& name,
+                               std::span<const VkDescriptorType> binding_types,
+                               std::uint32_t push_bytes,
                                std::span<const std::int32_t> spec_constants,
                                std::uint32_t workgroup_size);
   // Writes the pipeline cache to its file now (also done on destruction).

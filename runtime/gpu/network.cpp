@@ -11,14 +11,34 @@ namespace {
 
 inline std::size_t ix(long i) { return static_cast<std::size_t>(i); }
 int c4_of(int c) { return (c + 3) / 4; }
-int round_even(int v) { return (v + 1) / 2 * 2; }
+int round_up(int v, int m) { return (v + m - 1) / m * m; }
 std::uint32_t div_up(long a, long b) { return static_cast<std::uint32_t>((a + b - 1) / b); }
 
-// Descriptor bindings of every kernel: input, weights, bias, output, PReLU slopes.
+// Descriptor bindings of every kernel: input and weights as uniform texel buffers (texelFetch:
+// a gather on lavapipe, where a storage-buffer load is a per-lane loop), then bias, output and
+// PReLU slopes as storage buffers.
 constexpr int kBindings = 5;
+constexpr VkDescriptorType kBindingTypes[kBindings] = {
+    VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER,
+    VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+    VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
 constexpr std::uint32_t kPushBytes = 16 * sizeof(std::int32_t);
-// Pixels per invocation of pointwise_conv2d.comp (TP there).
+// Register tile of pointwise_conv2d.comp: pixels (TP) x output vec4 groups (TC) per
+// invocation, and input groups per partial sum (KB, 0 = one accumulator level). Measured on
+// lavapipe (PoseNet 257, 17x17x384->384): 8x4 1.78 ms, 8x2 2.09, 4x4 2.05, 4x8 1.81, 6x4 1.85;
+// 8x6, 8x8, 12x4, 16x4 (48+ vec4 accumulators) 4.3-5.9 ms. Two-level sums (KB 16) cost ~5%.
 constexpr int kPointwisePixels = 8;
+constexpr int kPointwiseGroups = 4;
+constexpr int kPointwiseBlock = 0;
+// Register tile of conv2d.comp: output pixels along a row (TX) x at most this many output
+// vec4 groups (TC). PoseNet's first layer (3x3 s2, 3->24) on lavapipe: 2.4-4.5 ms with 4x3,
+// 4x1 or 4x2 (noisy, shared machine) against 6.5-8.8 ms unblocked.
+constexpr int kConvPixels = 4;
+constexpr int kConvGroupsMax = 3;
+// Output pixels along a row per invocation of depthwise_conv2d.comp (TX there). PoseNet 257
+// on lavapipe: TX 4 takes depthwise layers from 3.8 to 0.7 ms (129x129x24) and from 1.1 to
+// 0.3 ms (17x17x384); TX 2 and 8 are slower.
+constexpr int kDepthwisePixels = 4;
 
 }  // namespace
 
@@ -57,7 +77,7 @@ Result<const Kernel*> Network::kernel(int shader, std::vector<std::int32_t> spec
     if (e.shader == shader && e.spec == spec) return e.kernel.get();
   }
   const Shader s = static_cast<Shader>(shader);
-  auto k = ctx_.create_kernel(shader_spirv(s), shader_name(s), kBindings, kPushBytes, spec,
+  auto k = ctx_.create_kernel(shader_spirv(s), shader_name(s), kBindingTypes, kPushBytes, spec,
                               options_.workgroup_size);
   if (!k.ok()) return k.error();
   kernels_.push_back(KernelEntry{shader, std::move(spec), std::make_unique<Kernel>(std::move(*k))});
@@ -121,12 +141,13 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
   constants_.push_back(std::move(*dummy));
   const std::size_t dummy_index = 0;
 
-  VkDescriptorPoolSize ps{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-                          static_cast<std::uint32_t>(model.layers.size() * kBindings)};
+  const auto layers = static_cast<std::uint32_t>(model.layers.size());
+  VkDescriptorPoolSize ps[2] = {{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, layers * kBindings},
+                                {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, layers * kBindings}};
   VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-  pi.maxSets = static_cast<std::uint32_t>(model.layers.size());
-  pi.poolSizeCount = 1;
-  pi.pPoolSizes = &ps;
+  pi.maxSets = layers;
+  pi.poolSizeCount = 2;
+  pi.pPoolSizes = ps;
   if (VkResult r = vkCreateDescriptorPool(ctx_.device(), &pi, nullptr, &pool_); r != VK_SUCCESS) {
     return vk_error(r, "creating a descriptor pool");
   }
@@ -144,15 +165,13 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
     std::vector<float> w;
     std::vector<float> bias;
     int bias_groups = cout4;
-    // conv2d.comp and depthwise_conv2d.comp: one invocation per output pixel and vec4 group.
+    int conv_groups = 1;
     const int pad_top = nn::conv_pad_before(is.h, l.kernel_h, l.stride_h, l.padding);
     const int pad_left = nn::conv_pad_before(is.w, l.kernel_w, l.stride_w, l.padding);
-    const std::uint32_t window_groups = div_up(static_cast<long>(os.n) * os.h * os.w * cout4,
-                                               static_cast<long>(options.workgroup_size));
     if (l.op == nn::OpType::kConv2D && l.kernel_h == 1 && l.kernel_w == 1 && l.stride_h == 1 &&
         l.stride_w == 1) {
       shader = static_cast<int>(Shader::kPointwiseConv2D);
-      const int cout4p = round_even(cout4);
+      const int cout4p = round_up(cout4, kPointwiseGroups);
       bias_groups = cout4p;
       const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
       const int cin = wt.shape[2];
@@ -166,25 +185,30 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
       }
       const long pixels = static_cast<long>(os.n) * os.h * os.w;
       step.push = {static_cast<std::int32_t>(pixels), cin4, cin4, 0, cout4, cout4p, cout4, 0};
-      step.groups = div_up(div_up(pixels, kPointwisePixels) * (cout4p / 2),
+      step.groups = div_up(div_up(pixels, kPointwisePixels) * (cout4p / kPointwiseGroups),
                            static_cast<long>(options.workgroup_size));
     } else if (l.op == nn::OpType::kConv2D) {
       shader = static_cast<int>(Shader::kConv2D);
+      conv_groups = std::min(cout4, kConvGroupsMax);
+      const int cout4p = round_up(cout4, conv_groups);
+      bias_groups = cout4p;
       const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
       const int cin = wt.shape[2];
       const int cout = wt.shape[3];
-      w.assign(ix(static_cast<long>(l.kernel_h) * l.kernel_w * cin4 * 4 * cout4 * 4), 0.f);
+      w.assign(ix(static_cast<long>(l.kernel_h) * l.kernel_w * cin4 * 4 * cout4p * 4), 0.f);
       for (int k = 0; k < l.kernel_h * l.kernel_w; ++k) {
         for (int ci = 0; ci < cin; ++ci) {
           for (int co = 0; co < cout; ++co) {
-            w[ix((static_cast<long>(k) * cin4 * 4 + ci) * cout4 * 4 + co)] =
+            w[ix((static_cast<long>(k) * cin4 * 4 + ci) * cout4p * 4 + co)] =
                 wt.data[ix((static_cast<long>(k) * cin + ci) * cout + co)];
           }
         }
       }
-      step.push = {os.n,  is.h,  is.w, cin4,       cin4,       os.h,    os.w,
-                   cout4, cout4, 0,    l.stride_h, l.stride_w, pad_top, pad_left};
-      step.groups = window_groups;
+      const int x_blocks = (os.w + kConvPixels - 1) / kConvPixels;
+      step.push = {os.n,  is.h, is.w,       cin4,       cin4,    os.h,     os.w,     cout4,
+                   cout4, 0,    l.stride_h, l.stride_w, pad_top, pad_left, x_blocks, cout4p};
+      step.groups = div_up(static_cast<long>(os.n) * os.h * x_blocks * (cout4p / conv_groups),
+                           static_cast<long>(options.workgroup_size));
     } else if (l.op == nn::OpType::kDepthwiseConv2D) {
       shader = static_cast<int>(Shader::kDepthwiseConv2D);
       const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
@@ -195,9 +219,11 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
           w[ix(static_cast<long>(k) * cin4 * 4 + ch)] = wt.data[ix(static_cast<long>(k) * c + ch)];
         }
       }
-      step.push = {os.n, is.h,  is.w,       cin4,       cin4,    os.h,
-                   os.w, cout4, l.stride_h, l.stride_w, pad_top, pad_left};
-      step.groups = window_groups;
+      const int x_blocks = (os.w + kDepthwisePixels - 1) / kDepthwisePixels;
+      step.push = {os.n,  is.h,       is.w,       cin4,    cin4,     os.h,    os.w,
+                   cout4, l.stride_h, l.stride_w, pad_top, pad_left, x_blocks};
+      step.groups = div_up(static_cast<long>(os.n) * os.h * x_blocks * cout4,
+                           static_cast<long>(options.workgroup_size));
     } else {
       return Error(ErrorCode::kUnsupported, std::string("the Vulkan backend has no kernel for ") +
                                                 nn::to_string(l.op) + " yet (layer '" + l.name +
@@ -216,9 +242,12 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
       std::copy(at.begin(), at.end(), alpha.begin());
     }
     std::vector<std::int32_t> spec{static_cast<std::int32_t>(l.activation)};
-    if (shader != static_cast<int>(Shader::kPointwiseConv2D)) {
-      spec.push_back(l.kernel_h);
-      spec.push_back(l.kernel_w);
+    if (shader == static_cast<int>(Shader::kPointwiseConv2D)) {
+      spec.insert(spec.end(), {kPointwisePixels, kPointwiseGroups, kPointwiseBlock});
+    } else if (shader == static_cast<int>(Shader::kDepthwiseConv2D)) {
+      spec.insert(spec.end(), {l.kernel_h, l.kernel_w, l.stride_w, kDepthwisePixels});
+    } else {
+      spec.insert(spec.end(), {l.kernel_h, l.kernel_w, l.stride_w, kConvPixels, conv_groups});
     }
     auto k = kernel(shader, spec);
     if (!k.ok()) return k.error();
@@ -248,6 +277,14 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
     const VkBuffer bufs[kBindings] = {values_[ix(in_v)].handle(), constants_[wi].handle(),
                                       constants_[wi + 1].handle(), values_[li + 1].handle(),
                                       constants_[ai].handle()};
+    const Buffer* texel_bufs[2] = {&values_[ix(in_v)], &constants_[wi]};
+    VkBufferView texel_views[2];
+    for (int t = 0; t < 2; ++t) {
+      auto view = ctx_.create_texel_view(*texel_bufs[t]);
+      if (!view.ok()) return view.error();
+      texel_views[t] = view->handle();
+      views_.push_back(std::move(*view));
+    }
     VkDescriptorBufferInfo infos[kBindings];
     VkWriteDescriptorSet writes[kBindings];
     for (int b = 0; b < kBindings; ++b) {
@@ -256,8 +293,12 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
       writes[b].dstSet = step.set;
       writes[b].dstBinding = static_cast<std::uint32_t>(b);
       writes[b].descriptorCount = 1;
-      writes[b].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-      writes[b].pBufferInfo = &infos[b];
+      writes[b].descriptorType = kBindingTypes[b];
+      if (kBindingTypes[b] == VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER) {
+        writes[b].pTexelBufferView = &texel_views[b];
+      } else {
+        writes[b].pBufferInfo = &infos[b];
+      }
     }
     vkUpdateDescriptorSets(ctx_.device(), kBindings, writes, 0, nullptr);
     steps_.push_back(std::move(step));

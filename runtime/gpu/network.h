@@ -91,6 +91,7 @@ class Network {
     std::unique_ptr<Kernel> kernel;
   };
   std::vector<KernelEntry> kernels_;
+  std::vector<TexelView> views_;  // after the buffers they view: destroyed first
   std::vector<Step> steps_;
   struct PendingUpload {
     Buffer staging;
