@@ -309,4 +309,51 @@ ViewDetections to_view_detections(const PeakSet& peaks,
   return v;
 }
 
+std::vector<LimbChain> limb_chains(const ViewDetections& view, const SkeletonTopology& topology,
+                                   float min_affinity, int min_candidates) {
+  // Node id of (joint, candidate).
+  std::vector<int> first(view.candidates.size() + 1, 0);
+  for (std::size_t j = 0; j < view.candidates.size(); ++j) {
+    first[j + 1] = first[j] + static_cast<int>(view.candidates[j].size());
+  }
+  std::vector<int> parent(static_cast<std::size_t>(first.back()));
+  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<int>(i);
+  auto find = [&](int x) {
+    while (parent[static_cast<std::size_t>(x)] != x) {
+      x = parent[static_cast<std::size_t>(x)] =
+          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+    }
+    return x;
+  };
+  const int limbs = std::min(topology.limb_count(), static_cast<int>(view.affinities.size()));
+  for (int l = 0; l < limbs; ++l) {
+    const Limb& limb = topology.limb(l);
+    const AffinityMatrix& m = view.affinities[static_cast<std::size_t>(l)];
+    for (int r = 0; r < m.rows; ++r) {
+      for (int c = 0; c < m.cols; ++c) {
+        const float v = m.at(r, c);
+        if (v < min_affinity) continue;
+        bool best = true;
+        for (int k = 0; k < m.cols && best; ++k) best = m.at(r, k) <= v;
+        for (int k = 0; k < m.rows && best; ++k) best = m.at(k, c) <= v;
+        if (!best) continue;
+        const int a = find(first[static_cast<std::size_t>(limb.joint_a)] + r);
+        const int b = find(first[static_cast<std::size_t>(limb.joint_b)] + c);
+        parent[static_cast<std::size_t>(a)] = b;
+      }
+    }
+  }
+  std::vector<LimbChain> groups(parent.size());
+  for (std::size_t j = 0; j < view.candidates.size(); ++j) {
+    for (int c = 0; c < static_cast<int>(view.candidates[j].size()); ++c) {
+      groups[static_cast<std::size_t>(find(first[j] + c))].push_back({static_cast<int>(j), c});
+    }
+  }
+  std::vector<LimbChain> out;
+  for (auto& g : groups) {
+    if (static_cast<int>(g.size()) >= min_candidates) out.push_back(std::move(g));
+  }
+  return out;
+}
+
 }  // namespace mocap::nn

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "runtime/core/error.h"
@@ -130,5 +131,13 @@ ViewDetections to_view_detections(const PeakSet& peaks,
                                   const std::vector<LimbEdge>& limb_edges,
                                   const Letterbox& letterbox, int view_id, int width_px,
                                   int height_px);
+
+// People-like chains in one view's detections, for summaries and tests: candidates joined by
+// limbs whose affinity is at least `min_affinity` and is the best of its row and of its column
+// (mutual best match), grouped into connected components; components with fewer than
+// `min_candidates` candidates are left out. Each chain lists (joint, candidate index) pairs.
+using LimbChain = std::vector<std::pair<int, int>>;
+std::vector<LimbChain> limb_chains(const ViewDetections& view, const SkeletonTopology& topology,
+                                   float min_affinity = 0.5f, int min_candidates = 4);
 
 }  // namespace mocap::nn

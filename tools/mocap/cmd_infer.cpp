@@ -1,4 +1,5 @@
 // mocap infer --model FILE --input-f32 FILE --size S --dump DIR [--backend vulkan|cpu]
+// mocap infer --model FILE --image PATH [--size S] --detections-out FILE [--backend vulkan|cpu]
 // mocap bench cnn --model FILE --size S --batch B
 #include <unistd.h>
 #include <algorithm>
@@ -7,15 +8,20 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "runtime/gpu/context.h"
 #include "runtime/gpu/network.h"
+#include "runtime/gpu/pose_detector.h"
+#include "runtime/image/image.h"
 #include "runtime/nn/cpu_ops.h"
 #include "runtime/nn/model_file.h"
+#include "runtime/nn/postprocess.h"
 #include "runtime/nn/tfjs_import.h"
+#include "runtime/skeleton/topology.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
 
@@ -123,6 +129,111 @@ int fail(const Error& e) {
   return 1;
 }
 
+// mocap infer --image: the whole detection path on one photo; writes the detections as JSON
+// (docs/detections-format.md) and prints candidates per joint and the limb chains.
+int infer_image(const std::string& model_path, const std::string& image_path, int size,
+                const std::string& backend, const std::string& device, const std::string& out) {
+  if (out.empty()) {
+    return fail(Error(ErrorCode::kInvalidArgument, "--image needs --detections-out FILE"));
+  }
+  if (size < 17 || size > 1025) {
+    return fail(Error(ErrorCode::kInvalidArgument, "--size must be in [17, 1025] with --image"));
+  }
+  auto model = load_model(model_path);
+  if (!model.ok()) return fail(model.error());
+  auto img = image::load_image(image_path);
+  if (!img.ok()) return fail(img.error());
+  gpu::PoseDetectorOptions o;
+  o.input_size_px = size;
+  std::unique_ptr<gpu::Context> ctx;
+  if (backend == "cpu") {
+    o.backend = gpu::PoseBackend::kCpu;
+    std::fprintf(stderr, "backend: CPU reference kernels (single thread, slow)\n");
+  } else if (backend == "vulkan") {
+    gpu::GpuOptions go;
+    go.device = device;
+    auto c = gpu::Context::create(go);
+    if (!c.ok()) return fail(c.error());
+    ctx = std::move(*c);
+    std::fprintf(stderr, "backend: Vulkan on %s (%s)\n", ctx->device_info().name.c_str(),
+                 ctx->device_info().type_name().c_str());
+  } else {
+    return fail(Error(ErrorCode::kInvalidArgument,
+                      "--backend must be vulkan or cpu, got '" + backend + "'"));
+  }
+  auto det = gpu::PoseDetector::create(*model, o, ctx.get());
+  if (!det.ok()) return fail(det.error());
+  const nn::FrameView frame{img->rgb, img->width_px, img->height_px, 0, PixelFormat::kRGB24};
+  const int view_id = 0;
+  auto set = (*det)->detect({&frame, 1}, {&view_id, 1});
+  if (!set.ok()) return fail(set.error());
+  const SkeletonTopology& topo = *set->topology;
+  const ViewDetections& v = set->views[0];
+  nlohmann::json j;
+  j["format"] = "mocap-detections";
+  j["version"] = 1;
+  j["topology"] = topo.name();
+  j["image"] = image_path;
+  j["model"] = model->name;
+  j["input_size_px"] = size;
+  j["backend"] = backend;
+  j["score_threshold"] = o.post.score_threshold;
+  j["max_candidates_per_joint"] = o.post.max_candidates_per_joint;
+  j["affinity_sigma_strides"] = o.post.affinity_sigma_strides;
+  j["dropped_candidates"] = (*det)->last_times().dropped_candidates;
+  nlohmann::json view;
+  view["view_id"] = v.view_id;
+  view["width_px"] = v.width_px;
+  view["height_px"] = v.height_px;
+  nlohmann::json joints = nlohmann::json::array();
+  for (int k = 0; k < topo.joint_count(); ++k) {
+    nlohmann::json cands = nlohmann::json::array();
+    for (const JointCandidate& c : v.candidates[static_cast<std::size_t>(k)]) {
+      cands.push_back({c.x_px, c.y_px, c.score});
+    }
+    joints.push_back({{"name", topo.joint_name(k)}, {"candidates", cands}});
+  }
+  view["joints"] = joints;
+  nlohmann::json limbs = nlohmann::json::array();
+  for (int l = 0; l < topo.limb_count(); ++l) {
+    const AffinityMatrix& m = v.affinities[static_cast<std::size_t>(l)];
+    nlohmann::json rows = nlohmann::json::array();
+    for (int r = 0; r < m.rows; ++r) {
+      nlohmann::json row = nlohmann::json::array();
+      for (int c = 0; c < m.cols; ++c) row.push_back(m.at(r, c));
+      rows.push_back(row);
+    }
+    limbs.push_back({{"joint_a", topo.joint_name(topo.limb(l).joint_a)},
+                     {"joint_b", topo.joint_name(topo.limb(l).joint_b)},
+                     {"affinity", rows}});
+  }
+  view["limbs"] = limbs;
+  j["views"] = nlohmann::json::array({view});
+  {
+    std::ofstream f(out, std::ios::trunc);
+    if (!(f << j.dump(1) << "\n")) return fail(Error(ErrorCode::kIo, out + ": cannot write"));
+  }
+  const auto& t = (*det)->last_times();
+  std::printf("%s: %dx%d px, input %d, %s: pre %.1f ms, network %.1f ms, post %.1f ms\n",
+              image_path.c_str(), img->width_px, img->height_px, size, backend.c_str(),
+              t.preprocess_ms, t.network_ms, t.postprocess_ms);
+  int total = 0;
+  for (int k = 0; k < topo.joint_count(); ++k) {
+    const auto& list = v.candidates[static_cast<std::size_t>(k)];
+    total += static_cast<int>(list.size());
+    std::printf(
+        "  %-11s %2zu candidate%s%s\n", topo.joint_name(k).c_str(), list.size(),
+        list.size() == 1 ? "" : "s",
+        list.empty() ? "" : (" (best " + std::to_string(list[0].score).substr(0, 4) + ")").c_str());
+  }
+  const auto chains = nn::limb_chains(v, topo);
+  std::printf(
+      "candidates=%d dropped=%d limb_chains=%zu (>= 4 joints, mutual-best affinity >= 0.5)\n",
+      total, t.dropped_candidates, chains.size());
+  std::printf("detections written to %s\n", out.c_str());
+  return 0;
+}
+
 double median(std::vector<double> v) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
@@ -144,7 +255,10 @@ int run_infer(Args args) {
   cli::ArgParser p("mocap infer",
                    "Runs the pose CNN. With --input-f32: on a raw NHWC float32 tensor [1,S,S,C]\n"
                    "(already normalised), writing each output as DIR/<name>.f32 (raw NHWC\n"
-                   "float32; PoseNet: heatmap, offsets, displacement_fwd, displacement_bwd).");
+                   "float32; PoseNet: heatmap, offsets, displacement_fwd, displacement_bwd).\n"
+                   "With --image: the whole detection path (pre-processing, CNN, peaks, limb\n"
+                   "affinities) on a JPEG/PNG photo, writing the COCO-17 candidates (image\n"
+                   "pixels) and affinity matrices as JSON (docs/detections-format.md).");
   p.option("--model", &model_path, "FILE", "model file (.mcnn) or a TF.js model.json");
   p.option("--input-f32", &input_path, "FILE", "raw float32 NHWC input tensor");
   p.option("--size", &size, "S", "input height and width (default 257)");
@@ -156,11 +270,7 @@ int run_infer(Args args) {
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   if (model_path.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--model is required"));
   if (!image_path.empty()) {
-    std::fprintf(stderr,
-                 "mocap infer --image: the image path (GPU pre-processing, peak extraction and "
-                 "limb affinities) is not in this build yet (issue #4 continues); use "
-                 "--input-f32\n");
-    return 2;
+    return infer_image(model_path, image_path, size, backend, device, detections_out);
   }
   if (input_path.empty() || dump_dir.empty()) {
     return fail(Error(ErrorCode::kInvalidArgument, "--input-f32 FILE and --dump DIR are required"));

@@ -1,0 +1,197 @@
+#include "runtime/gpu/pose_detector.h"
+
+#include <chrono>
+#include <set>
+#include <string>
+
+#include "runtime/nn/cpu_ops.h"
+#include "runtime/nn/preprocess.h"
+#include "runtime/skeleton/topology.h"
+
+namespace mocap::gpu {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+Error invalid(const std::string& what) {
+  return Error(ErrorCode::kInvalidArgument, std::string("pose detector: ") + what);
+}
+
+constexpr const char* kHeadNames[4] = {"heatmap", "offsets", "displacement_fwd",
+                                       "displacement_bwd"};
+
+}  // namespace
+
+Status PoseDetectorOptions::validate() const {
+  if (input_size_px < 17 || input_size_px > 1025) {
+    return invalid(std::string("input_size_px ") + std::to_string(input_size_px) +
+                   " must be in [17, 1025]");
+  }
+  if (max_views < 1 || max_views > 16) {
+    return invalid(std::string("max_views ") + std::to_string(max_views) + " must be in [1, 16]");
+  }
+  return post.validate();
+}
+
+PoseDetector::~PoseDetector() = default;
+
+Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& model,
+                                                           const PoseDetectorOptions& options,
+                                                           Context* ctx) {
+  if (Status s = options.validate(); !s.ok()) return s.error();
+  std::unique_ptr<PoseDetector> d(new PoseDetector());
+  d->options_ = options;
+  for (int h = 0; h < 4; ++h) {
+    bool found = false;
+    for (std::size_t i = 0; i < model.outputs.size(); ++i) {
+      if (model.outputs[i].name == kHeadNames[h]) {
+        d->heads_[h] = i;
+        found = true;
+      }
+    }
+    if (!found) {
+      return invalid("model '" + model.name + "' has no output named '" + kHeadNames[h] +
+                     "' (PoseNet needs heatmap, offsets, displacement_fwd, displacement_bwd)");
+    }
+  }
+  auto limb_edges = nn::map_displacement_edges(coco17_topology());
+  if (!limb_edges.ok()) return limb_edges.error();
+  d->limb_edges_ = std::move(*limb_edges);
+  const int S = options.input_size_px;
+  if (options.backend == PoseBackend::kCpu) {
+    d->model_ = model;
+    return d;
+  }
+  if (ctx == nullptr) return invalid("the Vulkan backend needs a Context");
+  NetworkOptions no;
+  no.batch = options.max_views;
+  no.height_px = S;
+  no.width_px = S;
+  no.timestamps = false;
+  auto net = Network::create(*ctx, model, no);
+  if (!net.ok()) return net.error();
+  d->net_ = std::move(*net);
+  const nn::Shape hs = d->net_->output_shape(d->heads_[0]);
+  const nn::Shape fs = d->net_->output_shape(d->heads_[2]);
+  const auto& edges = nn::posenet_displacement_edges();
+  if (hs.c != 17 || fs.c != 2 * static_cast<int>(edges.size())) {
+    return invalid("model '" + model.name + "': heatmap has " + std::to_string(hs.c) +
+                   " channels and displacements " + std::to_string(fs.c) +
+                   " (PoseNet COCO-17: 17 and 32)");
+  }
+  auto pre = FramePreprocessor::create(*ctx, S, options.max_views);
+  if (!pre.ok()) return pre.error();
+  d->pre_ = std::move(*pre);
+  auto post =
+      PoseNetPostprocessor::create(*ctx, options.max_views, hs.h, hs.w, hs.c, edges, options.post);
+  if (!post.ok()) return post.error();
+  d->post_ = std::move(*post);
+  return d;
+}
+
+Result<std::vector<nn::PoseNetView>> PoseDetector::run_vulkan(std::span<const nn::FrameView> frames,
+                                                              std::vector<nn::Letterbox>& boxes) {
+  const auto t0 = Clock::now();
+  auto b = pre_->run(frames);
+  if (!b.ok()) return b.error();
+  boxes = std::move(*b);
+  const auto t1 = Clock::now();
+  if (Status s = net_->run(pre_->output()); !s.ok()) return s.error();
+  nn::Tensor outs[4];
+  for (int h = 0; h < 4; ++h) {
+    if (Status s = net_->read_output(heads_[h], outs[h]); !s.ok()) return s.error();
+  }
+  const auto t2 = Clock::now();
+  auto views = post_->run(outs[0], outs[1], outs[2], outs[3]);
+  if (!views.ok()) return views.error();
+  const auto t3 = Clock::now();
+  times_.preprocess_ms = ms_between(t0, t1);
+  times_.network_ms = ms_between(t1, t2);
+  times_.postprocess_ms = ms_between(t2, t3);
+  return views;
+}
+
+Result<std::vector<nn::PoseNetView>> PoseDetector::run_cpu(std::span<const nn::FrameView> frames,
+                                                           std::vector<nn::Letterbox>& boxes) {
+  const auto t0 = Clock::now();
+  const int S = options_.input_size_px;
+  nn::Tensor input({static_cast<int>(frames.size()), S, S, 3});
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    auto lb = nn::letterbox_frame(frames[i], input, static_cast<int>(i));
+    if (!lb.ok()) return lb.error().with_context("frame " + std::to_string(i));
+    boxes.push_back(*lb);
+  }
+  const auto t1 = Clock::now();
+  auto values = nn::run_model_cpu(model_, input);
+  if (!values.ok()) return values.error();
+  const nn::Tensor* outs[4];
+  for (int h = 0; h < 4; ++h) {
+    outs[h] = &(*values)[static_cast<std::size_t>(model_.outputs[heads_[h]].value)];
+  }
+  const auto t2 = Clock::now();
+  auto views = nn::posenet_postprocess_cpu(*outs[0], *outs[1], *outs[2], *outs[3],
+                                           nn::posenet_displacement_edges(), options_.post);
+  if (!views.ok()) return views.error();
+  times_.preprocess_ms = ms_between(t0, t1);
+  times_.network_ms = ms_between(t1, t2);
+  times_.postprocess_ms = ms_between(t2, Clock::now());
+  return views;
+}
+
+Result<DetectionSet> PoseDetector::detect(std::span<const nn::FrameView> frames,
+                                          std::span<const int> view_ids, std::uint64_t frame_id,
+                                          std::int64_t timestamp_ns) {
+  if (frames.empty() || static_cast<int>(frames.size()) > options_.max_views ||
+      view_ids.size() != frames.size()) {
+    return invalid(std::to_string(frames.size()) + " frames and " +
+                   std::to_string(view_ids.size()) + " view ids; need 1 to " +
+                   std::to_string(options_.max_views) + " frames, one id each");
+  }
+  if (std::set<int>(view_ids.begin(), view_ids.end()).size() != view_ids.size()) {
+    return invalid("view ids must be unique");
+  }
+  const auto t0 = Clock::now();
+  std::vector<nn::Letterbox> boxes;
+  auto views =
+      options_.backend == PoseBackend::kVulkan ? run_vulkan(frames, boxes) : run_cpu(frames, boxes);
+  if (!views.ok()) return views.error();
+  DetectionSet set;
+  set.frame_id = frame_id;
+  set.timestamp_ns = timestamp_ns;
+  set.topology = &coco17_topology();
+  times_.dropped_candidates = 0;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const nn::PoseNetView& v = (*views)[i];
+    for (int d : v.peaks.dropped) times_.dropped_candidates += d;
+    set.views.push_back(nn::to_view_detections(v.peaks, v.edge_affinity, limb_edges_, boxes[i],
+                                               view_ids[i], frames[i].width_px,
+                                               frames[i].height_px));
+  }
+  times_.total_ms = ms_between(t0, Clock::now());
+  if (Status s = set.validate(); !s.ok()) {
+    return Error(ErrorCode::kInternal,
+                 "pose detector produced an invalid detection set: " + s.error().message());
+  }
+  return set;
+}
+
+Result<DetectionSet> PoseDetector::detect(const FrameSet& frame_set) {
+  std::vector<nn::FrameView> frames;
+  std::vector<int> ids;
+  for (const Frame& f : frame_set.frames) {
+    if (!f.buffer) {
+      return invalid("view " + std::to_string(f.view_id) + ": frame has no buffer");
+    }
+    frames.push_back(
+        nn::FrameView{f.buffer->bytes(), f.width_px, f.height_px, f.stride_bytes, f.format});
+    ids.push_back(f.view_id);
+  }
+  return detect(frames, ids, frame_set.frame_id, frame_set.timestamp_ns);
+}
+
+}  // namespace mocap::gpu

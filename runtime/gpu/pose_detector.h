@@ -1,0 +1,89 @@
+// PoseNet detections for the N views of a frame: one batched pre-processing submission
+// (FramePreprocessor), the network (Network::run), one post-processing submission
+// (PoseNetPostprocessor), then the candidates mapped back to image pixels and one affinity
+// matrix per COCO-17 limb (runtime/skeleton/topology.h), as a DetectionSet that passes
+// DetectionSet::validate(). The CPU backend runs the same stages with the CPU references
+// (nn::letterbox_frame, nn::run_model_cpu, nn::posenet_postprocess_cpu) for machines
+// without a Vulkan driver.
+//
+//   PoseDetectorOptions o;  o.max_views = 4;
+//   auto det = PoseDetector::create(model, o, ctx.get());
+//   auto set = (*det)->detect(frames, view_ids, frame_id, timestamp_ns);
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "runtime/core/error.h"
+#include "runtime/gpu/context.h"
+#include "runtime/gpu/network.h"
+#include "runtime/gpu/pose_kernels.h"
+#include "runtime/msg/messages.h"
+#include "runtime/nn/model.h"
+#include "runtime/nn/postprocess.h"
+
+namespace mocap::gpu {
+
+enum class PoseBackend { kVulkan, kCpu };
+
+struct PoseDetectorOptions {
+  PoseBackend backend = PoseBackend::kVulkan;
+  // Network input height and width, in [17, 1025]; PoseNet sizes are 16k + 1 (257, 353, 513).
+  int input_size_px = 353;
+  // Views per frame (the network batch), in [1, 16].
+  int max_views = 1;
+  nn::PostprocessOptions post;
+
+  Status validate() const;
+};
+
+// Wall-clock time of each stage of the last detect() (milliseconds).
+struct PoseDetectorTimes {
+  double preprocess_ms = 0;
+  double network_ms = 0;
+  double postprocess_ms = 0;
+  double total_ms = 0;
+  int dropped_candidates = 0;  // peaks beyond max_candidates_per_joint, all views and joints
+};
+
+class PoseDetector {
+ public:
+  // `model` must have PoseNet's four outputs (heatmap, offsets, displacement_fwd,
+  // displacement_bwd: output names as tfjs_import gives them). `ctx` is needed (and must
+  // outlive the detector) for the Vulkan backend and ignored for the CPU backend.
+  static Result<std::unique_ptr<PoseDetector>> create(const nn::Model& model,
+                                                      const PoseDetectorOptions& options,
+                                                      Context* ctx);
+  ~PoseDetector();
+  PoseDetector(const PoseDetector&) = delete;
+  PoseDetector& operator=(const PoseDetector&) = delete;
+
+  // One frame: frames[i] is view view_ids[i] (unique ids, at most max_views frames).
+  Result<DetectionSet> detect(std::span<const nn::FrameView> frames, std::span<const int> view_ids,
+                              std::uint64_t frame_id = 0, std::int64_t timestamp_ns = 0);
+  // The frames of a FrameSet (each frame's buffer must be set).
+  Result<DetectionSet> detect(const FrameSet& frame_set);
+
+  const PoseDetectorTimes& last_times() const { return times_; }
+  const PoseDetectorOptions& options() const { return options_; }
+
+ private:
+  PoseDetector() = default;
+  Result<std::vector<nn::PoseNetView>> run_vulkan(std::span<const nn::FrameView> frames,
+                                                  std::vector<nn::Letterbox>& boxes);
+  Result<std::vector<nn::PoseNetView>> run_cpu(std::span<const nn::FrameView> frames,
+                                               std::vector<nn::Letterbox>& boxes);
+
+  PoseDetectorOptions options_;
+  nn::Model model_;            // CPU backend
+  std::size_t heads_[4] = {};  // output index of heatmap, offsets, fwd, bwd
+  std::vector<nn::LimbEdge> limb_edges_;
+  std::unique_ptr<FramePreprocessor> pre_;
+  std::unique_ptr<Network> net_;
+  std::unique_ptr<PoseNetPostprocessor> post_;
+  PoseDetectorTimes times_;
+};
+
+}  // namespace mocap::gpu

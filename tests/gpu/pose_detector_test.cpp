@@ -1,0 +1,227 @@
+// PoseDetector (runtime/gpu/pose_detector.h) on real photos (tools/fetch_test_photos.sh) with
+// models/posenet.mcnn: the people are found where they are (regions read off the photos by
+// hand), mutual-best high-affinity limbs join candidates of one person, Vulkan and CPU
+// backends agree, and a two-view batch gives each view's single-view result. Skips without
+// the model, the photos or a Vulkan device, except under CI=true, where it fails.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "runtime/gpu/pose_detector.h"
+#include "runtime/image/image.h"
+#include "runtime/nn/model_file.h"
+#include "runtime/skeleton/topology.h"
+#include "tests/support/data.h"
+
+namespace mocap::gpu {
+namespace {
+
+namespace fs = std::filesystem;
+const fs::path kSource = MOCAP_SOURCE_DIR;
+
+struct Box {
+  float x0, y0, x1, y1;
+  bool contains(const JointCandidate& c) const {
+    return c.x_px >= x0 && c.x_px <= x1 && c.y_px >= y0 && c.y_px <= y1;
+  }
+};
+
+// Persons in each photo (image pixels), read off the images by hand.
+struct Photo {
+  std::string file;
+  std::vector<Box> people;  // whole body
+  Box face;                 // the main person's face (nose)
+  Box shoulders;            // the main person's shoulders
+  Box hips;                 // the main person's hips
+};
+
+const std::vector<Photo>& photos() {
+  static const std::vector<Photo> p = {
+      // 548x342: Messi (centre, kicking), a blurred player behind at the right.
+      {"messi5.jpg",
+       {{150, 50, 470, 342}, {370, 130, 445, 260}},
+       {215, 85, 270, 135},
+       {180, 100, 300, 160},
+       {220, 200, 320, 280}},
+      // 640x480: a man holding a ball (left), a man in a flowered shirt (right, side view).
+      {"basketball1.png",
+       {{20, 60, 185, 480}, {420, 10, 640, 480}},
+       {65, 85, 125, 145},
+       {30, 120, 150, 200},
+       {40, 240, 150, 320}},
+  };
+  return p;
+}
+
+class PoseDetectorTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const fs::path model_file = kSource / "models/posenet.mcnn";
+    if (!fs::exists(model_file)) {
+      MOCAP_SKIP_OR_FAIL_IN_CI("models/posenet.mcnn missing (tools/fetch_models.sh)");
+    }
+    for (const Photo& p : photos()) {
+      if (!fs::exists(kSource / ".cache/photos" / p.file)) {
+        MOCAP_SKIP_OR_FAIL_IN_CI(".cache/photos/" + p.file +
+                                 " missing (tools/fetch_test_photos.sh)");
+      }
+    }
+    auto m = nn::read_model_file(model_file);
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    model_ = std::move(*m);
+    GpuOptions go;
+    go.validation = true;
+    auto c = Context::create(go);
+    if (!c.ok()) MOCAP_SKIP_OR_FAIL_IN_CI("no Vulkan device: " + c.error().message());
+    ctx_ = std::move(*c);
+  }
+  void TearDown() override {
+    if (ctx_) {
+      EXPECT_EQ(ctx_->validation_errors(), 0) << "Vulkan validation reported errors";
+    }
+  }
+  nn::Model model_;
+  std::unique_ptr<Context> ctx_;
+};
+
+int count_in(const std::vector<JointCandidate>& list, const Box& b, float min_score) {
+  return static_cast<int>(std::count_if(list.begin(), list.end(), [&](const JointCandidate& c) {
+    return c.score > min_score && b.contains(c);
+  }));
+}
+
+TEST_F(PoseDetectorTest, FindsThePeopleAndLinksLimbsWithinAPerson) {
+  const SkeletonTopology& topo = coco17_topology();
+  for (const Photo& photo : photos()) {
+    SCOPED_TRACE(photo.file);
+    auto img = image::load_image(kSource / ".cache/photos" / photo.file);
+    ASSERT_TRUE(img.ok()) << img.error().message();
+    const nn::FrameView frame{img->rgb, img->width_px, img->height_px, 0, PixelFormat::kRGB24};
+    const int id = 7;
+    std::vector<ViewDetections> per_backend;
+    for (PoseBackend backend : {PoseBackend::kVulkan, PoseBackend::kCpu}) {
+      PoseDetectorOptions o;
+      o.backend = backend;
+      o.input_size_px = 353;
+      auto det = PoseDetector::create(model_, o, ctx_.get());
+      ASSERT_TRUE(det.ok()) << det.error().message();
+      auto set = (*det)->detect({&frame, 1}, {&id, 1}, 42);
+      ASSERT_TRUE(set.ok()) << set.error().message();
+      EXPECT_TRUE(set->validate().ok());
+      ASSERT_EQ(set->views.size(), 1u);
+      EXPECT_EQ(set->views[0].view_id, id);
+      EXPECT_EQ(set->frame_id, 42u);
+      per_backend.push_back(set->views[0]);
+    }
+    const ViewDetections& v = per_backend[0];
+    const auto& c = v.candidates;
+    const int nose = topo.find_joint("nose");
+    EXPECT_EQ(count_in(c[static_cast<std::size_t>(nose)], photo.face, 0.5f), 1);
+    for (const char* j : {"l_shoulder", "r_shoulder"}) {
+      EXPECT_EQ(count_in(c[static_cast<std::size_t>(topo.find_joint(j))], photo.shoulders, 0.5f), 1)
+          << j;
+    }
+    for (const char* j : {"l_hip", "r_hip"}) {
+      EXPECT_EQ(count_in(c[static_cast<std::size_t>(topo.find_joint(j))], photo.hips, 0.5f), 1)
+          << j;
+    }
+    // Every person has shoulder candidates above 0.5.
+    for (const Box& person : photo.people) {
+      EXPECT_GE(
+          count_in(c[static_cast<std::size_t>(topo.find_joint("l_shoulder"))], person, 0.5f) +
+              count_in(c[static_cast<std::size_t>(topo.find_joint("r_shoulder"))], person, 0.5f),
+          1);
+    }
+    // Mutual-best limbs with affinity >= 0.5 join two candidates of the same person (or two
+    // candidates outside every person, e.g. the crowd).
+    auto person_of = [&](const JointCandidate& jc) {
+      for (std::size_t p = 0; p < photo.people.size(); ++p) {
+        if (photo.people[p].contains(jc)) return static_cast<int>(p);
+      }
+      return -1;
+    };
+    int strong = 0;
+    for (int l = 0; l < topo.limb_count(); ++l) {
+      const AffinityMatrix& m = v.affinities[static_cast<std::size_t>(l)];
+      const Limb& limb = topo.limb(l);
+      for (int r = 0; r < m.rows; ++r) {
+        for (int k = 0; k < m.cols; ++k) {
+          const float a = m.at(r, k);
+          bool best = a >= 0.5f;
+          for (int i = 0; i < m.cols && best; ++i) best = m.at(r, i) <= a;
+          for (int i = 0; i < m.rows && best; ++i) best = m.at(i, k) <= a;
+          if (!best) continue;
+          const auto& ca = c[static_cast<std::size_t>(limb.joint_a)][static_cast<std::size_t>(r)];
+          const auto& cb = c[static_cast<std::size_t>(limb.joint_b)][static_cast<std::size_t>(k)];
+          EXPECT_EQ(person_of(ca), person_of(cb))
+              << topo.limb_name(l) << " joins (" << ca.x_px << ", " << ca.y_px << ") and ("
+              << cb.x_px << ", " << cb.y_px << ") with affinity " << a;
+          if (person_of(ca) == 0) ++strong;
+        }
+      }
+    }
+    EXPECT_GE(strong, 8) << "strong limbs on the main person";
+    EXPECT_GE(nn::limb_chains(v, topo).size(), 1u);
+    // The CPU backend finds the same candidates.
+    const ViewDetections& cpu = per_backend[1];
+    for (std::size_t j = 0; j < c.size(); ++j) {
+      ASSERT_EQ(c[j].size(), cpu.candidates[j].size()) << topo.joint_name(static_cast<int>(j));
+      for (std::size_t i = 0; i < c[j].size(); ++i) {
+        EXPECT_NEAR(c[j][i].x_px, cpu.candidates[j][i].x_px, 0.05f);
+        EXPECT_NEAR(c[j][i].y_px, cpu.candidates[j][i].y_px, 0.05f);
+        EXPECT_NEAR(c[j][i].score, cpu.candidates[j][i].score, 1e-3f);
+      }
+    }
+  }
+}
+
+TEST_F(PoseDetectorTest, TwoViewBatchMatchesSingleViews) {
+  std::vector<image::ImageRgb8> imgs;
+  std::vector<nn::FrameView> frames;
+  for (const Photo& p : photos()) {
+    auto img = image::load_image(kSource / ".cache/photos" / p.file);
+    ASSERT_TRUE(img.ok());
+    imgs.push_back(std::move(*img));
+  }
+  for (const auto& img : imgs) {
+    frames.push_back({img.rgb, img.width_px, img.height_px, 0, PixelFormat::kRGB24});
+  }
+  PoseDetectorOptions o;
+  o.max_views = 2;
+  o.input_size_px = 257;
+  auto det = PoseDetector::create(model_, o, ctx_.get());
+  ASSERT_TRUE(det.ok()) << det.error().message();
+  const int ids[2] = {3, 5};
+  auto both = (*det)->detect(frames, ids);
+  ASSERT_TRUE(both.ok()) << both.error().message();
+  ASSERT_EQ(both->views.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    auto one = (*det)->detect({&frames[i], 1}, {&ids[i], 1});
+    ASSERT_TRUE(one.ok());
+    const ViewDetections& a = both->views[i];
+    const ViewDetections& b = one->views[0];
+    EXPECT_EQ(a.view_id, ids[i]);
+    for (std::size_t j = 0; j < a.candidates.size(); ++j) {
+      ASSERT_EQ(a.candidates[j].size(), b.candidates[j].size());
+      for (std::size_t k = 0; k < a.candidates[j].size(); ++k) {
+        EXPECT_NEAR(a.candidates[j][k].x_px, b.candidates[j][k].x_px, 1e-3f);
+      }
+    }
+  }
+  // Bad calls are errors, not crashes.
+  const int dup[2] = {1, 1};
+  EXPECT_FALSE((*det)->detect(frames, dup).ok());
+  std::vector<std::uint8_t> odd(100, 0);
+  const nn::FrameView bad{odd, 5, 4, 0, PixelFormat::kYUYV};
+  const int id = 0;
+  auto r = (*det)->detect({&bad, 1}, {&id, 1});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message().find("even"), std::string::npos) << r.error().message();
+}
+
+}  // namespace
+}  // namespace mocap::gpu
