@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "runtime/gpu/backend.h"
 #include "runtime/gpu/context.h"
 #include "runtime/gpu/network.h"
 #include "runtime/gpu/pose_detector.h"
@@ -74,21 +75,17 @@ struct Runner {
   Status init(const nn::Model& m, const nn::Shape& s, const std::string& device) {
     model = &m;
     shape = s;
-    if (backend == "cpu") {
-      std::fprintf(stderr, "backend: CPU reference kernels (single thread, slow)\n");
-      return Status::Ok();
-    }
-    if (backend != "vulkan") {
-      return Error(ErrorCode::kInvalidArgument,
-                   "--backend must be vulkan or cpu, got '" + backend + "'");
-    }
     gpu::GpuOptions go;
     go.device = device;
-    auto c = gpu::Context::create(go);
-    if (!c.ok()) return c.error();
-    ctx = std::move(*c);
-    std::fprintf(stderr, "backend: Vulkan on %s (%s)\n", ctx->device_info().name.c_str(),
-                 ctx->device_info().type_name().c_str());
+    auto b = gpu::choose_backend(backend, go);
+    if (!b.ok()) return b.error();
+    std::fprintf(stderr, "backend: %s\n", b->description.c_str());
+    if (b->backend == gpu::PoseBackend::kCpu) {
+      backend = "cpu";
+      return Status::Ok();
+    }
+    backend = "vulkan";
+    ctx = std::move(b->context);
     gpu::NetworkOptions no;
     no.batch = s.n;
     no.height_px = s.h;
@@ -145,22 +142,14 @@ int infer_image(const std::string& model_path, const std::string& image_path, in
   if (!img.ok()) return fail(img.error());
   gpu::PoseDetectorOptions o;
   o.input_size_px = size;
-  std::unique_ptr<gpu::Context> ctx;
-  if (backend == "cpu") {
-    o.backend = gpu::PoseBackend::kCpu;
-    std::fprintf(stderr, "backend: CPU reference kernels (single thread, slow)\n");
-  } else if (backend == "vulkan") {
-    gpu::GpuOptions go;
-    go.device = device;
-    auto c = gpu::Context::create(go);
-    if (!c.ok()) return fail(c.error());
-    ctx = std::move(*c);
-    std::fprintf(stderr, "backend: Vulkan on %s (%s)\n", ctx->device_info().name.c_str(),
-                 ctx->device_info().type_name().c_str());
-  } else {
-    return fail(Error(ErrorCode::kInvalidArgument,
-                      "--backend must be vulkan or cpu, got '" + backend + "'"));
-  }
+  gpu::GpuOptions go;
+  go.device = device;
+  auto b = gpu::choose_backend(backend, go);
+  if (!b.ok()) return fail(b.error());
+  std::fprintf(stderr, "backend: %s\n", b->description.c_str());
+  o.backend = b->backend;
+  const std::string used = b->backend == gpu::PoseBackend::kVulkan ? "vulkan" : "cpu";
+  std::unique_ptr<gpu::Context> ctx = std::move(b->context);
   auto det = gpu::PoseDetector::create(*model, o, ctx.get());
   if (!det.ok()) return fail(det.error());
   const nn::FrameView frame{img->rgb, img->width_px, img->height_px, 0, PixelFormat::kRGB24};
@@ -176,7 +165,7 @@ int infer_image(const std::string& model_path, const std::string& image_path, in
   j["image"] = image_path;
   j["model"] = model->name;
   j["input_size_px"] = size;
-  j["backend"] = backend;
+  j["backend"] = used;
   j["score_threshold"] = o.post.score_threshold;
   j["max_candidates_per_joint"] = o.post.max_candidates_per_joint;
   j["affinity_sigma_strides"] = o.post.affinity_sigma_strides;
@@ -215,7 +204,7 @@ int infer_image(const std::string& model_path, const std::string& image_path, in
   }
   const auto& t = (*det)->last_times();
   std::printf("%s: %dx%d px, input %d, %s: pre %.1f ms, network %.1f ms, post %.1f ms\n",
-              image_path.c_str(), img->width_px, img->height_px, size, backend.c_str(),
+              image_path.c_str(), img->width_px, img->height_px, size, used.c_str(),
               t.preprocess_ms, t.network_ms, t.postprocess_ms);
   int total = 0;
   for (int k = 0; k < topo.joint_count(); ++k) {
@@ -250,7 +239,7 @@ double percentile(std::vector<double> v, double q) {
 
 int run_infer(Args args) {
   std::string model_path, input_path, image_path, dump_dir, detections_out;
-  std::string backend = "vulkan", device;
+  std::string backend = "auto", device;
   int size = 257;
   cli::ArgParser p("mocap infer",
                    "Runs the pose CNN. With --input-f32: on a raw NHWC float32 tensor [1,S,S,C]\n"
@@ -265,7 +254,9 @@ int run_infer(Args args) {
   p.option("--dump", &dump_dir, "DIR", "write the outputs here");
   p.option("--image", &image_path, "PATH", "photo input (full GPU path with detections)");
   p.option("--detections-out", &detections_out, "FILE", "candidates + affinities (with --image)");
-  p.option("--backend", &backend, "NAME", "vulkan (default) or cpu");
+  p.option("--backend", &backend, "NAME",
+           "auto (default: Vulkan, or the CPU backend with a warning when no Vulkan device "
+           "can be opened), vulkan or cpu");
   p.option("--device", &device, "NAME", "Vulkan device index or name substring");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   if (model_path.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--model is required"));
