@@ -1,9 +1,10 @@
 # Fails when a file under ROOT includes a hardware header (V4L2, libcamera, libgpiod,
-# media controller, DRM). runtime/ must stay portable; hardware lives in hal/.
+# media controller, DRM, FFmpeg) or anything from hal/. runtime/ must stay portable; hardware
+# and codecs live in hal/.
 file(GLOB_RECURSE files "${ROOT}/*.h" "${ROOT}/*.hpp" "${ROOT}/*.cpp" "${ROOT}/*.cc")
 set(bad "")
 foreach(f IN LISTS files)
-  file(STRINGS "${f}" lines REGEX "^[ \t]*#[ \t]*include[ \t]*[<\"](linux/|libcamera/|gpiod|media/|drm/|sys/ioctl|asm/)")
+  file(STRINGS "${f}" lines REGEX "^[ \t]*#[ \t]*include[ \t]*[<\"](linux/|libcamera/|gpiod|media/|drm/|sys/ioctl|asm/|libav|libsw|hal/)")
   if(lines)
     list(APPEND bad "${f}: ${lines}")
   endif()
