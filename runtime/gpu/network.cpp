@@ -40,6 +40,19 @@ constexpr int kConvGroupsMax = 3;
 // 0.3 ms (17x17x384); TX 2 and 8 are slower.
 constexpr int kDepthwisePixels = 4;
 
+bool is_pointwise(const nn::Layer& l) {
+  return l.op == nn::OpType::kConv2D && l.kernel_h == 1 && l.kernel_w == 1 && l.stride_h == 1 &&
+         l.stride_w == 1;
+}
+
+// A 1x1 conv fused with its sibling heads: group leader (layer index), first vec4 group and
+// groups per pixel in the leader's buffer.
+struct FusedHead {
+  int leader = -1;
+  int offset4 = 0;
+  int stride4 = 0;
+};
+
 }  // namespace
 
 Status NetworkOptions::validate() const {
@@ -118,11 +131,51 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
   const std::size_t V = shapes_.size();
   for (const nn::Shape& s : shapes_) c4_.push_back(c4_of(s.c));
 
+  // Sibling output heads: 1x1 convs reading the same value, with the same activation, whose
+  // outputs only leave the network (PoseNet's four heads) run as one GEMM that writes them side
+  // by side into the leader's buffer: one dispatch instead of four small ones.
+  const std::size_t L = model.layers.size();
+  std::vector<FusedHead> fused(L);
+  auto only_output = [&](int v) {
+    for (const nn::Layer& x : model.layers) {
+      if (std::find(x.inputs.begin(), x.inputs.end(), v) != x.inputs.end()) return false;
+    }
+    for (const nn::ModelOutput& o : model.outputs) {
+      if (o.value == v) return true;
+    }
+    return false;
+  };
+  auto fusable = [&](std::size_t li) {
+    const nn::Layer& x = model.layers[li];
+    return is_pointwise(x) && x.activation != nn::Activation::kPRelu &&
+           only_output(static_cast<int>(li) + 1);
+  };
+  for (std::size_t li = 0; li < L; ++li) {
+    if (fused[li].leader >= 0 || !fusable(li)) continue;
+    std::vector<std::size_t> group{li};
+    for (std::size_t lj = li + 1; lj < L; ++lj) {
+      if (fused[lj].leader < 0 && fusable(lj) &&
+          model.layers[lj].inputs[0] == model.layers[li].inputs[0] &&
+          model.layers[lj].activation == model.layers[li].activation) {
+        group.push_back(lj);
+      }
+    }
+    if (group.size() < 2) continue;
+    int offset4 = 0;
+    for (std::size_t m : group) {
+      fused[m] = FusedHead{static_cast<int>(li), offset4, 0};
+      offset4 += c4_[m + 1];
+    }
+    for (std::size_t m : group) fused[m].stride4 = offset4;
+  }
+
   // Activation buffers (vec4 channel groups).
   for (std::size_t v = 0; v < V; ++v) {
     const nn::Shape& s = shapes_[v];
+    const bool leader = v > 0 && fused[v - 1].leader == static_cast<int>(v - 1);
+    const int groups = leader ? fused[v - 1].stride4 : c4_[v];
     const VkDeviceSize bytes =
-        static_cast<VkDeviceSize>(s.n) * s.h * s.w * static_cast<VkDeviceSize>(c4_[v]) * 16;
+        static_cast<VkDeviceSize>(s.n) * s.h * s.w * static_cast<VkDeviceSize>(groups) * 16;
     auto b = ctx_.create_buffer(bytes, false);
     if (!b.ok()) return b.error();
     values_.push_back(std::move(*b));
@@ -132,9 +185,17 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
   input_staging_ = std::move(*in_staging);
   std::memset(input_staging_.mapped(), 0, input_staging_.size_bytes());
   for (const nn::ModelOutput& o : model.outputs) {
-    auto st = ctx_.create_buffer(values_[ix(o.value)].size_bytes(), true);
+    int src = o.value, stride4 = c4_[ix(o.value)], offset4 = 0;
+    if (o.value > 0 && fused[ix(o.value - 1)].leader >= 0) {
+      const FusedHead& f = fused[ix(o.value - 1)];
+      src = f.leader + 1;
+      stride4 = f.stride4;
+      offset4 = f.offset4;
+    }
+    auto st = ctx_.create_buffer(values_[ix(src)].size_bytes(), true);
     if (!st.ok()) return st.error();
-    outputs_.push_back(Output{o.name, o.value, shapes_[ix(o.value)], std::move(*st)});
+    outputs_.push_back(
+        Output{o.name, o.value, shapes_[ix(o.value)], std::move(*st), src, stride4, offset4});
   }
   auto dummy = upload(std::vector<float>(4, 0.f));
   if (!dummy.ok()) return dummy.error();
@@ -154,13 +215,21 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
 
   for (std::size_t li = 0; li < model.layers.size(); ++li) {
     const nn::Layer& l = model.layers[li];
+    // A fused head other than its group's leader is computed by the leader's step.
+    if (fused[li].leader >= 0 && fused[li].leader != static_cast<int>(li)) continue;
+    std::vector<std::size_t> members{li};
+    for (std::size_t lj = li + 1; lj < L && fused[li].leader >= 0; ++lj) {
+      if (fused[lj].leader == static_cast<int>(li)) members.push_back(lj);
+    }
     const int in_v = l.inputs[0];
     const nn::Shape& is = shapes_[ix(in_v)];
     const nn::Shape& os = shapes_[li + 1];
     const int cin4 = c4_[ix(in_v)];
-    const int cout4 = c4_[li + 1];
+    const int cout4 = fused[li].leader >= 0 ? fused[li].stride4 : c4_[li + 1];
     Step step;
     step.name = l.name;
+    for (std::size_t k = 1; k < members.size(); ++k)
+      step.name += " + " + model.layers[members[k]].name;
     int shader = -1;
     std::vector<float> w;
     std::vector<float> bias;
@@ -168,19 +237,27 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
     int conv_groups = 1;
     const int pad_top = nn::conv_pad_before(is.h, l.kernel_h, l.stride_h, l.padding);
     const int pad_left = nn::conv_pad_before(is.w, l.kernel_w, l.stride_w, l.padding);
-    if (l.op == nn::OpType::kConv2D && l.kernel_h == 1 && l.kernel_w == 1 && l.stride_h == 1 &&
-        l.stride_w == 1) {
+    if (is_pointwise(l)) {
       shader = static_cast<int>(Shader::kPointwiseConv2D);
       const int cout4p = round_up(cout4, kPointwiseGroups);
       bias_groups = cout4p;
-      const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
-      const int cin = wt.shape[2];
-      const int cout = wt.shape[3];
       w.assign(ix(static_cast<long>(cin4) * 4 * cout4p * 4), 0.f);
-      for (int ci = 0; ci < cin; ++ci) {
-        for (int co = 0; co < cout; ++co) {
-          w[ix(static_cast<long>(ci) * cout4p * 4 + co)] =
-              wt.data[ix(static_cast<long>(ci) * cout + co)];
+      bias.assign(ix(static_cast<long>(bias_groups) * 4), 0.f);
+      for (std::size_t m : members) {
+        const nn::Layer& lm = model.layers[m];
+        const int first = fused[li].leader >= 0 ? fused[m].offset4 * 4 : 0;
+        const nn::ConstTensor& wt = model.tensors[ix(lm.weights)];
+        const int cin = wt.shape[2];
+        const int cout = wt.shape[3];
+        for (int ci = 0; ci < cin; ++ci) {
+          for (int co = 0; co < cout; ++co) {
+            w[ix(static_cast<long>(ci) * cout4p * 4 + first + co)] =
+                wt.data[ix(static_cast<long>(ci) * cout + co)];
+          }
+        }
+        if (lm.bias >= 0) {
+          const auto& bt = model.tensors[ix(lm.bias)].data;
+          std::copy(bt.begin(), bt.end(), bias.begin() + first);
         }
       }
       const long pixels = static_cast<long>(os.n) * os.h * os.w;
@@ -230,8 +307,8 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
                                                 "'); run this model with the CPU backend");
     }
     step.push.resize(kPushBytes / sizeof(std::int32_t), 0);
-    bias.assign(ix(static_cast<long>(bias_groups) * 4), 0.f);
-    if (l.bias >= 0) {
+    if (bias.empty()) bias.assign(ix(static_cast<long>(bias_groups) * 4), 0.f);
+    if (l.bias >= 0 && !is_pointwise(l)) {
       const auto& bt = model.tensors[ix(l.bias)].data;
       std::copy(bt.begin(), bt.end(), bias.begin());
     }
@@ -301,8 +378,8 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
       }
     }
     vkUpdateDescriptorSets(ctx_.device(), kBindings, writes, 0, nullptr);
+    layer_times_.push_back(LayerTime{step.name, shader_name(static_cast<Shader>(shader)), 0});
     steps_.push_back(std::move(step));
-    layer_times_.push_back(LayerTime{l.name, shader_name(static_cast<Shader>(shader)), 0});
   }
   // All weights in one submission.
   if (Status s = flush_uploads(); !s.ok()) return s;
@@ -359,7 +436,7 @@ Status Network::record() {
   }
   for (const Output& o : outputs_) {
     VkBufferCopy c{0, 0, o.staging.size_bytes()};
-    vkCmdCopyBuffer(cb_, values_[ix(o.value)].handle(), o.staging.handle(), 1, &c);
+    vkCmdCopyBuffer(cb_, values_[ix(o.src_value)].handle(), o.staging.handle(), 1, &c);
   }
   VkMemoryBarrier hb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
   hb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
@@ -422,10 +499,10 @@ Status Network::read_output(std::size_t i, nn::Tensor& out) const {
   out.data.resize(ix(o.shape.elements()));
   const float* src = static_cast<const float*>(o.staging.mapped());
   const int c = o.shape.c;
-  const int c4 = c4_of(c);
   const long pixels = static_cast<long>(o.shape.n) * o.shape.h * o.shape.w;
   for (long p = 0; p < pixels; ++p) {
-    std::memcpy(out.data.data() + p * c, src + p * c4 * 4, ix(c) * sizeof(float));
+    std::memcpy(out.data.data() + p * c, src + (p * o.stride4 + o.offset4) * 4,
+                ix(c) * sizeof(float));
   }
   return Status::Ok();
 }

@@ -60,6 +60,9 @@ class Network {
     int value = -1;
     nn::Shape shape;
     Buffer staging;
+    int src_value = -1;  // buffer it is copied from (a fused group's leader value)
+    int stride4 = 0;     // vec4 groups per pixel there
+    int offset4 = 0;     // its first group there
   };
   struct Step {
     std::string name;
