@@ -77,4 +77,26 @@ Status AssociationOptions::validate() const {
   return triangulation.validate();
 }
 
+AssociationOptions posenet_coco17_options() {
+  AssociationOptions o;
+  // Measured on pose2sim_multi (4 cameras 2-7 m from the people, 1088x1920 frames, PoseNet at
+  // 353 and 513; `mocap replay`). The frames are ~2.5x the height of Shelf's (776 px) and
+  // PoseNet's heatmap cell is 60-87 image px there, so the pixel gates scale up:
+  //  - triangulation.max_reprojection_error_px 25 -> 60: at 25 the close camera's view of a
+  //    person (errors of 20-70 px from PoseNet and 5-30 px of calibration) is dropped from
+  //    most joints, which are then triangulated from the two far views only.
+  o.triangulation.max_reprojection_error_px = 60.0;
+  //  - fit.robust_loss_px 8 -> 20: the Huber scale of the fit's reprojection term, same scaling.
+  o.fit.robust_loss_px = 20.0;
+  //  - fit.confident_min_views 3 -> 2: with 4 views and the two people occluding each other,
+  //    few bones get 5 samples from >= 3 views, so at 3 the fitter never starts (0 persons
+  //    fitted in 100 frames); at 2 both people are fitted from frame ~10.
+  o.fit.confident_min_views = 2;
+  //  - graph.max_epipolar_dist_m 0.15 -> 0.20: a person 6-7 m from the cameras (the third
+  //    person, 2 views) is matched in 90 instead of 79 of 100 frames; the two people on the
+  //    treadmill are tracked the same.
+  o.graph.max_epipolar_dist_m = 0.20;
+  return o;
+}
+
 }  // namespace mocap::assoc

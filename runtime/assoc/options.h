@@ -108,4 +108,9 @@ struct AssociationOptions {
   Status validate() const;
 };
 
+// Preset for PoseNet COCO-17 detections (gpu::PoseDetector) on large real frames, e.g. the
+// 1088x1920 pose2sim_multi recording. The defaults above stay tuned for Shelf (OpenPose
+// BODY_25 on ~1000 px images); options.cpp says what this preset changes and why.
+AssociationOptions posenet_coco17_options();
+
 }  // namespace mocap::assoc

@@ -200,5 +200,23 @@ TEST(AssocOptions, EachSubStructValidatesItsOwnFields) {
   EXPECT_TRUE(o.tracking.validate().ok());
 }
 
+// The PoseNet COCO-17 preset is valid, changes only its documented fields, and leaves the
+// Shelf defaults as they are.
+TEST(AssociationOptionsTest, PoseNetPresetIsValidAndLeavesDefaultsAlone) {
+  const AssociationOptions p = posenet_coco17_options();
+  EXPECT_TRUE(p.validate().ok());
+  const AssociationOptions d;
+  EXPECT_DOUBLE_EQ(d.triangulation.max_reprojection_error_px, 25.0);
+  EXPECT_DOUBLE_EQ(d.fit.robust_loss_px, 8.0);
+  EXPECT_EQ(d.fit.confident_min_views, 3);
+  EXPECT_DOUBLE_EQ(d.graph.max_epipolar_dist_m, 0.15);
+  EXPECT_DOUBLE_EQ(p.triangulation.max_reprojection_error_px, 60.0);
+  EXPECT_DOUBLE_EQ(p.fit.robust_loss_px, 20.0);
+  EXPECT_EQ(p.fit.confident_min_views, 2);
+  EXPECT_DOUBLE_EQ(p.graph.max_epipolar_dist_m, 0.20);
+  EXPECT_EQ(p.tracking.min_joints_new_track, d.tracking.min_joints_new_track);
+  EXPECT_DOUBLE_EQ(p.graph.min_affinity, d.graph.min_affinity);
+}
+
 }  // namespace
 }  // namespace mocap::assoc

@@ -22,7 +22,7 @@ const Command kCommands[] = {
   {"bench",   "benchmarks: assoc, cnn (pipeline arrives with issue #6)", mocap::tools::run_bench, nullptr},
   {"infer",   "run the pose CNN on a tensor or an image",                 mocap::tools::run_infer, nullptr},
   {"model",   "convert and inspect model files",                          mocap::tools::run_model, nullptr},
-  {"replay",  "run a recorded multi-view video through the pipeline",     nullptr, "the hardware layer (issue #5) and mocapd (issue #6)"},
+  {"replay",  "run a recorded multi-view video through the pipeline",     mocap::tools::run_replay, nullptr},
   {"cameras", "list cameras and their formats",                           nullptr, "the hardware layer (issue #5)"},
   {"capture", "record frames from cameras",                               nullptr, "the hardware layer (issue #5)"},
   {"trigger", "drive or monitor a GPIO trigger line",                     nullptr, "the hardware layer (issue #5)"},
