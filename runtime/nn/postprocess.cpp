@@ -51,7 +51,7 @@ Status PostprocessOptions::validate() const {
 }
 
 float PostprocessOptions::threshold_logit() const {
-  const double p = score_threshold;
+  const double p = static_cast<double>(score_threshold);
   return static_cast<float>(std::log(p / (1.0 - p)));
 }
 
@@ -288,8 +288,8 @@ ViewDetections to_view_detections(const PeakSet& peaks,
   for (std::size_t k = 0; k < peaks.joints.size(); ++k) {
     for (const PeakCandidate& c : peaks.joints[k]) {
       JointCandidate jc;
-      jc.x_px = static_cast<float>(letterbox.image_x(c.x_net_px));
-      jc.y_px = static_cast<float>(letterbox.image_y(c.y_net_px));
+      jc.x_px = static_cast<float>(letterbox.image_x(static_cast<double>(c.x_net_px)));
+      jc.y_px = static_cast<float>(letterbox.image_y(static_cast<double>(c.y_net_px)));
       jc.score = std::clamp(c.score, 0.f, 1.f);
       v.candidates[k].push_back(jc);
     }
