@@ -20,6 +20,8 @@
 #include <utility>
 #include <vector>
 
+#include "runtime/nn/model_file.h"
+
 namespace mocap::nn {
 namespace {
 
@@ -1288,6 +1290,11 @@ Result<Model> import_tfjs(const std::filesystem::path& model_json) {
   } catch (const std::exception& e) {  // allocation failure; the checks leave nothing else
     return Error(ErrorCode::kInternal, model_json.string() + ": import failed: " + e.what());
   }
+}
+
+Result<Model> load_model(const std::filesystem::path& path) {
+  if (path.extension() == ".json") return import_tfjs(path);
+  return read_model_file(path);
 }
 
 }  // namespace mocap::nn

@@ -30,4 +30,8 @@ namespace mocap::nn {
 // has passed Model::validate(). Errors name the file and, where there is one, the node.
 Result<Model> import_tfjs(const std::filesystem::path& model_json);
 
+// A model from either source the tools accept: a TF.js model.json (imported) or the project's
+// model file (runtime/nn/model_file.h), told apart by the ".json" extension.
+Result<Model> load_model(const std::filesystem::path& path);
+
 }  // namespace mocap::nn

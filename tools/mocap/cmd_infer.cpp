@@ -19,7 +19,6 @@
 #include "runtime/gpu/pose_detector.h"
 #include "runtime/image/image.h"
 #include "runtime/nn/cpu_ops.h"
-#include "runtime/nn/model_file.h"
 #include "runtime/nn/postprocess.h"
 #include "runtime/nn/tfjs_import.h"
 #include "runtime/skeleton/topology.h"
@@ -32,11 +31,6 @@ namespace {
 namespace fs = std::filesystem;
 
 // A .json model is imported from TF.js on the fly; anything else is a project model file.
-Result<nn::Model> load_model(const std::string& path) {
-  if (fs::path(path).extension() == ".json") return nn::import_tfjs(path);
-  return nn::read_model_file(path);
-}
-
 Result<std::vector<float>> read_f32(const std::string& path, long expected) {
   std::error_code ec;
   const auto size = fs::file_size(path, ec);
@@ -136,7 +130,7 @@ int infer_image(const std::string& model_path, const std::string& image_path, in
   if (size < 17 || size > 1025) {
     return fail(Error(ErrorCode::kInvalidArgument, "--size must be in [17, 1025] with --image"));
   }
-  auto model = load_model(model_path);
+  auto model = nn::load_model(model_path);
   if (!model.ok()) return fail(model.error());
   auto img = image::load_image(image_path);
   if (!img.ok()) return fail(img.error());
@@ -268,7 +262,7 @@ int run_infer(Args args) {
   }
   if (size < 1 || size > 4096)
     return fail(Error(ErrorCode::kInvalidArgument, "--size must be in [1, 4096]"));
-  auto model = load_model(model_path);
+  auto model = nn::load_model(model_path);
   if (!model.ok()) return fail(model.error());
   const nn::Shape shape{1, size, size, model->input_channels};
   auto input = read_f32(input_path, shape.elements());
@@ -315,7 +309,7 @@ int run_bench_cnn(Args args) {
     return fail(Error(ErrorCode::kInvalidArgument,
                       "need --runs >= 20, --warmup >= 0, --batch in [1, 64], --size in [1, 4096]"));
   }
-  auto model = load_model(model_path);
+  auto model = nn::load_model(model_path);
   if (!model.ok()) return fail(model.error());
   const nn::Shape shape{batch, size, size, model->input_channels};
   std::vector<float> input(static_cast<std::size_t>(shape.elements()));

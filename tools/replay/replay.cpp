@@ -10,7 +10,6 @@
 #include "runtime/geometry/calibration.h"
 #include "runtime/gpu/backend.h"
 #include "runtime/gpu/pose_detector.h"
-#include "runtime/nn/model_file.h"
 #include "runtime/nn/tfjs_import.h"
 #include "runtime/skeleton/topology.h"
 
@@ -124,9 +123,7 @@ Result<std::unique_ptr<ReplaySession>> ReplaySession::open(const ReplayOptions& 
   }
   m.frames.resize(ix(V));
 
-  Result<nn::Model> model = options.model.extension() == ".json"
-                                ? nn::import_tfjs(options.model)
-                                : nn::read_model_file(options.model);
+  Result<nn::Model> model = nn::load_model(options.model);
   if (!model.ok()) return model.error();
   gpu::GpuOptions go;
   go.device = options.device;
