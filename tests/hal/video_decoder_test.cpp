@@ -3,7 +3,6 @@
 // and a damaged copy of a real video, all written to a temp dir at test time), and the
 // pose2sim_multi recording decodes to 100 RGB frames of 1088x1920 at 60 fps.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -14,6 +13,7 @@
 
 #include "hal/replay/video_decoder.h"
 #include "tests/support/data.h"
+#include "tests/support/temp_dir.h"
 
 namespace mocap::hal {
 namespace {
@@ -22,17 +22,6 @@ namespace fs = std::filesystem;
 
 class VideoDecoderTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("mocap_video_decoder_test_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
   fs::path file(const std::string& name) const { return dir_ / name; }
 
   static void write(const fs::path& p, const std::vector<char>& bytes) {
@@ -66,7 +55,8 @@ class VideoDecoderTest : public ::testing::Test {
     return "";
   }
 
-  fs::path dir_;
+  ::mocap::testing::TestTempDir tmp_{"video_decoder_test"};
+  const std::filesystem::path dir_ = tmp_.path();
 };
 
 std::optional<fs::path> video0() {

@@ -3,12 +3,12 @@
 // checked when present under <source>/.cache/photos.
 #include "runtime/image/image.h"
 #include "tests/support/data.h"
+#include "tests/support/temp_dir.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <png.h>
 #include <turbojpeg.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -173,17 +173,6 @@ Diff compare(const Bytes& a, const Bytes& b) {
 
 class ImageTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("mocap_image_test_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
   fs::path file(const std::string& name) const { return dir_ / name; }
 
   // Writes `spec`, decodes it and returns the image (fails the test on an error).
@@ -198,7 +187,8 @@ class ImageTest : public ::testing::Test {
     return std::move(img).value();
   }
 
-  fs::path dir_;
+  ::mocap::testing::TestTempDir tmp_{"image_test"};
+  const std::filesystem::path dir_ = tmp_.path();
 };
 
 TEST_F(ImageTest, SniffsFormatByMagicBytes) {

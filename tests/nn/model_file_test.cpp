@@ -2,7 +2,6 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 
@@ -16,6 +15,8 @@
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "tests/support/temp_dir.h"
 
 namespace mocap::nn {
 namespace {
@@ -233,25 +234,6 @@ Error parse_error(const Bytes& b) {
   return r.error();
 }
 
-class TempDir {
- public:
-  TempDir() {
-    path_ = std::filesystem::temp_directory_path() /
-            ("mocap_model_file_test_" + std::to_string(::getpid()) + "_" +
-             ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
-
 TEST(ModelFileTest, TinyModelIsValid) {
   const Model m = tiny_model();
   ASSERT_TRUE(m.validate().ok()) << m.validate().error().message();
@@ -311,7 +293,7 @@ TEST(ModelFileTest, Crc32KnownAnswer) {
 }
 
 TEST(ModelFileTest, FileRoundTripIsAtomicAndLeavesNoTemporaries) {
-  TempDir dir;
+  ::mocap::testing::TestTempDir dir("model_file_test");
   const std::filesystem::path file = dir.path() / "m.mcnn";
   Model m = tiny_model();
   ASSERT_TRUE(write_model_file(m, file).ok());
@@ -327,7 +309,7 @@ TEST(ModelFileTest, FileRoundTripIsAtomicAndLeavesNoTemporaries) {
 }
 
 TEST(ModelFileTest, WriteRefusesInvalidModelAndBadDirectory) {
-  TempDir dir;
+  ::mocap::testing::TestTempDir dir("model_file_test");
   Model bad = tiny_model();
   bad.layers[0].inputs = {5};
   Status s = write_model_file(bad, dir.path() / "bad.mcnn");
@@ -367,7 +349,7 @@ TEST(ModelFileTest, TruncatedFile) {
     const Bytes b(good.begin(), good.begin() + static_cast<long>(keep));
     const Error e = parse_error(b);
     EXPECT_THAT(e.message(), HasSubstr(kSource));
-    EXPECT_THAT(e.message(), testing::AnyOf(HasSubstr("truncated"), HasSubstr("too short")))
+    EXPECT_THAT(e.message(), ::testing::AnyOf(HasSubstr("truncated"), HasSubstr("too short")))
         << "kept " << keep << ": " << e.message();
   }
   Bytes longer = good;

@@ -2,7 +2,6 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 
@@ -19,6 +18,7 @@
 
 #include "runtime/nn/model_file.h"
 #include "tests/support/data.h"
+#include "tests/support/temp_dir.h"
 
 namespace mocap::nn {
 namespace {
@@ -168,18 +168,6 @@ class TfjsGraph {
 
 class TfjsImportTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("mocap_tfjs_import_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::remove_all(dir_);
-    std::filesystem::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ec;
-    std::filesystem::remove_all(dir_, ec);
-  }
-
   // input 8x8x3 -> fused conv 3x3/2 (BiasAdd+Relu6) -> fused depthwise (BiasAdd+Relu6)
   // -> Conv2D 1x1 + standalone BiasAdd + Relu6 (folded) -> AddV2 with the first conv
   // -> ConcatV2 with the depthwise output -> MaxPool 2x2/2 VALID -> ResizeBilinear x2
@@ -227,7 +215,8 @@ class TfjsImportTest : public ::testing::Test {
     return r.error();
   }
 
-  std::filesystem::path dir_;
+  ::mocap::testing::TestTempDir tmp_{"tfjs_import_test"};
+  const std::filesystem::path dir_ = tmp_.path();
   TfjsGraph g_;
 };
 
