@@ -1,9 +1,10 @@
 #version 450
 // 1x1 convolution (a GEMM over pixels): y[p][co] = act(b[co] + sum_ci x[p][ci] w[ci][co]).
-// Activations are NHWC with channels in vec4 groups (C4). Each invocation computes 8 pixels x
-// 2 vec4 output groups (16 vec4 accumulators, no shared memory, no barriers: the register-
-// blocked shape lavapipe runs fastest, see docs/gpu.md). Weights are [cin4 * 4][cout4p] vec4
-// with cout4p = cout4 rounded up to even; bias is [cout4p].
+// Activations are NHWC with channels in vec4 groups (C4). Each invocation computes TP pixels x
+// TC vec4 output groups (spec constants; the network uses 8 x 4 = 32 vec4 accumulators, no
+// shared memory, no barriers: the register-blocked shape lavapipe runs fastest, see
+// docs/gpu.md). Weights are [cin4 * 4][cout4p] vec4 with cout4p = cout4 rounded up to a
+// multiple of TC; bias is [cout4p].
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x_id = 0) in;
 #include "activation.glsl"

@@ -202,11 +202,15 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
   constants_.push_back(std::move(*dummy));
   const std::size_t dummy_index = 0;
 
-  const auto layers = static_cast<std::uint32_t>(model.layers.size());
-  VkDescriptorPoolSize ps[2] = {{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, layers * kBindings},
-                                {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, layers * kBindings}};
+  // One descriptor set per step: one per layer, one per input of a concat.
+  std::uint32_t sets = 0;
+  for (const nn::Layer& l : model.layers) {
+    sets += l.op == nn::OpType::kConcat ? static_cast<std::uint32_t>(l.inputs.size()) : 1u;
+  }
+  VkDescriptorPoolSize ps[2] = {{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, sets * kBindings},
+                                {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, sets * kBindings}};
   VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-  pi.maxSets = layers;
+  pi.maxSets = sets;
   pi.poolSizeCount = 2;
   pi.pPoolSizes = ps;
   if (VkResult r = vkCreateDescriptorPool(ctx_.device(), &pi, nullptr, &pool_); r != VK_SUCCESS) {
@@ -215,6 +219,10 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
 
   for (std::size_t li = 0; li < model.layers.size(); ++li) {
     const nn::Layer& l = model.layers[li];
+    if (l.op != nn::OpType::kConv2D && l.op != nn::OpType::kDepthwiseConv2D) {
+      if (Status st = add_data_step(model, li); !st.ok()) return st;
+      continue;
+    }
     // A fused head other than its group's leader is computed by the leader's step.
     if (fused[li].leader >= 0 && fused[li].leader != static_cast<int>(li)) continue;
     std::vector<std::size_t> members{li};
@@ -286,7 +294,7 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
                    cout4, 0,    l.stride_h, l.stride_w, pad_top, pad_left, x_blocks, cout4p};
       step.groups = div_up(static_cast<long>(os.n) * os.h * x_blocks * (cout4p / conv_groups),
                            static_cast<long>(options.workgroup_size));
-    } else if (l.op == nn::OpType::kDepthwiseConv2D) {
+    } else {
       shader = static_cast<int>(Shader::kDepthwiseConv2D);
       const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
       const int c = wt.shape[2];
@@ -301,10 +309,6 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
                    cout4, l.stride_h, l.stride_w, pad_top, pad_left, x_blocks};
       step.groups = div_up(static_cast<long>(os.n) * os.h * x_blocks * cout4,
                            static_cast<long>(options.workgroup_size));
-    } else {
-      return Error(ErrorCode::kUnsupported, std::string("the Vulkan backend has no kernel for ") +
-                                                nn::to_string(l.op) + " yet (layer '" + l.name +
-                                                "'); run this model with the CPU backend");
     }
     step.push.resize(kPushBytes / sizeof(std::int32_t), 0);
     if (bias.empty()) bias.assign(ix(static_cast<long>(bias_groups) * 4), 0.f);
@@ -343,47 +347,131 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
       ai = constants_.size();
       constants_.push_back(std::move(*ab));
     }
-    VkDescriptorSetAllocateInfo dai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
-    dai.descriptorPool = pool_;
-    dai.descriptorSetCount = 1;
-    const VkDescriptorSetLayout sl = step.kernel->set_layout();
-    dai.pSetLayouts = &sl;
-    if (VkResult r = vkAllocateDescriptorSets(ctx_.device(), &dai, &step.set); r != VK_SUCCESS) {
-      return vk_error(r, "allocating a descriptor set");
-    }
-    const VkBuffer bufs[kBindings] = {values_[ix(in_v)].handle(), constants_[wi].handle(),
-                                      constants_[wi + 1].handle(), values_[li + 1].handle(),
-                                      constants_[ai].handle()};
-    const Buffer* texel_bufs[2] = {&values_[ix(in_v)], &constants_[wi]};
-    VkBufferView texel_views[2];
-    for (int t = 0; t < 2; ++t) {
-      auto view = ctx_.create_texel_view(*texel_bufs[t]);
-      if (!view.ok()) return view.error();
-      texel_views[t] = view->handle();
-      views_.push_back(std::move(*view));
-    }
-    VkDescriptorBufferInfo infos[kBindings];
-    VkWriteDescriptorSet writes[kBindings];
-    for (int b = 0; b < kBindings; ++b) {
-      infos[b] = VkDescriptorBufferInfo{bufs[b], 0, VK_WHOLE_SIZE};
-      writes[b] = VkWriteDescriptorSet{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-      writes[b].dstSet = step.set;
-      writes[b].dstBinding = static_cast<std::uint32_t>(b);
-      writes[b].descriptorCount = 1;
-      writes[b].descriptorType = kBindingTypes[b];
-      if (kBindingTypes[b] == VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER) {
-        writes[b].pTexelBufferView = &texel_views[b];
-      } else {
-        writes[b].pBufferInfo = &infos[b];
-      }
-    }
-    vkUpdateDescriptorSets(ctx_.device(), kBindings, writes, 0, nullptr);
+    const Buffer* bufs[kBindings] = {&values_[ix(in_v)], &constants_[wi], &constants_[wi + 1],
+                                     &values_[li + 1], &constants_[ai]};
+    if (Status st = bind(step, bufs); !st.ok()) return st;
     layer_times_.push_back(LayerTime{step.name, shader_name(static_cast<Shader>(shader)), 0});
     steps_.push_back(std::move(step));
   }
   // All weights in one submission.
   if (Status s = flush_uploads(); !s.ok()) return s;
   return record();
+}
+
+Status Network::bind(Step& step, const Buffer* const (&bufs)[5]) {
+  VkDescriptorSetAllocateInfo dai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  dai.descriptorPool = pool_;
+  dai.descriptorSetCount = 1;
+  const VkDescriptorSetLayout sl = step.kernel->set_layout();
+  dai.pSetLayouts = &sl;
+  if (VkResult r = vkAllocateDescriptorSets(ctx_.device(), &dai, &step.set); r != VK_SUCCESS) {
+    return vk_error(r, "allocating a descriptor set");
+  }
+  VkBufferView texel_views[kBindings] = {};
+  VkDescriptorBufferInfo infos[kBindings];
+  VkWriteDescriptorSet writes[kBindings];
+  for (int b = 0; b < kBindings; ++b) {
+    writes[b] = VkWriteDescriptorSet{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    writes[b].dstSet = step.set;
+    writes[b].dstBinding = static_cast<std::uint32_t>(b);
+    writes[b].descriptorCount = 1;
+    writes[b].descriptorType = kBindingTypes[b];
+    if (kBindingTypes[b] == VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER) {
+      auto view = ctx_.create_texel_view(*bufs[b]);
+      if (!view.ok()) return view.error();
+      texel_views[b] = view->handle();
+      views_.push_back(std::move(*view));
+      writes[b].pTexelBufferView = &texel_views[b];
+    } else {
+      infos[b] = VkDescriptorBufferInfo{bufs[b]->handle(), 0, VK_WHOLE_SIZE};
+      writes[b].pBufferInfo = &infos[b];
+    }
+  }
+  vkUpdateDescriptorSets(ctx_.device(), kBindings, writes, 0, nullptr);
+  return Status::Ok();
+}
+
+Status Network::add_data_step(const nn::Model& model, std::size_t li) {
+  const nn::Layer& l = model.layers[li];
+  const nn::Shape& is = shapes_[ix(l.inputs[0])];
+  const nn::Shape& os = shapes_[li + 1];
+  const int c4 = c4_[li + 1];
+  if (l.activation == nn::Activation::kPRelu) {
+    std::vector<float> a(ix(static_cast<long>(c4) * 4), 0.f);
+    const auto& at = model.tensors[ix(l.alpha)].data;
+    std::copy(at.begin(), at.end(), a.begin());
+    auto ab = upload(a);
+    if (!ab.ok()) return ab.error();
+    constants_.push_back(std::move(*ab));
+  }
+  // constants_ does not grow below: references into it stay valid.
+  const Buffer& dummy = constants_[0];
+  const Buffer* alpha = l.activation == nn::Activation::kPRelu ? &constants_.back() : &dummy;
+  const std::int32_t act = static_cast<std::int32_t>(l.activation);
+  const long pixels = static_cast<long>(os.n) * os.h * os.w;
+  const long wg = static_cast<long>(options_.workgroup_size);
+  auto push_step = [&](Shader shader, std::vector<std::int32_t> spec,
+                       std::vector<std::int32_t> push, long invocations, const Buffer& in0,
+                       const Buffer& in1, std::string name) -> Status {
+    Step step;
+    step.name = std::move(name);
+    auto k = kernel(static_cast<int>(shader), std::move(spec));
+    if (!k.ok()) return k.error();
+    step.kernel = *k;
+    step.push = std::move(push);
+    step.push.resize(kPushBytes / sizeof(std::int32_t), 0);
+    step.groups = div_up(invocations, wg);
+    const Buffer* bufs[kBindings] = {&in0, &in1, &dummy, &values_[li + 1], alpha};
+    if (Status st = bind(step, bufs); !st.ok()) return st;
+    layer_times_.push_back(LayerTime{step.name, shader_name(shader), 0});
+    steps_.push_back(std::move(step));
+    return Status::Ok();
+  };
+  const Buffer& in0 = values_[ix(l.inputs[0])];
+  switch (l.op) {
+    case nn::OpType::kAdd:
+    case nn::OpType::kActivation: {
+      const bool has_b = l.op == nn::OpType::kAdd;
+      return push_step(Shader::kAddActivation, {act, has_b ? 1 : 0},
+                       {static_cast<std::int32_t>(pixels * c4), c4}, pixels * c4, in0,
+                       has_b ? values_[ix(l.inputs[1])] : dummy, l.name);
+    }
+    case nn::OpType::kMaxPool: {
+      const int pad_top = nn::conv_pad_before(is.h, l.kernel_h, l.stride_h, l.padding);
+      const int pad_left = nn::conv_pad_before(is.w, l.kernel_w, l.stride_w, l.padding);
+      return push_step(
+          Shader::kMaxPool, {act, l.kernel_h, l.kernel_w},
+          {os.n, is.h, is.w, c4, os.h, os.w, l.stride_h, l.stride_w, pad_top, pad_left},
+          pixels * c4, in0, dummy, l.name);
+    }
+    case nn::OpType::kResizeNearest:
+    case nn::OpType::kResizeBilinear:
+      return push_step(Shader::kResize, {act, l.op == nn::OpType::kResizeBilinear ? 1 : 0},
+                       {os.n, is.h, is.w, c4, os.h, os.w, l.resize_factor}, pixels * c4, in0, dummy,
+                       l.name);
+    case nn::OpType::kConcat: {
+      // One copy per input (a barrier between each: they may share an output vec4 group).
+      int offset_c = 0;
+      for (std::size_t k = 0; k < l.inputs.size(); ++k) {
+        const int v = l.inputs[k];
+        const nn::Shape& s = shapes_[ix(v)];
+        const int in_c4 = c4_[ix(v)];
+        if (Status st = push_step(Shader::kConcatChannels, {act},
+                                  {static_cast<std::int32_t>(pixels), s.c, in_c4, c4, offset_c},
+                                  pixels * in_c4, values_[ix(v)], dummy,
+                                  l.name + " [" + std::to_string(k) + "]");
+            !st.ok()) {
+          return st;
+        }
+        offset_c += s.c;
+      }
+      return Status::Ok();
+    }
+    case nn::OpType::kConv2D:
+    case nn::OpType::kDepthwiseConv2D:
+      break;
+  }
+  return Error(ErrorCode::kInternal, "layer '" + l.name + "' is not a data-movement op");
 }
 
 Status Network::record() {

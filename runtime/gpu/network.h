@@ -1,7 +1,8 @@
 // A Model compiled for one input size and batch on a Vulkan device: every activation in a
 // device buffer (NHWC, channels in vec4 groups), weights packed once for the kernels, and the
-// whole network recorded once into one command buffer (upload copy, one dispatch per layer
-// with a barrier between, download copies, per-layer timestamps) that each run() resubmits.
+// whole network recorded once into one command buffer (upload copy, one dispatch per layer, or
+// per input of a concat, with a barrier between, download copies, per-layer timestamps) that
+// each run() resubmits. Every op of nn::OpType has a kernel.
 #pragma once
 
 #include <memory>
@@ -72,6 +73,10 @@ class Network {
     std::uint32_t groups = 0;
   };
   Status build(const nn::Model& model, const NetworkOptions& options);
+  // Steps of an add, activation, max-pool, resize or concat layer (no weights).
+  Status add_data_step(const nn::Model& model, std::size_t li);
+  // Allocates step.set and points bindings 0..4 at `bufs` (texel views for 0 and 1).
+  Status bind(Step& step, const Buffer* const (&bufs)[5]);
   Result<const Kernel*> kernel(int shader, std::vector<std::int32_t> spec);
   // A device buffer holding `data`: the copy from its staging buffer is queued and runs with
   // every other queued upload in one submission (flush_uploads).

@@ -1,12 +1,16 @@
 #include "runtime/gpu/shaders.h"
 
+#include "spirv/add_activation.spv.h"
+#include "spirv/concat_channels.spv.h"
 #include "spirv/conv2d.spv.h"
 #include "spirv/depthwise_conv2d.spv.h"
 #include "spirv/displacement_affinity.spv.h"
 #include "spirv/heatmap_peaks.spv.h"
+#include "spirv/max_pool.spv.h"
 #include "spirv/paf_affinity.spv.h"
 #include "spirv/pointwise_conv2d.spv.h"
 #include "spirv/preprocess_frame.spv.h"
+#include "spirv/resize.spv.h"
 
 namespace mocap::gpu {
 
@@ -26,6 +30,14 @@ std::span<const std::uint32_t> shader_spirv(Shader s) {
       return kSpirv_displacement_affinity;
     case Shader::kPafAffinity:
       return kSpirv_paf_affinity;
+    case Shader::kAddActivation:
+      return kSpirv_add_activation;
+    case Shader::kConcatChannels:
+      return kSpirv_concat_channels;
+    case Shader::kMaxPool:
+      return kSpirv_max_pool;
+    case Shader::kResize:
+      return kSpirv_resize;
   }
   return {};
 }
@@ -46,6 +58,14 @@ const char* shader_name(Shader s) {
       return "displacement_affinity";
     case Shader::kPafAffinity:
       return "paf_affinity";
+    case Shader::kAddActivation:
+      return "add_activation";
+    case Shader::kConcatChannels:
+      return "concat_channels";
+    case Shader::kMaxPool:
+      return "max_pool";
+    case Shader::kResize:
+      return "resize";
   }
   return "unknown";
 }

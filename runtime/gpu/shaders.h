@@ -14,6 +14,10 @@ enum class Shader {
   kHeatmapPeaks,
   kDisplacementAffinity,
   kPafAffinity,
+  kAddActivation,
+  kConcatChannels,
+  kMaxPool,
+  kResize,
 };
 
 std::span<const std::uint32_t> shader_spirv(Shader s);

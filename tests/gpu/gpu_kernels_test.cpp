@@ -91,7 +91,7 @@ nn::Model one_layer(nn::OpType op, int k, int stride, int cin, int cout, nn::Act
   return m;
 }
 
-// Largest |gpu - cpu| relative to the CPU output's largest magnitude.
+// Largest |gpu - cpu| of output 0 relative to the CPU output's largest magnitude.
 double compare(Context& ctx, const nn::Model& m, const nn::Tensor& in, std::string* what) {
   NetworkOptions no;
   no.batch = in.shape.n;
@@ -116,7 +116,7 @@ double compare(Context& ctx, const nn::Model& m, const nn::Tensor& in, std::stri
     *what = want.error().message();
     return 1e9;
   }
-  const nn::Tensor& ref = (*want)[1];
+  const nn::Tensor& ref = (*want)[static_cast<std::size_t>(m.outputs[0].value)];
   if (!(got.shape == ref.shape)) {
     *what = "shape mismatch";
     return 1e9;
@@ -247,7 +247,7 @@ TEST_F(GpuTest, ChainedLayersAndRepeatedRunsMatchCpu) {
   EXPECT_EQ((*net)->layer_times()[3].name, "h1 + h2");
 }
 
-TEST_F(GpuTest, WrongInputSizeAndUnsupportedOpAreErrors) {
+TEST_F(GpuTest, WrongInputSizeIsAnError) {
   std::mt19937 rng(5);
   const nn::Model m =
       one_layer(nn::OpType::kConv2D, 1, 1, 4, 4, nn::Activation::kNone, nn::Padding::kSame, rng);
@@ -260,18 +260,166 @@ TEST_F(GpuTest, WrongInputSizeAndUnsupportedOpAreErrors) {
   const Status s = (*net)->run(short_input);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().message().find("1x4x4x4"), std::string::npos) << s.error().message();
+}
 
-  nn::Model add = m;
-  nn::Layer a;
-  a.name = "sum";
-  a.op = nn::OpType::kAdd;
-  a.inputs = {0, 1};
-  add.layers.push_back(a);
-  add.outputs = {{"out", 2}};
-  auto bad = Network::create(*ctx_, add, no);
-  ASSERT_FALSE(bad.ok());
-  EXPECT_EQ(bad.error().code(), ErrorCode::kUnsupported);
-  EXPECT_NE(bad.error().message().find("'sum'"), std::string::npos) << bad.error().message();
+// A layer of `op` without weights reading `inputs`, appended to `m`; PReLU gets random slopes
+// for `channels` outputs. Returns its value id.
+int add_layer(nn::Model& m, nn::OpType op, std::vector<int> inputs, nn::Activation act,
+              int channels, std::mt19937& rng) {
+  nn::Layer l;
+  l.name = std::string(nn::to_string(op)) + std::to_string(m.layers.size());
+  l.op = op;
+  l.inputs = std::move(inputs);
+  l.activation = act;
+  if (act == nn::Activation::kPRelu) {
+    m.tensors.push_back(random_tensor("alpha", {channels}, rng));
+    l.alpha = static_cast<int>(m.tensors.size()) - 1;
+  }
+  m.layers.push_back(l);
+  return static_cast<int>(m.layers.size());
+}
+
+// Pointwise conv cin -> cout appended to `m` (a second value to add or concatenate).
+int add_pointwise(nn::Model& m, int input, int cin, int cout, std::mt19937& rng) {
+  m.tensors.push_back(random_tensor("pw", {1, 1, cin, cout}, rng));
+  nn::Layer l;
+  l.name = "pw" + std::to_string(m.layers.size());
+  l.op = nn::OpType::kConv2D;
+  l.inputs = {input};
+  l.out_channels = cout;
+  l.weights = static_cast<int>(m.tensors.size()) - 1;
+  m.layers.push_back(l);
+  return static_cast<int>(m.layers.size());
+}
+
+nn::Model empty_model(int channels) {
+  nn::Model m;
+  m.name = "ops";
+  m.input_channels = channels;
+  return m;
+}
+
+constexpr nn::Activation kAllActivations[] = {nn::Activation::kNone, nn::Activation::kRelu,
+                                              nn::Activation::kRelu6, nn::Activation::kPRelu,
+                                              nn::Activation::kSigmoid};
+
+TEST_F(GpuTest, AddAndActivationMatchCpu) {
+  std::mt19937 rng(7);
+  for (int c : {1, 6, 8, 13}) {
+    for (nn::Activation act : kAllActivations) {
+      nn::Model add = empty_model(c);
+      const int pw = add_pointwise(add, 0, c, c, rng);
+      const int sum = add_layer(add, nn::OpType::kAdd, {0, pw}, act, c, rng);
+      add.outputs = {{"out", sum}};
+      ASSERT_TRUE(add.validate().ok()) << add.validate().error().message();
+      const nn::Tensor in = random_input({2, 5, 7, c}, rng);
+      std::string what;
+      EXPECT_LT(compare(*ctx_, add, in, &what), kTolerance)
+          << what << " add c" << c << " " << nn::to_string(act);
+
+      nn::Model only = empty_model(c);
+      only.outputs = {{"out", add_layer(only, nn::OpType::kActivation, {0}, act, c, rng)}};
+      ASSERT_TRUE(only.validate().ok()) << only.validate().error().message();
+      EXPECT_LT(compare(*ctx_, only, in, &what), kTolerance)
+          << what << " activation c" << c << " " << nn::to_string(act);
+    }
+  }
+}
+
+TEST_F(GpuTest, ConcatOfUnalignedChannelCountsMatchesCpu) {
+  // 5 + 7 + 3 channels: the second and third inputs start inside a vec4 group of the output.
+  std::mt19937 rng(8);
+  for (nn::Activation act : {nn::Activation::kNone, nn::Activation::kPRelu}) {
+    nn::Model m = empty_model(7);
+    const int a = add_pointwise(m, 0, 7, 5, rng);
+    const int b = add_pointwise(m, 0, 7, 3, rng);
+    const int cat = add_layer(m, nn::OpType::kConcat, {a, 0, b}, act, 15, rng);
+    m.outputs = {{"out", cat}};
+    ASSERT_TRUE(m.validate().ok()) << m.validate().error().message();
+    const nn::Tensor in = random_input({2, 6, 9, 7}, rng);
+    std::string what;
+    EXPECT_LT(compare(*ctx_, m, in, &what), kTolerance) << what << " " << nn::to_string(act);
+  }
+}
+
+TEST_F(GpuTest, MaxPoolMatchesCpuWithStridesAndPadding) {
+  std::mt19937 rng(9);
+  struct Case {
+    int h, w, k, stride, c;
+    nn::Padding pad;
+  };
+  const Case cases[] = {{9, 7, 2, 2, 5, nn::Padding::kSame},
+                        {8, 8, 3, 1, 8, nn::Padding::kSame},
+                        {11, 6, 3, 2, 3, nn::Padding::kValid},
+                        {10, 13, 3, 2, 12, nn::Padding::kSame}};
+  for (const Case& c : cases) {
+    nn::Model m = empty_model(c.c);
+    const int v = add_layer(m, nn::OpType::kMaxPool, {0}, nn::Activation::kRelu, c.c, rng);
+    nn::Layer& l = m.layers.back();
+    l.kernel_h = l.kernel_w = c.k;
+    l.stride_h = l.stride_w = c.stride;
+    l.padding = c.pad;
+    m.outputs = {{"out", v}};
+    ASSERT_TRUE(m.validate().ok()) << m.validate().error().message();
+    const nn::Tensor in = random_input({2, c.h, c.w, c.c}, rng);
+    std::string what;
+    EXPECT_LT(compare(*ctx_, m, in, &what), kTolerance)
+        << what << " " << c.h << "x" << c.w << " k" << c.k << " s" << c.stride << " c" << c.c;
+  }
+}
+
+TEST_F(GpuTest, ResizeMatchesCpu) {
+  std::mt19937 rng(10);
+  for (nn::OpType op : {nn::OpType::kResizeNearest, nn::OpType::kResizeBilinear}) {
+    for (int factor : {1, 2, 3, 8}) {
+      nn::Model m = empty_model(6);
+      const int v = add_layer(m, op, {0}, nn::Activation::kNone, 6, rng);
+      m.layers.back().resize_factor = factor;
+      m.outputs = {{"out", v}};
+      ASSERT_TRUE(m.validate().ok()) << m.validate().error().message();
+      const nn::Tensor in = random_input({2, 5, 7, 6}, rng);
+      std::string what;
+      EXPECT_LT(compare(*ctx_, m, in, &what), kTolerance)
+          << what << " " << nn::to_string(op) << " x" << factor;
+    }
+  }
+}
+
+TEST_F(GpuTest, OpenPoseStyleStageMatchesCpu) {
+  // The shape of an OpenPose stage: conv, max-pool, two branches (PAF and heatmap heads, 38 and
+  // 19 channels as in COCO OpenPose, scaled down), concatenated with the features, a PReLU
+  // conv, a residual add, then a bilinear upsample of the output.
+  std::mt19937 rng(11);
+  nn::Model m = empty_model(3);
+  m.tensors.push_back(random_tensor("w0", {3, 3, 3, 12}, rng));
+  nn::Layer c0;
+  c0.name = "c0";
+  c0.op = nn::OpType::kConv2D;
+  c0.inputs = {0};
+  c0.kernel_h = c0.kernel_w = 3;
+  c0.out_channels = 12;
+  c0.weights = 0;
+  c0.activation = nn::Activation::kRelu;
+  m.layers.push_back(c0);
+  const int pool = add_layer(m, nn::OpType::kMaxPool, {1}, nn::Activation::kNone, 12, rng);
+  m.layers.back().kernel_h = m.layers.back().kernel_w = 2;
+  m.layers.back().stride_h = m.layers.back().stride_w = 2;
+  const int paf = add_pointwise(m, pool, 12, 38, rng);
+  const int heat = add_pointwise(m, pool, 12, 19, rng);
+  const int cat =
+      add_layer(m, nn::OpType::kConcat, {paf, heat, pool}, nn::Activation::kNone, 69, rng);
+  const int mix = add_pointwise(m, cat, 69, 12, rng);
+  m.layers.back().activation = nn::Activation::kPRelu;
+  m.tensors.push_back(random_tensor("alpha", {12}, rng));
+  m.layers.back().alpha = static_cast<int>(m.tensors.size()) - 1;
+  const int res = add_layer(m, nn::OpType::kAdd, {mix, pool}, nn::Activation::kNone, 12, rng);
+  const int up = add_layer(m, nn::OpType::kResizeBilinear, {res}, nn::Activation::kNone, 12, rng);
+  m.layers.back().resize_factor = 2;
+  m.outputs = {{"up", up}};
+  ASSERT_TRUE(m.validate().ok()) << m.validate().error().message();
+  const nn::Tensor in = random_input({2, 19, 23, 3}, rng);
+  std::string what;
+  EXPECT_LT(compare(*ctx_, m, in, &what), kTolerance) << what;
 }
 
 TEST(GpuContextTest, UnknownDeviceNameIsAnErrorListingDevices) {
