@@ -169,6 +169,14 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
     for (std::size_t m : group) fused[m].stride4 = offset4;
   }
 
+  for (std::size_t v = 0; v < V; ++v) {
+    Slot slot{static_cast<int>(v), c4_[v], 0};
+    if (v > 0 && fused[v - 1].leader >= 0) {
+      slot = Slot{fused[v - 1].leader + 1, fused[v - 1].stride4, fused[v - 1].offset4};
+    }
+    slots_.push_back(slot);
+  }
+
   // Activation buffers (vec4 channel groups).
   for (std::size_t v = 0; v < V; ++v) {
     const nn::Shape& s = shapes_[v];
@@ -185,17 +193,11 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
   input_staging_ = std::move(*in_staging);
   std::memset(input_staging_.mapped(), 0, input_staging_.size_bytes());
   for (const nn::ModelOutput& o : model.outputs) {
-    int src = o.value, stride4 = c4_[ix(o.value)], offset4 = 0;
-    if (o.value > 0 && fused[ix(o.value - 1)].leader >= 0) {
-      const FusedHead& f = fused[ix(o.value - 1)];
-      src = f.leader + 1;
-      stride4 = f.stride4;
-      offset4 = f.offset4;
-    }
-    auto st = ctx_.create_buffer(values_[ix(src)].size_bytes(), true);
+    const Slot& slot = slots_[ix(o.value)];
+    auto st = ctx_.create_buffer(values_[ix(slot.src)].size_bytes(), true);
     if (!st.ok()) return st.error();
-    outputs_.push_back(
-        Output{o.name, o.value, shapes_[ix(o.value)], std::move(*st), src, stride4, offset4});
+    outputs_.push_back(Output{o.name, o.value, shapes_[ix(o.value)], std::move(*st), slot.src,
+                              slot.stride4, slot.offset4});
   }
   auto dummy = upload(std::vector<float>(4, 0.f));
   if (!dummy.ok()) return dummy.error();
@@ -578,20 +580,54 @@ Status Network::run(std::span<const float> input) {
   return Status::Ok();
 }
 
+namespace {
+
+// Channels in vec4 groups (`stride4` per pixel, the value's first group at `offset4`) -> NHWC.
+void unpack(const float* src, const nn::Shape& shape, int stride4, int offset4, nn::Tensor& out) {
+  out.shape = shape;
+  out.data.resize(ix(shape.elements()));
+  const int c = shape.c;
+  const long pixels = static_cast<long>(shape.n) * shape.h * shape.w;
+  for (long p = 0; p < pixels; ++p) {
+    std::memcpy(out.data.data() + p * c, src + (p * stride4 + offset4) * 4, ix(c) * sizeof(float));
+  }
+}
+
+}  // namespace
+
+Status Network::read_value(int value, nn::Tensor& out) {
+  if (value < 0 || static_cast<std::size_t>(value) >= shapes_.size()) {
+    return Error(ErrorCode::kInvalidArgument, "no network value " + std::to_string(value) +
+                                                  " (the model has " +
+                                                  std::to_string(shapes_.size()) + ")");
+  }
+  const Slot& slot = slots_[ix(value)];
+  const Buffer& src = values_[ix(slot.src)];
+  auto host = ctx_.create_buffer(src.size_bytes(), true);
+  if (!host.ok()) return host.error();
+  if (Status s = ctx_.run_once([&](VkCommandBuffer cb) {
+        VkBufferCopy c{0, 0, src.size_bytes()};
+        vkCmdCopyBuffer(cb, src.handle(), host->handle(), 1, &c);
+        VkMemoryBarrier hb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+        hb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+        hb.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+        vkCmdPipelineBarrier(cb, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
+                             &hb, 0, nullptr, 0, nullptr);
+      });
+      !s.ok()) {
+    return s;
+  }
+  unpack(static_cast<const float*>(host->mapped()), shapes_[ix(value)], slot.stride4, slot.offset4,
+         out);
+  return Status::Ok();
+}
+
 Status Network::read_output(std::size_t i, nn::Tensor& out) const {
   if (i >= outputs_.size()) {
     return Error(ErrorCode::kInvalidArgument, "no network output " + std::to_string(i));
   }
   const Output& o = outputs_[i];
-  out.shape = o.shape;
-  out.data.resize(ix(o.shape.elements()));
-  const float* src = static_cast<const float*>(o.staging.mapped());
-  const int c = o.shape.c;
-  const long pixels = static_cast<long>(o.shape.n) * o.shape.h * o.shape.w;
-  for (long p = 0; p < pixels; ++p) {
-    std::memcpy(out.data.data() + p * c, src + (p * o.stride4 + o.offset4) * 4,
-                ix(c) * sizeof(float));
-  }
+  unpack(static_cast<const float*>(o.staging.mapped()), o.shape, o.stride4, o.offset4, out);
   return Status::Ok();
 }
 

@@ -49,6 +49,11 @@ class Network {
   const std::string& output_name(std::size_t i) const { return outputs_[i].name; }
   nn::Shape output_shape(std::size_t i) const { return outputs_[i].shape; }
 
+  // Any value of the last run (0 = input, i + 1 = layer i's output), NHWC float32 without
+  // channel padding: for per-layer debugging (one extra copy and submission per call).
+  Status read_value(int value, nn::Tensor& out);
+  std::size_t value_count() const { return shapes_.size(); }
+
   // GPU time of each layer and of the whole command buffer in the last run (empty / 0 when
   // timestamps are unavailable).
   const std::vector<LayerTime>& layer_times() const { return layer_times_; }
@@ -88,6 +93,13 @@ class Network {
   NetworkOptions options_;
   std::vector<nn::Shape> shapes_;
   std::vector<int> c4_;  // vec4 groups per value
+  // Where each value lives: a fused head's output is a slice of its group leader's buffer.
+  struct Slot {
+    int src = -1;
+    int stride4 = 0;
+    int offset4 = 0;
+  };
+  std::vector<Slot> slots_;
   int input_channels_ = 0;
   std::vector<Buffer> values_;
   std::vector<Buffer> constants_;

@@ -231,7 +231,7 @@ TEST_F(GpuTest, ChainedLayersAndRepeatedRunsMatchCpu) {
   for (int run = 0; run < 2; ++run) {
     const nn::Tensor in = random_input({2, 33, 21, 3}, rng);
     ASSERT_TRUE((*net)->run(in.data).ok());
-    auto want = nn::run_model_cpu(m, in);
+    auto want = nn::run_model_cpu(m, in, /*keep_all_values=*/true);
     ASSERT_TRUE(want.ok());
     for (std::size_t o = 0; o < 2; ++o) {
       nn::Tensor got;
@@ -241,6 +241,17 @@ TEST_F(GpuTest, ChainedLayersAndRepeatedRunsMatchCpu) {
       EXPECT_LT(::mocap::testing::max_relative_error(got.data, ref.data), kTolerance)
           << "run " << run << " output " << o;
     }
+    // Every intermediate value (per-layer debugging), fused heads read from their slices.
+    ASSERT_EQ((*net)->value_count(), want->size());
+    for (std::size_t v = 1; v < want->size(); ++v) {
+      nn::Tensor got;
+      ASSERT_TRUE((*net)->read_value(static_cast<int>(v), got).ok());
+      ASSERT_EQ(got.shape, (*want)[v].shape) << "value " << v;
+      EXPECT_LT(::mocap::testing::max_relative_error(got.data, (*want)[v].data), kTolerance)
+          << "run " << run << " value " << v;
+    }
+    nn::Tensor none;
+    EXPECT_FALSE((*net)->read_value(static_cast<int>(want->size()), none).ok());
   }
   // The two heads read the same value and only leave the network: one fused GEMM step.
   ASSERT_EQ((*net)->layer_times().size(), 4u);

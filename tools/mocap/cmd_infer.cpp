@@ -3,7 +3,9 @@
 // mocap bench cnn --model FILE --size S --batch B
 #include <unistd.h>
 #include <algorithm>
+#include <cctype>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -220,6 +222,94 @@ int infer_image(const std::string& model_path, const std::string& image_path, in
   return 0;
 }
 
+// A layer name as a file name, as tools/tfjs_ref/posenet_ref.mjs --dump-layers writes it.
+std::string sanitise(const std::string& name) {
+  std::string out = name;
+  for (char& ch : out) {
+    const bool keep =
+        std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-';
+    if (!keep) ch = '_';
+  }
+  return out;
+}
+
+// --dump-layers / --compare-layers: every layer's output of the run that just finished (the
+// Vulkan network's device buffers, or the CPU reference), written as DIR/<sanitised>.f32 and/or
+// compared with a TF.js dump of the same input (posenet_ref.mjs --dump-layers): per layer the
+// largest |ours - tfjs| relative to the TF.js tensor's largest magnitude.
+int layer_debug(Runner& r, const nn::Model& model, const std::vector<float>& input,
+                const std::string& dump_dir, const std::string& compare_dir) {
+  std::vector<nn::Tensor> values;
+  if (r.net) {
+    values.resize(r.net->value_count());
+    for (std::size_t v = 1; v < values.size(); ++v) {
+      if (Status s = r.net->read_value(static_cast<int>(v), values[v]); !s.ok()) {
+        return fail(s.error());
+      }
+    }
+  } else {
+    nn::Tensor in(r.shape);
+    in.data = input;
+    auto all = nn::run_model_cpu(model, in, /*keep_all_values=*/true);
+    if (!all.ok()) return fail(all.error());
+    values = std::move(*all);
+  }
+  std::error_code ec;
+  if (!dump_dir.empty()) fs::create_directories(dump_dir, ec);
+  double worst = 0;
+  std::string worst_layer;
+  int compared = 0;
+  if (!compare_dir.empty()) std::printf("%-4s %-66s %12s\n", "#", "layer", "rel_err");
+  for (std::size_t li = 0; li < model.layers.size(); ++li) {
+    const nn::Tensor& t = values[li + 1];
+    const std::string file = sanitise(model.layers[li].name) + ".f32";
+    if (!dump_dir.empty()) {
+      if (Status s = write_f32(fs::path(dump_dir) / file, t.data); !s.ok()) return fail(s.error());
+    }
+    if (compare_dir.empty()) continue;
+    const fs::path ref_path = fs::path(compare_dir) / file;
+    std::string verdict;
+    if (!fs::exists(ref_path)) {
+      verdict = "no reference";
+    } else if (fs::file_size(ref_path, ec) != t.data.size() * sizeof(float)) {
+      verdict = "size differs";
+    } else {
+      auto ref = read_f32(ref_path.string(), static_cast<long>(t.data.size()));
+      if (!ref.ok()) return fail(ref.error());
+      double max_ref = 1e-12, max_err = 0;
+      for (std::size_t i = 0; i < t.data.size(); ++i) {
+        max_ref = std::max(max_ref, static_cast<double>(std::fabs((*ref)[i])));
+        max_err = std::max(max_err, static_cast<double>(std::fabs(t.data[i] - (*ref)[i])));
+      }
+      const double rel = max_err / max_ref;
+      ++compared;
+      if (rel >= worst) {
+        worst = rel;
+        worst_layer = model.layers[li].name;
+      }
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.3e", rel);
+      verdict = buf;
+    }
+    std::printf("%-4zu %-66s %12s\n", li, model.layers[li].name.c_str(), verdict.c_str());
+  }
+  if (!dump_dir.empty()) {
+    std::printf("%zu layer outputs written to %s\n", model.layers.size(), dump_dir.c_str());
+  }
+  if (!compare_dir.empty()) {
+    if (compared == 0) {
+      return fail(Error(ErrorCode::kNotFound,
+                        "no layer of the model has a same-sized file in " + compare_dir +
+                            " (make one with: node tools/tfjs_ref/posenet_ref.mjs ... "
+                            "--dump-layers " +
+                            compare_dir + ")"));
+    }
+    std::printf("layers_compared=%d worst_layer=%s worst_rel_err=%.3e\n", compared,
+                worst_layer.c_str(), worst);
+  }
+  return 0;
+}
+
 double median(std::vector<double> v) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
@@ -235,7 +325,8 @@ double percentile(std::vector<double> v, double q) {
 }  // namespace
 
 int run_infer(Args args) {
-  std::string model_path, input_path, image_path, dump_dir, detections_out;
+  std::string model_path, input_path, image_path, dump_dir, detections_out, dump_layers,
+      compare_layers;
   std::string backend = "auto", device;
   int size = 257;
   cli::ArgParser p("mocap infer",
@@ -249,6 +340,12 @@ int run_infer(Args args) {
   p.option("--input-f32", &input_path, "FILE", "raw float32 NHWC input tensor");
   p.option("--size", &size, "S", "input height and width (default 257)");
   p.option("--dump", &dump_dir, "DIR", "write the outputs here");
+  p.option("--dump-layers", &dump_layers, "DIR",
+           "with --input-f32: also write every layer's output as DIR/<layer name>.f32 (names "
+           "sanitised as tools/tfjs_ref/posenet_ref.mjs --dump-layers does)");
+  p.option("--compare-layers", &compare_layers, "DIR",
+           "with --input-f32: compare every layer's output with a TF.js --dump-layers DIR of "
+           "the same input and print the relative error per layer");
   p.option("--image", &image_path, "PATH", "photo input (full GPU path with detections)");
   p.option("--detections-out", &detections_out, "FILE", "candidates + affinities (with --image)");
   p.option("--backend", &backend, "NAME",
@@ -281,6 +378,9 @@ int run_infer(Args args) {
     if (Status s = write_f32(out, outs[i].data); !s.ok()) return fail(s.error());
     const nn::Shape& s = outs[i].shape;
     std::printf("%s [%d,%d,%d,%d]\n", out.string().c_str(), s.n, s.h, s.w, s.c);
+  }
+  if (!dump_layers.empty() || !compare_layers.empty()) {
+    return layer_debug(r, *model, *input, dump_layers, compare_layers);
   }
   return 0;
 }
