@@ -65,9 +65,11 @@ int eval_shelf(Args args) {
   if (per_frame) {
     for (std::size_t f = 0; f < run->stats.size(); ++f) {
       const auto& s = run->stats[f];
-      std::printf("frame %3zu persons=%d tracks=%d cand=%d edges=%d bundles=%d assoc=%.3fms\n", f,
-                  s.persons, s.tracks, s.candidates, s.limb_edges, s.bundles,
-                  s.graph_ms + s.parse_ms + s.assemble_ms);
+      std::printf(
+          "frame %3zu persons=%d tracks=%d cand=%d edges=%d bundles=%d assoc=%.3fms "
+          "reconstruct=%.3fms fit=%.3fms\n",
+          f, s.persons, s.tracks, s.candidates, s.limb_edges, s.bundles,
+          s.graph_ms + s.parse_ms + s.assemble_ms, s.reconstruct_ms, s.fit_ms);
     }
   }
   auto report = evaluate_shelf_pcp(*gt, run->estimates);
