@@ -2,10 +2,10 @@
 
 #include <algorithm>
 #include <chrono>
-#include <set>
 #include <string>
 #include <utility>
 
+#include "hal/replay/recording.h"
 #include "hal/replay/video_decoder.h"
 #include "runtime/geometry/calibration.h"
 #include "runtime/gpu/backend.h"
@@ -21,12 +21,6 @@ inline std::size_t ix(int i) { return static_cast<std::size_t>(i); }
 
 double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-std::string join(const std::vector<std::string>& v) {
-  std::string s;
-  for (const std::string& x : v) s += (s.empty() ? "" : ",") + x;
-  return s.empty() ? "none" : s;
 }
 
 }  // namespace
@@ -47,56 +41,9 @@ Result<std::unique_ptr<ReplaySession>> ReplaySession::open(const ReplayOptions& 
     return Error(ErrorCode::kInvalidArgument, "network input size must be in [17, 1025], got " +
                                                   std::to_string(options.input_size_px));
   }
-  std::error_code ec;
-  if (!fs::is_directory(options.data_dir, ec)) {
-    return Error(ErrorCode::kNotFound, options.data_dir.string() +
-                                           ": no such recording folder (expected " +
-                                           "calibration.json and videos/<view>.mp4)");
-  }
-  auto calib = load_calibration(options.data_dir / "calibration.json");
-  if (!calib.ok()) return calib.error();
-
-  // Videos: videos/<integer>.mp4, the integer being the view id.
-  const fs::path video_dir = options.data_dir / "videos";
-  if (!fs::is_directory(video_dir, ec)) {
-    return Error(ErrorCode::kNotFound, video_dir.string() + ": no videos folder");
-  }
-  std::set<int> video_views;
-  for (const fs::directory_entry& e : fs::directory_iterator(video_dir, ec)) {
-    if (e.path().extension() != ".mp4") continue;
-    const std::string stem = e.path().stem().string();
-    if (stem.empty() || !std::all_of(stem.begin(), stem.end(), ::isdigit) || stem.size() > 3) {
-      return Error(ErrorCode::kInvalidArgument,
-                   e.path().string() + ": video names must be <view id>.mp4 (0.mp4, 1.mp4, ...)");
-    }
-    video_views.insert(std::stoi(stem));
-  }
-  std::vector<std::string> video_names, calib_names;
-  for (int v : video_views) video_names.push_back(std::to_string(v));
-  calib_names = calib->view_ids;
-  std::vector<std::string> expected;
-  for (std::size_t i = 0; i < calib->size(); ++i) expected.push_back(std::to_string(i));
-  if (calib_names != expected) {
-    return Error(ErrorCode::kInvalidArgument,
-                 (options.data_dir / "calibration.json").string() + ": view ids must be 0.." +
-                     std::to_string(calib->size() - 1) + " in order, got " + join(calib_names));
-  }
-  if (video_names != calib_names) {
-    return Error(ErrorCode::kInvalidArgument,
-                 video_dir.string() + ": videos for views {" + join(video_names) +
-                     "} but calibration.json has views {" + join(calib_names) +
-                     "}: every calibrated view needs videos/<view>.mp4 and vice versa");
-  }
-  if (calib->size() < 2) {
-    return Error(ErrorCode::kInvalidArgument, options.data_dir.string() +
-                                                  ": replay needs at least 2 views, got " +
-                                                  std::to_string(calib->size()));
-  }
-  if (calib->size() > 16) {
-    return Error(
-        ErrorCode::kInvalidArgument,
-        options.data_dir.string() + ": at most 16 views, got " + std::to_string(calib->size()));
-  }
+  auto rec = hal::open_recording(options.data_dir);
+  if (!rec.ok()) return rec.error();
+  const Calibration* calib = &rec->calibration;
 
   std::unique_ptr<ReplaySession> s(new ReplaySession());
   s->options_ = options;
@@ -105,7 +52,7 @@ Result<std::unique_ptr<ReplaySession>> ReplaySession::open(const ReplayOptions& 
   Impl& m = *s->impl_;
   const int V = static_cast<int>(calib->size());
   for (int v = 0; v < V; ++v) {
-    const fs::path p = video_dir / (std::to_string(v) + ".mp4");
+    const fs::path& p = rec->videos[ix(v)];
     auto d = hal::VideoDecoder::open(p);
     if (!d.ok()) return d.error();
     const hal::VideoInfo& info = (*d)->info();

@@ -1,0 +1,30 @@
+// A multi-view recording on disk: calibration.json (runtime/geometry/calibration.h) plus
+// videos/<view>.mp4 for view = 0..N-1, the calibration's view ids, frame n of every video
+// taken at the same instant (e.g. ../shared/data/pose2sim_multi). open_recording checks the
+// layout and names the file and the fix for every mismatch; the videos are opened by whoever
+// reads them (ReplayCamera, the replay session).
+#pragma once
+
+#include <filesystem>
+#include <vector>
+
+#include "runtime/core/error.h"
+#include "runtime/geometry/calibration.h"
+
+namespace mocap::hal {
+
+inline constexpr int kMaxRecordingViews = 16;
+
+struct Recording {
+  std::filesystem::path dir;
+  Calibration calibration;
+  std::vector<std::filesystem::path> videos;  // [view]
+};
+
+// Errors: missing folder or videos/ (kNotFound), calibration errors as load_calibration gives
+// them, video names other than <view id>.mp4, calibration view ids other than 0..N-1, videos
+// and calibrated views that do not correspond one to one, fewer than 2 or more than 16 views
+// (kInvalidArgument).
+Result<Recording> open_recording(const std::filesystem::path& dir);
+
+}  // namespace mocap::hal
