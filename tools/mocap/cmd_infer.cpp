@@ -60,6 +60,17 @@ Status write_f32(const fs::path& path, const std::vector<float>& v) {
   return Status::Ok();
 }
 
+// The network for an input shape; timestamps only for a profiling pass (the detector runs
+// without them).
+gpu::NetworkOptions network_options(const nn::Shape& s, bool timestamps) {
+  gpu::NetworkOptions no;
+  no.batch = s.n;
+  no.height_px = s.h;
+  no.width_px = s.w;
+  no.timestamps = timestamps;
+  return no;
+}
+
 // Runs the model on `input` with the chosen backend; outputs in Model::outputs order.
 struct Runner {
   std::string backend;
@@ -68,9 +79,7 @@ struct Runner {
   const nn::Model* model = nullptr;
   nn::Shape shape;
 
-  // timestamps: per-layer GPU times (a profiling run; the detector runs without them).
-  Status init(const nn::Model& m, const nn::Shape& s, const std::string& device,
-              bool timestamps = false) {
+  Status init(const nn::Model& m, const nn::Shape& s, const std::string& device) {
     model = &m;
     shape = s;
     gpu::GpuOptions go;
@@ -84,12 +93,7 @@ struct Runner {
     }
     backend = "vulkan";
     ctx = std::move(b->context);
-    gpu::NetworkOptions no;
-    no.batch = s.n;
-    no.height_px = s.h;
-    no.width_px = s.w;
-    no.timestamps = timestamps;
-    auto n = gpu::Network::create(*ctx, m, no);
+    auto n = gpu::Network::create(*ctx, m, network_options(s, /*timestamps=*/false));
     if (!n.ok()) return n.error();
     net = std::move(*n);
     return Status::Ok();
@@ -442,12 +446,7 @@ int run_bench_cnn(Args args) {
   // Per-layer GPU times from a separate profiling pass with a timestamp after every layer
   // (timestamps cost lavapipe ~1 ms per frame at 257, so they stay out of the timed runs).
   if (r.net) {
-    gpu::NetworkOptions no;
-    no.batch = shape.n;
-    no.height_px = shape.h;
-    no.width_px = shape.w;
-    no.timestamps = true;
-    auto prof = gpu::Network::create(*r.ctx, *model, no);
+    auto prof = gpu::Network::create(*r.ctx, *model, network_options(shape, /*timestamps=*/true));
     if (!prof.ok()) return fail(prof.error());
     std::vector<double> gpu_ms;
     std::vector<std::vector<double>> layer_ms((*prof)->layer_times().size());
