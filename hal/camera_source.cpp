@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 
 namespace mocap::hal {
 namespace {
@@ -39,6 +40,12 @@ std::string list_modes(std::span<const CameraMode> offered) {
 }
 
 }  // namespace
+
+std::int64_t monotonic_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
 
 std::string to_string(const CameraMode& m) {
   char buf[96];

@@ -14,6 +14,7 @@
 // it is tested without hardware.
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <span>
 #include <string>
@@ -24,6 +25,10 @@
 #include "runtime/msg/messages.h"
 
 namespace mocap::hal {
+
+// CLOCK_MONOTONIC now, in nanoseconds: the clock of every frame timestamp (V4L2 and libcamera
+// stamp buffers with it) and of the trigger line.
+std::int64_t monotonic_ns();
 
 // One capture configuration a camera offers.
 struct CameraMode {
@@ -63,9 +68,10 @@ Result<CameraMode> negotiate_mode(std::span<const CameraMode> offered, const Cam
                                   std::string_view camera);
 
 enum class CaptureStatus {
-  kFrame,    // `frame` holds a new frame
-  kTimeout,  // nothing arrived within the timeout (the camera is still there)
-  kEnded,    // a finite source (a recording) has no more frames
+  kFrame,         // `frame` holds a new frame
+  kTimeout,       // nothing arrived within the timeout (the camera is still there)
+  kEnded,         // a finite source (a recording) has no more frames
+  kDisconnected,  // the device is gone; ReconnectingCamera retries it (no frame)
 };
 
 struct Capture {

@@ -8,14 +8,6 @@
 #include "hal/replay/video_decoder.h"
 
 namespace mocap::hal {
-namespace {}  // namespace
-
-std::int64_t monotonic_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-
 namespace {
 
 // The decoded RGB24 pixels, owned by the frame (the decoder reuses its own buffer).

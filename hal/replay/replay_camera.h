@@ -14,9 +14,6 @@ namespace mocap::hal {
 
 class VideoDecoder;
 
-// CLOCK_MONOTONIC now, in nanoseconds (the clock frame timestamps use).
-std::int64_t monotonic_ns();
-
 struct ReplayCameraOptions {
   std::filesystem::path video;
   int view_id = 0;

@@ -46,12 +46,12 @@ void forward_av_log(void* avcl, int level, const char* fmt, std::va_list args) {
   }
 }
 
+}  // namespace
+
 void install_av_log() {
   static std::once_flag once;
   std::call_once(once, [] { av_log_set_callback(forward_av_log); });
 }
-
-}  // namespace
 
 struct VideoDecoder::Impl {
   AVFormatContext* format = nullptr;

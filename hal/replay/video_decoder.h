@@ -49,6 +49,10 @@ struct VideoFrame {
   std::vector<std::uint8_t> rgb;  // RGB24, stride_bytes * height_px bytes (reused by next())
 };
 
+// Routes FFmpeg's own log lines (codec banners, decode warnings) to the Video log category at
+// debug level, once per process; the decoder and the recorder report failures as Errors.
+void install_av_log();
+
 class VideoDecoder {
  public:
   static Result<std::unique_ptr<VideoDecoder>> open(const std::filesystem::path& path);

@@ -23,10 +23,10 @@ const Command kCommands[] = {
   {"infer",   "run the pose CNN on a tensor or an image",                 mocap::tools::run_infer, nullptr},
   {"model",   "convert and inspect model files",                          mocap::tools::run_model, nullptr},
   {"replay",  "run a recorded multi-view video through the pipeline",     mocap::tools::run_replay, nullptr},
-  {"cameras", "list cameras and their formats",                           nullptr, "the hardware layer (issue #5)"},
-  {"capture", "record frames from cameras",                               nullptr, "the hardware layer (issue #5)"},
-  {"trigger", "drive or monitor a GPIO trigger line",                     nullptr, "the hardware layer (issue #5)"},
-  {"sync",    "live frame-set synchronisation statistics",                nullptr, "the hardware layer (issue #5)"},
+  {"cameras", "list cameras and their formats",                           mocap::tools::run_cameras_cmd, nullptr},
+  {"capture", "capture frames from cameras",                              mocap::tools::run_capture_cmd, nullptr},
+  {"trigger", "drive or monitor a GPIO trigger line",                     mocap::tools::run_trigger_cmd, nullptr},
+  {"sync",    "live frame-set synchronisation statistics",                mocap::tools::run_sync_cmd, nullptr},
 };
 // clang-format on
 

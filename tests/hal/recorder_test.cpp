@@ -1,0 +1,171 @@
+// The recorder writes the layout the replay reads: synthetic frame sets (RGB24, YUYV and
+// NV12 views, one set missing a view) -> calibration.json + videos/<v>.mp4 -> open_recording
+// and VideoDecoder read them back with the same frame count, timing and colours.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <vector>
+
+#include "hal/replay/recorder.h"
+#include "hal/replay/recording.h"
+#include "hal/replay/video_decoder.h"
+
+namespace mocap::hal {
+namespace {
+
+namespace fs = std::filesystem;
+
+class Bytes final : public FrameBuffer {
+ public:
+  explicit Bytes(std::vector<std::uint8_t> b) : b_(std::move(b)) {}
+  std::span<const std::uint8_t> bytes() const override { return b_; }
+
+ private:
+  std::vector<std::uint8_t> b_;
+};
+
+constexpr int kW = 64, kH = 48;
+
+// A flat colour in the frame's own format (BT.601 limited range for the YUV formats).
+Frame solid(int view, PixelFormat f, int r, int g, int b) {
+  Frame fr;
+  fr.view_id = view;
+  fr.width_px = kW;
+  fr.height_px = kH;
+  fr.format = f;
+  const int y = static_cast<int>(16 + (65.481 * r + 128.553 * g + 24.966 * b) / 255);
+  const int u = static_cast<int>(128 + (-37.797 * r - 74.203 * g + 112.0 * b) / 255);
+  const int v = static_cast<int>(128 + (112.0 * r - 93.786 * g - 18.214 * b) / 255);
+  std::vector<std::uint8_t> px;
+  if (f == PixelFormat::kRGB24) {
+    fr.stride_bytes = kW * 3;
+    for (int i = 0; i < kW * kH; ++i)
+      px.insert(px.end(), {static_cast<std::uint8_t>(r), static_cast<std::uint8_t>(g),
+                           static_cast<std::uint8_t>(b)});
+  } else if (f == PixelFormat::kYUYV) {
+    fr.stride_bytes = kW * 2;
+    for (int i = 0; i < kW * kH / 2; ++i) {
+      px.insert(px.end(), {static_cast<std::uint8_t>(y), static_cast<std::uint8_t>(u),
+                           static_cast<std::uint8_t>(y), static_cast<std::uint8_t>(v)});
+    }
+  } else {  // NV12
+    fr.stride_bytes = kW;
+    px.assign(static_cast<std::size_t>(kW * kH), static_cast<std::uint8_t>(y));
+    for (int i = 0; i < kW * kH / 4; ++i)
+      px.insert(px.end(), {static_cast<std::uint8_t>(u), static_cast<std::uint8_t>(v)});
+  }
+  fr.buffer = std::make_shared<Bytes>(std::move(px));
+  return fr;
+}
+
+fs::path write_calibration(const fs::path& dir, int views) {
+  fs::create_directories(dir);
+  const fs::path p = dir / "rig.json";
+  std::ofstream f(p);
+  f << "{";
+  for (int v = 0; v < views; ++v) {
+    f << (v ? "," : "") << "\"" << v << "\": {\"K\": [100,0,32,0,100,24,0,0,1],"
+      << "\"RT\": [1,0,0," << v << ",0,1,0,0,0,0,1,3], \"imgSize\": [64,48],"
+      << "\"dist\": [0,0,0,0,0], \"name\": \"cam" << v << "\"}";
+  }
+  f << "}";
+  return p;
+}
+
+class RecorderTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("mocap_recorder_test_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(RecorderTest, WritesARecordingTheReplayReads) {
+  const fs::path calib = write_calibration(dir_ / "cfg", 3);
+  RecorderOptions o;
+  o.dir = dir_ / "take";
+  o.views = 3;
+  o.frame_rate_hz = 30;
+  o.calibration = calib;
+  auto rec = Recorder::create(o);
+  ASSERT_TRUE(rec.ok()) << rec.error().message();
+  constexpr int kSets = 12;
+  for (int k = 0; k < kSets; ++k) {
+    FrameSet s;
+    s.frame_id = static_cast<std::uint64_t>(k);
+    s.timestamp_ns = 5'000'000'000 + k * 33'333'333LL;
+    s.frames.push_back(solid(0, PixelFormat::kRGB24, 200, 40, 40));
+    if (k != 5)
+      s.frames.push_back(solid(1, PixelFormat::kYUYV, 40, 200, 40));  // view 1 drops set 5
+    s.frames.push_back(solid(2, PixelFormat::kNV12, 40, 40, 200));
+    ASSERT_TRUE((*rec)->write(s).ok());
+  }
+  ASSERT_TRUE((*rec)->finish().ok());
+  EXPECT_EQ((*rec)->stats().sets, static_cast<std::uint64_t>(kSets));
+  EXPECT_EQ((*rec)->stats().repeated[1], 1u);
+  EXPECT_EQ((*rec)->stats().frames[1], static_cast<std::uint64_t>(kSets));
+
+  auto recording = open_recording(o.dir);
+  ASSERT_TRUE(recording.ok()) << recording.error().message();
+  ASSERT_EQ(recording->videos.size(), 3u);
+  const int expect_rgb[3][3] = {{200, 40, 40}, {40, 200, 40}, {40, 40, 200}};
+  for (int v = 0; v < 3; ++v) {
+    auto dec = VideoDecoder::open(recording->videos[static_cast<std::size_t>(v)]);
+    ASSERT_TRUE(dec.ok()) << dec.error().message();
+    VideoFrame f;
+    int n = 0;
+    std::int64_t last_ts = -1;
+    for (;;) {
+      auto more = (*dec)->next(f);
+      ASSERT_TRUE(more.ok()) << more.error().message();
+      if (!*more) break;
+      EXPECT_EQ(f.width_px, kW);
+      EXPECT_EQ(f.height_px, kH);
+      if (last_ts >= 0) {
+        EXPECT_NEAR(static_cast<double>(f.timestamp_ns - last_ts), 33'333'333.0, 1.1e6);
+      }
+      last_ts = f.timestamp_ns;
+      const std::size_t mid = (static_cast<std::size_t>(kH / 2) * kW + kW / 2) * 3;
+      for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(f.rgb[mid + static_cast<std::size_t>(c)], expect_rgb[v][c], 12) << "view " << v;
+      ++n;
+    }
+    EXPECT_EQ(n, kSets) << "view " << v;
+  }
+}
+
+TEST_F(RecorderTest, RefusesToOverwriteAndChecksTheCalibration) {
+  RecorderOptions o;
+  o.dir = dir_ / "take";
+  o.views = 2;
+  o.calibration = write_calibration(dir_ / "cfg", 3);
+  auto mismatch = Recorder::create(o);
+  ASSERT_FALSE(mismatch.ok());
+  EXPECT_NE(mismatch.error().message().find("3 views"), std::string::npos)
+      << mismatch.error().message();
+
+  o.calibration.reset();
+  {
+    auto rec = Recorder::create(o);
+    ASSERT_TRUE(rec.ok()) << rec.error().message();
+    FrameSet s;
+    s.frames.push_back(solid(0, PixelFormat::kRGB24, 1, 2, 3));
+    auto no_first = (*rec)->write(s);  // view 1 never delivered: nothing to repeat
+    ASSERT_FALSE(no_first.ok());
+    EXPECT_NE(no_first.error().message().find("view 1"), std::string::npos);
+  }
+  auto again = Recorder::create(o);
+  ASSERT_FALSE(again.ok());
+  EXPECT_NE(again.error().message().find("already holds a recording"), std::string::npos);
+  RecorderOptions bad;
+  bad.views = 2;
+  EXPECT_FALSE(bad.validate().ok());
+}
+
+}  // namespace
+}  // namespace mocap::hal
