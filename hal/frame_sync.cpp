@@ -104,6 +104,15 @@ Status FrameSynchronizer::push(Frame frame, std::int64_t arrival_ns) {
   } else if (frame.sequence > last_seq_[ix(c)]) {
     cs.sequence_gaps += frame.sequence - last_seq_[ix(c)] - 1;
     last_seq_[ix(c)] = frame.sequence;
+  } else if (frame.sequence < last_seq_[ix(c)]) {
+    // The sequence went back: the camera was re-opened (ReconnectingCamera) and its driver
+    // counts from 0 again. Gaps count from here; by trigger sequence, the camera's frames are
+    // re-based onto the next set (a re-opened camera delivers its newest frame).
+    ++cs.restarts;
+    last_seq_[ix(c)] = frame.sequence;
+    if (options_.grouping == SyncGrouping::kSequence && emitted_any_) {
+      first_seq_[ix(c)] = frame.sequence - static_cast<std::uint64_t>(last_emitted_key_ + 1);
+    }
   }
   if (cs.dead) {
     cs.dead = false;  // it is back

@@ -54,6 +54,7 @@ struct CameraSyncStats {
   std::uint64_t missing = 0;        // sets handed out without this camera
   std::uint64_t late = 0;           // frames that arrived after their set went out
   std::uint64_t duplicates = 0;     // a second frame for a set that already had one
+  std::uint64_t restarts = 0;       // the sequence went back (the camera was re-opened)
   bool dead = false;
 };
 

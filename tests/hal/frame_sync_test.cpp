@@ -221,5 +221,37 @@ TEST(FrameSyncTest, BadOptionsAndForeignViewsAreErrors) {
   EXPECT_NE(st.error().message().find("view 5"), std::string::npos);
 }
 
+// A camera re-opened after a disconnect counts from sequence 0 again: no phantom drops, the
+// restart is counted, and by trigger sequence its frames join the next sets again.
+TEST(FrameSyncTest, ACameraWhoseSequenceRestartsIsRebased) {
+  for (SyncGrouping g : {SyncGrouping::kTimestamp, SyncGrouping::kSequence}) {
+    FrameSynchronizer sync = make(2, g);
+    std::vector<FrameSet> out;
+    for (int k = 0; k < 10; ++k) {
+      const std::int64_t t = 1'000'000'000 + k * kPeriodNs;
+      const auto ku = static_cast<std::uint64_t>(k);
+      ASSERT_TRUE(sync.push(frame(0, 500 + ku, t), t).ok());
+      // Camera 1 delivers sets 0..4, is gone for 5..6, then restarts its count at 0.
+      if (k < 5) {
+        ASSERT_TRUE(sync.push(frame(1, 900 + ku, t), t).ok());
+      }
+      if (k >= 7) {
+        ASSERT_TRUE(sync.push(frame(1, ku - 7, t), t).ok());
+      }
+      for (FrameSet& s : sync.poll(t + 2 * kPeriodNs)) out.push_back(std::move(s));
+    }
+    for (FrameSet& s : sync.flush()) out.push_back(std::move(s));
+    const SyncStats st = sync.stats();
+    EXPECT_EQ(st.cameras[1].restarts, 1u);
+    EXPECT_EQ(st.cameras[1].sequence_gaps, 0u);
+    EXPECT_EQ(st.cameras[1].late, 0u);
+    ASSERT_EQ(out.size(), 10u);
+    for (std::size_t k = 0; k < out.size(); ++k) {
+      EXPECT_EQ(out[k].frames.size(), k == 5 || k == 6 ? 1u : 2u)
+          << "set " << k << (g == SyncGrouping::kSequence ? " (sequence)" : " (timestamp)");
+    }
+  }
+}
+
 }  // namespace
 }  // namespace mocap::hal

@@ -321,6 +321,8 @@ TEST(HilV4l2, SyncTwoCamerasSurvivesOneDisappearingAndReconnects) {
   EXPECT_EQ(rc[1]->stats().reconnects, 1) << rc[1]->stats().last_error;
   EXPECT_GT(back.cameras[1].frames, gone.cameras[1].frames) << "camera 1 delivers again";
   EXPECT_FALSE(back.cameras[1].dead);
+  EXPECT_EQ(back.cameras[1].restarts, 1u) << "the re-opened camera counts from 0 again";
+  EXPECT_EQ(back.cameras[1].sequence_gaps, gone.cameras[1].sequence_gaps) << "no phantom drops";
   (*rig)->stop();
 }
 

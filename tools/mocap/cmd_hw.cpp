@@ -440,12 +440,14 @@ void print_sync(const hal::CaptureRig& rig) {
               static_cast<unsigned long long>(s.partial_sets), s.skew_median_ms, s.skew_max_ms);
   for (std::size_t i = 0; i < s.cameras.size(); ++i) {
     const hal::CameraSyncStats& c = s.cameras[i];
-    std::printf("  camera %zu %s: frames=%llu gaps=%llu missing=%llu late=%llu dup=%llu %s%s\n", i,
-                cams[i].id.c_str(), static_cast<unsigned long long>(c.frames),
-                static_cast<unsigned long long>(c.sequence_gaps),
-                static_cast<unsigned long long>(c.missing), static_cast<unsigned long long>(c.late),
-                static_cast<unsigned long long>(c.duplicates), c.dead ? "DEAD" : "live",
-                cams[i].disconnected_polls > 0 ? " (disconnected at times)" : "");
+    std::printf(
+        "  camera %zu %s: frames=%llu gaps=%llu missing=%llu late=%llu dup=%llu restarts=%llu "
+        "%s%s\n",
+        i, cams[i].id.c_str(), static_cast<unsigned long long>(c.frames),
+        static_cast<unsigned long long>(c.sequence_gaps),
+        static_cast<unsigned long long>(c.missing), static_cast<unsigned long long>(c.late),
+        static_cast<unsigned long long>(c.duplicates), static_cast<unsigned long long>(c.restarts),
+        c.dead ? "DEAD" : "live", cams[i].disconnected_polls > 0 ? " (disconnected at times)" : "");
   }
   std::fflush(stdout);
 }
