@@ -16,9 +16,15 @@ if ! command -v qemu-system-x86_64 >/dev/null; then
   echo "HIL: skipped, qemu-system-x86_64 not found (install qemu-system-x86, or run tools/setup.sh)"
   exit 77
 fi
+ROOT=$(cd "$HERE/../.." && pwd)
+# The guest sees the host's / read-only but has its own tmpfs on /tmp, /run and /dev/shm: the
+# checkout and the build folder are shared explicitly (a CI clone may live under /tmp).
+shares=(--share "$ROOT")
+[[ $BUILD == "$ROOT"/* ]] || shares+=(--share "$BUILD")
+cd "$ROOT"
 start=$(date +%s)
 rc=0
-"$HERE/vm/run_vm.sh" --timeout "${MOCAP_HIL_TIMEOUT:-420}" -- "$HERE/guest.sh" "$BUILD" || rc=$?
+"$HERE/vm/run_vm.sh" --timeout "${MOCAP_HIL_TIMEOUT:-420}" "${shares[@]}" -- "$HERE/guest.sh" "$BUILD" || rc=$?
 echo "HIL: guest exit status $rc after $(($(date +%s) - start)) s"
 if [[ $rc -eq 77 && ${CI:-} == true ]]; then
   echo "HIL: the VM could not run, and CI must run this test" >&2
