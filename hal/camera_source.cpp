@@ -1,5 +1,7 @@
 #include "hal/camera_source.h"
 
+#include "runtime/image/image.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -117,6 +119,45 @@ Result<CameraMode> negotiate_mode(std::span<const CameraMode> offered, const Cam
     return a.frame_rate_hz > b.frame_rate_hz;
   });
   return c.front();
+}
+
+Result<std::shared_ptr<const FrameBuffer>> convert_to_rgb24(PixelFormat captured,
+                                                            std::span<const std::uint8_t> bytes,
+                                                            int stride_bytes, int width_px,
+                                                            int height_px,
+                                                            std::string_view camera) {
+  if (captured == PixelFormat::kMJPEG) {
+    Result<image::ImageRgb8> img = image::decode_image(bytes, camera);
+    if (!img) return img.error();
+    if (img->width_px != width_px || img->height_px != height_px) {
+      return Error(ErrorCode::kParse,
+                   std::string(camera) + ": MJPEG frame of " + std::to_string(img->width_px) + "x" +
+                       std::to_string(img->height_px) + ", the mode is " +
+                       std::to_string(width_px) + "x" + std::to_string(height_px));
+    }
+    return std::shared_ptr<const FrameBuffer>(
+        std::make_shared<OwnedFrameBuffer>(std::move(img->rgb)));
+  }
+  if (captured != PixelFormat::kGREY) {
+    return Error(ErrorCode::kInternal, std::string(camera) +
+                                           ": convert_to_rgb24 takes MJPEG or GREY, not " +
+                                           std::string(to_string(captured)));
+  }
+  const auto w = static_cast<std::size_t>(width_px);
+  const auto h = static_cast<std::size_t>(height_px);
+  const auto stride = static_cast<std::size_t>(stride_bytes);
+  if (h == 0 || stride < w || bytes.size() < stride * (h - 1) + w) {
+    return Error(ErrorCode::kParse, std::string(camera) + ": GREY frame of " +
+                                        std::to_string(bytes.size()) + " bytes is shorter than " +
+                                        std::to_string(width_px) + "x" + std::to_string(height_px));
+  }
+  std::vector<std::uint8_t> rgb(w * h * 3);
+  for (std::size_t y = 0; y < h; ++y) {
+    const std::uint8_t* row = bytes.data() + y * stride;
+    std::uint8_t* out = rgb.data() + y * w * 3;
+    for (std::size_t x = 0; x < w; ++x) out[3 * x] = out[3 * x + 1] = out[3 * x + 2] = row[x];
+  }
+  return std::shared_ptr<const FrameBuffer>(std::make_shared<OwnedFrameBuffer>(std::move(rgb)));
 }
 
 }  // namespace mocap::hal

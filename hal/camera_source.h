@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -66,6 +67,44 @@ struct CameraRequest {
 // The error names the camera, says what could not be met and lists the offered modes.
 Result<CameraMode> negotiate_mode(std::span<const CameraMode> offered, const CameraRequest& want,
                                   std::string_view camera);
+
+// A frame buffer that owns its bytes: decoded or converted pixels, a recording's frame.
+class OwnedFrameBuffer final : public FrameBuffer {
+ public:
+  explicit OwnedFrameBuffer(std::vector<std::uint8_t> bytes) : bytes_(std::move(bytes)) {}
+  std::span<const std::uint8_t> bytes() const override { return bytes_; }
+
+ private:
+  std::vector<std::uint8_t> bytes_;
+};
+
+// A driver buffer lent to a Frame (zero-copy): `owner->release(slot)` gives it back to the
+// backend when the last reference goes. The owner outlives the frame through the shared_ptr.
+template <typename Owner>
+class LentFrameBuffer final : public FrameBuffer {
+ public:
+  LentFrameBuffer(std::shared_ptr<Owner> owner, std::size_t slot,
+                  std::span<const std::uint8_t> bytes)
+      : owner_(std::move(owner)), slot_(slot), bytes_(bytes) {}
+  ~LentFrameBuffer() override { owner_->release(slot_); }
+  LentFrameBuffer(const LentFrameBuffer&) = delete;
+  LentFrameBuffer& operator=(const LentFrameBuffer&) = delete;
+  std::span<const std::uint8_t> bytes() const override { return bytes_; }
+
+ private:
+  std::shared_ptr<Owner> owner_;
+  std::size_t slot_;
+  std::span<const std::uint8_t> bytes_;
+};
+
+// MJPEG and GREY captures as the packed RGB24 the pipeline reads (CPU: libjpeg-turbo decode;
+// grey replicated to R, G and B). `stride_bytes` is the GREY row pitch. An Error (naming
+// `camera`) when the data is corrupt, shorter than the image or of another size than
+// width_px x height_px: the backend drops that frame.
+Result<std::shared_ptr<const FrameBuffer>> convert_to_rgb24(PixelFormat captured,
+                                                            std::span<const std::uint8_t> bytes,
+                                                            int stride_bytes, int width_px,
+                                                            int height_px, std::string_view camera);
 
 enum class CaptureStatus {
   kFrame,         // `frame` holds a new frame

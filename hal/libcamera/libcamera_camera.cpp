@@ -15,7 +15,6 @@
 #include <utility>
 
 #include "runtime/core/log.h"
-#include "runtime/image/image.h"
 
 namespace mocap::hal {
 namespace {
@@ -98,15 +97,6 @@ std::string camera_name(const lc::Camera& cam) {
   const auto model = cam.properties().get(lc::properties::Model);
   return model ? *model : cam.id();
 }
-
-class OwnedBuffer final : public FrameBuffer {
- public:
-  explicit OwnedBuffer(std::vector<std::uint8_t> bytes) : bytes_(std::move(bytes)) {}
-  std::span<const std::uint8_t> bytes() const override { return bytes_; }
-
- private:
-  std::vector<std::uint8_t> bytes_;
-};
 
 }  // namespace
 
@@ -199,25 +189,8 @@ struct LibcameraCamera::State {
   }
 };
 
-namespace {
-
-class RequestBuffer final : public FrameBuffer {
- public:
-  RequestBuffer(std::shared_ptr<LibcameraCamera::State> state, std::size_t slot,
-                std::span<const std::uint8_t> bytes)
-      : state_(std::move(state)), slot_(slot), bytes_(bytes) {}
-  ~RequestBuffer() override { state_->release(slot_); }
-  RequestBuffer(const RequestBuffer&) = delete;
-  RequestBuffer& operator=(const RequestBuffer&) = delete;
-  std::span<const std::uint8_t> bytes() const override { return bytes_; }
-
- private:
-  std::shared_ptr<LibcameraCamera::State> state_;
-  std::size_t slot_;
-  std::span<const std::uint8_t> bytes_;
-};
-
-}  // namespace
+// A request's buffer handed out as a Frame: the request is queued again on destruction.
+using RequestBuffer = LentFrameBuffer<LibcameraCamera::State>;
 
 Status LibcameraCameraOptions::validate() const {
   if (view_id < 0) return Error(ErrorCode::kInvalidArgument, "LibcameraCameraOptions.view_id < 0");
@@ -447,24 +420,14 @@ Result<Capture> LibcameraCamera::next(int timeout_ms) {
   auto raw = std::make_shared<RequestBuffer>(
       state_, slot, std::span<const std::uint8_t>(sl.plane_data[0], used0));
   switch (s.mode.format) {
-    case PixelFormat::kMJPEG: {
-      Result<image::ImageRgb8> img = image::decode_image(raw->bytes(), s.description.id);
-      if (!img) return Capture{CaptureStatus::kTimeout, {}};  // corrupt frame: dropped
-      f.format = PixelFormat::kRGB24;
-      f.stride_bytes = img->width_px * 3;
-      f.buffer = std::make_shared<OwnedBuffer>(std::move(img->rgb));
-      break;
-    }
+    case PixelFormat::kMJPEG:
     case PixelFormat::kGREY: {
-      std::vector<std::uint8_t> rgb(static_cast<std::size_t>(f.width_px) * f.height_px * 3);
-      for (int y = 0; y < f.height_px; ++y) {
-        const std::uint8_t* row = sl.plane_data[0] + static_cast<std::size_t>(y) * s.stride_bytes;
-        std::uint8_t* o = rgb.data() + static_cast<std::size_t>(y) * f.width_px * 3;
-        for (int x = 0; x < f.width_px; ++x) o[3 * x] = o[3 * x + 1] = o[3 * x + 2] = row[x];
-      }
+      Result<std::shared_ptr<const FrameBuffer>> rgb = convert_to_rgb24(
+          s.mode.format, raw->bytes(), s.stride_bytes, f.width_px, f.height_px, s.description.id);
+      if (!rgb) return Capture{CaptureStatus::kTimeout, {}};  // corrupt frame: dropped
       f.format = PixelFormat::kRGB24;
       f.stride_bytes = f.width_px * 3;
-      f.buffer = std::make_shared<OwnedBuffer>(std::move(rgb));
+      f.buffer = std::move(*rgb);
       break;
     }
     case PixelFormat::kNV12:
@@ -475,7 +438,7 @@ Result<Capture> LibcameraCamera::next(int timeout_ms) {
         std::vector<std::uint8_t> both(fb_planes[0].length + fb_planes[1].length);
         std::memcpy(both.data(), sl.plane_data[0], fb_planes[0].length);
         std::memcpy(both.data() + fb_planes[0].length, sl.plane_data[1], fb_planes[1].length);
-        f.buffer = std::make_shared<OwnedBuffer>(std::move(both));
+        f.buffer = std::make_shared<OwnedFrameBuffer>(std::move(both));
       } else {
         f.buffer = std::move(raw);
       }

@@ -8,19 +8,6 @@
 #include "hal/replay/video_decoder.h"
 
 namespace mocap::hal {
-namespace {
-
-// The decoded RGB24 pixels, owned by the frame (the decoder reuses its own buffer).
-class OwnedBuffer final : public FrameBuffer {
- public:
-  explicit OwnedBuffer(std::vector<std::uint8_t> bytes) : bytes_(std::move(bytes)) {}
-  std::span<const std::uint8_t> bytes() const override { return bytes_; }
-
- private:
-  std::vector<std::uint8_t> bytes_;
-};
-
-}  // namespace
 
 Status ReplayCameraOptions::validate() const {
   if (video.empty()) {
@@ -88,7 +75,7 @@ Result<Capture> ReplayCamera::next(int timeout_ms) {
     pending_.height_px = vf.height_px;
     pending_.stride_bytes = vf.stride_bytes;
     pending_.format = PixelFormat::kRGB24;
-    pending_.buffer = std::make_shared<OwnedBuffer>(std::move(vf.rgb));
+    pending_.buffer = std::make_shared<OwnedFrameBuffer>(std::move(vf.rgb));
     have_pending_ = true;
   }
   if (options_.paced) {

@@ -16,7 +16,6 @@
 #include <utility>
 
 #include "runtime/core/log.h"
-#include "runtime/image/image.h"
 
 namespace mocap::hal {
 namespace {
@@ -280,7 +279,7 @@ struct V4l2Camera::Device {
   }
 
   // A frame let go of its buffer: back to the driver while streaming, else free.
-  void release(std::uint32_t index) {
+  void release(std::size_t index) {
     std::lock_guard lock(mu);
     maps[index].state = BufferState::kFree;
     if (streaming && !queue_locked(index)) {
@@ -290,35 +289,8 @@ struct V4l2Camera::Device {
   }
 };
 
-namespace {
-
 // A driver buffer handed out as a Frame: the mmap'ed bytes, re-queued on destruction.
-class MappedBuffer final : public FrameBuffer {
- public:
-  MappedBuffer(std::shared_ptr<V4l2Camera::Device> device, std::uint32_t index,
-               std::span<const std::uint8_t> bytes)
-      : device_(std::move(device)), index_(index), bytes_(bytes) {}
-  ~MappedBuffer() override { device_->release(index_); }
-  MappedBuffer(const MappedBuffer&) = delete;
-  MappedBuffer& operator=(const MappedBuffer&) = delete;
-  std::span<const std::uint8_t> bytes() const override { return bytes_; }
-
- private:
-  std::shared_ptr<V4l2Camera::Device> device_;
-  std::uint32_t index_;
-  std::span<const std::uint8_t> bytes_;
-};
-
-class OwnedBuffer final : public FrameBuffer {
- public:
-  explicit OwnedBuffer(std::vector<std::uint8_t> bytes) : bytes_(std::move(bytes)) {}
-  std::span<const std::uint8_t> bytes() const override { return bytes_; }
-
- private:
-  std::vector<std::uint8_t> bytes_;
-};
-
-}  // namespace
+using MappedBuffer = LentFrameBuffer<V4l2Camera::Device>;
 
 // ---------------------------------------------------------------------------- public API
 
@@ -585,30 +557,17 @@ Result<Capture> V4l2Camera::next(int timeout_ms) {
     f.width_px = mode_.width_px;
     f.height_px = mode_.height_px;
     f.format = delivered_format(mode_.format);
-    if (mode_.format == PixelFormat::kMJPEG) {
-      Result<image::ImageRgb8> img = image::decode_image(raw->bytes(), d.path);
-      if (!img || img->width_px != mode_.width_px || img->height_px != mode_.height_px) {
+    if (mode_.format == PixelFormat::kMJPEG || mode_.format == PixelFormat::kGREY) {
+      // Converted on the CPU; the driver buffer goes back when `raw` goes out of scope.
+      Result<std::shared_ptr<const FrameBuffer>> rgb = convert_to_rgb24(
+          mode_.format, raw->bytes(), stride_bytes_, f.width_px, f.height_px, d.path);
+      if (!rgb) {
         ++corrupt_frames_;
-        MOCAP_LOG(V4l2, Warn) << d.path << ": MJPEG frame " << b.sequence << " dropped: "
-                              << (img ? "size differs from the mode" : img.error().message());
+        MOCAP_LOG(V4l2, Warn) << "frame " << b.sequence << " dropped: " << rgb.error().message();
         continue;
-      }
-      f.stride_bytes = img->width_px * 3;
-      f.buffer = std::make_shared<OwnedBuffer>(std::move(img->rgb));
-    } else if (mode_.format == PixelFormat::kGREY) {
-      std::vector<std::uint8_t> rgb(static_cast<std::size_t>(f.width_px) * f.height_px * 3);
-      const std::span<const std::uint8_t> src = raw->bytes();
-      if (src.size() < static_cast<std::size_t>(stride_bytes_) * (f.height_px - 1) + f.width_px) {
-        ++corrupt_frames_;
-        continue;
-      }
-      for (int y = 0; y < f.height_px; ++y) {
-        const std::uint8_t* row = src.data() + static_cast<std::size_t>(y) * stride_bytes_;
-        std::uint8_t* out = rgb.data() + static_cast<std::size_t>(y) * f.width_px * 3;
-        for (int x = 0; x < f.width_px; ++x) out[3 * x] = out[3 * x + 1] = out[3 * x + 2] = row[x];
       }
       f.stride_bytes = f.width_px * 3;
-      f.buffer = std::make_shared<OwnedBuffer>(std::move(rgb));
+      f.buffer = std::move(*rgb);
     } else {
       f.stride_bytes = stride_bytes_;
       f.buffer = std::move(raw);  // zero-copy: re-queued when the pipeline lets go

@@ -9,6 +9,7 @@
 #include <memory>
 #include <vector>
 
+#include "hal/camera_source.h"
 #include "hal/replay/recorder.h"
 #include "hal/replay/recording.h"
 #include "hal/replay/video_decoder.h"
@@ -17,15 +18,6 @@ namespace mocap::hal {
 namespace {
 
 namespace fs = std::filesystem;
-
-class Bytes final : public FrameBuffer {
- public:
-  explicit Bytes(std::vector<std::uint8_t> b) : b_(std::move(b)) {}
-  std::span<const std::uint8_t> bytes() const override { return b_; }
-
- private:
-  std::vector<std::uint8_t> b_;
-};
 
 constexpr int kW = 64, kH = 48;
 
@@ -57,7 +49,7 @@ Frame solid(int view, PixelFormat f, int r, int g, int b) {
     for (int i = 0; i < kW * kH / 4; ++i)
       px.insert(px.end(), {static_cast<std::uint8_t>(u), static_cast<std::uint8_t>(v)});
   }
-  fr.buffer = std::make_shared<Bytes>(std::move(px));
+  fr.buffer = std::make_shared<OwnedFrameBuffer>(std::move(px));
   return fr;
 }
 

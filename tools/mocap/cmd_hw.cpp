@@ -146,6 +146,40 @@ void print_camera(const hal::CameraDescription& d) {
   for (const hal::CameraMode& m : d.modes) std::printf("    %s\n", hal::to_string(m).c_str());
 }
 
+// Opens every --device camera (wrapped in ReconnectingCamera when `reconnect` is given) and
+// prints its negotiated mode. The first failure is the error.
+Result<std::vector<std::unique_ptr<hal::CameraSource>>> open_cameras(
+    const CameraArgs& cam, const std::vector<std::string>& devices,
+    const hal::ReconnectOptions* reconnect) {
+  std::vector<std::unique_ptr<hal::CameraSource>> sources;
+  for (std::size_t i = 0; i < devices.size(); ++i) {
+    Result<hal::CameraFactory> f = cam.factory(devices[i], static_cast<int>(i));
+    if (!f) return f.error();
+    std::unique_ptr<hal::CameraSource> source;
+    if (reconnect != nullptr) {
+      Result<std::unique_ptr<hal::ReconnectingCamera>> c =
+          hal::ReconnectingCamera::open(*f, *reconnect);
+      if (!c) return c.error();
+      source = std::move(*c);
+    } else {
+      Result<std::unique_ptr<hal::CameraSource>> c = (*f)();
+      if (!c) return c.error();
+      source = std::move(*c);
+    }
+    std::printf("camera %zu: %s %s  %s\n", i, source->description().backend.c_str(),
+                source->description().id.c_str(), hal::to_string(source->mode()).c_str());
+    sources.push_back(std::move(source));
+  }
+  return sources;
+}
+
+// The highest negotiated frame rate of the cameras (0 when none states one).
+double max_frame_rate_hz(const std::vector<std::unique_ptr<hal::CameraSource>>& sources) {
+  double rate = 0;
+  for (const auto& s : sources) rate = std::max(rate, s->mode().frame_rate_hz);
+  return rate;
+}
+
 // ------------------------------------------------------------------------------ cameras
 
 int run_cameras(Args args) {
@@ -190,18 +224,11 @@ int run_cameras(Args args) {
 // mocap capture --out DIR: the cameras through the rig (synchronised sets) into a recording.
 int record(const CameraArgs& cam, const std::vector<std::string>& devices, int sets,
            const std::string& out, const std::string& calibration) {
-  std::vector<std::unique_ptr<hal::CameraSource>> sources;
-  double rate = 0;
-  for (std::size_t i = 0; i < devices.size(); ++i) {
-    Result<hal::CameraFactory> f = cam.factory(devices[i], static_cast<int>(i));
-    if (!f) return fail(f.error());
-    Result<std::unique_ptr<hal::CameraSource>> c = (*f)();
-    if (!c) return fail(c.error());
-    std::printf("camera %zu: %s %s  %s\n", i, (*c)->description().backend.c_str(),
-                (*c)->description().id.c_str(), hal::to_string((*c)->mode()).c_str());
-    rate = std::max(rate, (*c)->mode().frame_rate_hz);
-    sources.push_back(std::move(*c));
-  }
+  Result<std::vector<std::unique_ptr<hal::CameraSource>>> opened =
+      open_cameras(cam, devices, nullptr);
+  if (!opened) return fail(opened.error());
+  std::vector<std::unique_ptr<hal::CameraSource>> sources = std::move(*opened);
+  const double rate = max_frame_rate_hz(sources);
   hal::RecorderOptions ro;
   ro.dir = out;
   ro.views = static_cast<int>(sources.size());
@@ -273,16 +300,10 @@ int run_capture(Args args) {
   const std::vector<std::string> devices = cam.device_list();
   if (devices.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--device: no camera given"));
   if (!out.empty()) return record(cam, devices, frames, out, calibration);
-  std::vector<std::unique_ptr<hal::CameraSource>> sources;
-  for (std::size_t i = 0; i < devices.size(); ++i) {
-    Result<hal::CameraFactory> f = cam.factory(devices[i], static_cast<int>(i));
-    if (!f) return fail(f.error());
-    Result<std::unique_ptr<hal::CameraSource>> c = (*f)();
-    if (!c) return fail(c.error());
-    std::printf("camera %zu: %s %s  %s\n", i, (*c)->description().backend.c_str(),
-                (*c)->description().id.c_str(), hal::to_string((*c)->mode()).c_str());
-    sources.push_back(std::move(*c));
-  }
+  Result<std::vector<std::unique_ptr<hal::CameraSource>>> opened =
+      open_cameras(cam, devices, nullptr);
+  if (!opened) return fail(opened.error());
+  std::vector<std::unique_ptr<hal::CameraSource>> sources = std::move(*opened);
   for (auto& s : sources) {
     if (Status st = s->start(); !st.ok()) return fail(st.error());
   }
@@ -482,20 +503,12 @@ int run_sync(Args args) {
   const std::vector<std::string> devices = cam.device_list();
   if (devices.size() < 1)
     return fail(Error(ErrorCode::kInvalidArgument, "--device: no camera given"));
-  std::vector<std::unique_ptr<hal::CameraSource>> sources;
   hal::ReconnectOptions ro;
   ro.retry_interval_ms = reconnect_ms;
-  double rate = 0;
-  for (std::size_t i = 0; i < devices.size(); ++i) {
-    Result<hal::CameraFactory> f = cam.factory(devices[i], static_cast<int>(i));
-    if (!f) return fail(f.error());
-    Result<std::unique_ptr<hal::ReconnectingCamera>> c = hal::ReconnectingCamera::open(*f, ro);
-    if (!c) return fail(c.error());
-    std::printf("camera %zu: %s %s  %s\n", i, (*c)->description().backend.c_str(),
-                (*c)->description().id.c_str(), hal::to_string((*c)->mode()).c_str());
-    rate = std::max(rate, (*c)->mode().frame_rate_hz);
-    sources.push_back(std::move(*c));
-  }
+  Result<std::vector<std::unique_ptr<hal::CameraSource>>> opened = open_cameras(cam, devices, &ro);
+  if (!opened) return fail(opened.error());
+  std::vector<std::unique_ptr<hal::CameraSource>> sources = std::move(*opened);
+  const double rate = max_frame_rate_hz(sources);
   hal::CaptureRigOptions opt;
   opt.sync.cameras = static_cast<int>(sources.size());
   opt.sync.grouping =
