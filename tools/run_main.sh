@@ -1,15 +1,40 @@
 #!/usr/bin/env bash
-# The main job: today's best end-to-end demo, updated as the pipeline grows. Now: the 4D
-# association engine + skeleton fitting over the Shelf benchmark (5 cameras, 301 frames),
-# scored by strict PCP, then its per-frame cost.
+# The main job: the appliance as a customer runs it. mocapd with no configuration (the cameras
+# it finds; the built-in simulator board when none is attached) streaming skeletons, read back
+# by `mocap stream`; then, with the shared data, a real recording through the whole path
+# (decode -> GPU CNN -> association -> fitting -> stream) and the association engine's Shelf
+# benchmark score.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 DATA="${MOCAP_DATA_DIR:-$ROOT/../shared/data}"
-if [ -f "$DATA/shelf/calibration.json" ]; then
-  printf '\n== Main job: mocap eval shelf --data %s\n' "$DATA/shelf"
-  "$ROOT/build/bin/mocap" eval shelf --data "$DATA/shelf"
-  printf '\n== mocap bench assoc --data %s\n' "$DATA/shelf"
-  exec "$ROOT/build/bin/mocap" bench assoc --data "$DATA/shelf"
+BIN="$ROOT/build/bin"
+PORT="${MOCAPD_STREAM_PORT:-9870}"
+
+# Runs mocapd with the given arguments and prints N stream messages through `mocap stream`.
+run_daemon() {
+  local n=$1
+  shift
+  "$BIN/mocapd" "$@" &
+  local pid=$!
+  trap 'kill $pid 2>/dev/null || true' EXIT
+  local rc=0
+  "$BIN/mocap" stream --port "$PORT" --messages "$n" --timeout 120 || rc=$?
+  wait "$pid" || rc=$?
+  trap - EXIT
+  return "$rc"
+}
+
+printf '\n== Main job: mocapd (no configuration) for 150 frames, read by mocap stream\n'
+run_daemon 5 --max-frames 150 --status-log-interval-s 2
+
+if [ -d "$DATA/pose2sim_multi/videos" ]; then
+  printf '\n== mocapd --replay %s (10 frames: videos -> GPU PoseNet -> 4D association -> stream)\n' \
+    "$DATA/pose2sim_multi"
+  run_daemon 10 --replay "$DATA/pose2sim_multi" --max-frames 10
 fi
-printf '\n== Main job: no shared data at %s (set MOCAP_DATA_DIR); showing the CLI\n' "$DATA"
-exec "$ROOT/build/bin/mocap" --help
+if [ -f "$DATA/shelf/calibration.json" ]; then
+  printf '\n== mocap eval shelf --data %s\n' "$DATA/shelf"
+  "$BIN/mocap" eval shelf --data "$DATA/shelf"
+else
+  printf '\n== no shared data at %s (set MOCAP_DATA_DIR): skipped the recording and Shelf\n' "$DATA"
+fi

@@ -5,7 +5,8 @@
 #     unsupported / missing / permission errors, the synchroniser over both with one camera
 #     disconnected mid-stream and reconnected), the libcamera backend on vimc, the trigger
 #     master and monitor on gpio-sim lines, a GPIO line already requested;
-#   - the CLI: mocap cameras, capture, sync and trigger, checked on their last lines.
+#   - the CLI: mocap cameras, capture, sync and trigger, checked on their last lines;
+#   - mocapd on the vivid cameras: 2D detections without calibration, skeletons with one.
 # Exits with the number of failed checks (0 = pass).
 #
 #   guest.sh BUILD_DIR
@@ -103,6 +104,59 @@ else
 fi
 kill "$bg" 2>/dev/null || true
 wait "$bg" 2>/dev/null || true
+
+echo "== mocapd on the two vivid cameras (board as data, no calibration, then a calibration)"
+# The CNN runs on the CPU backend at a small input: lavapipe's shader JIT is slow under TCG, and
+# what is checked here is the camera path, not the detections (vivid shows a test pattern).
+ip link set lo up 2>/dev/null || ifconfig lo 127.0.0.1 up 2>/dev/null || true
+boards=/tmp/hil-boards
+state=/tmp/hil-state
+mkdir -p "$boards/hil" "$state"
+cat >"$boards/hil/board.json" <<EOF
+{ "name": "hil", "description": "HIL guest: the two vivid cameras",
+  "cameras": [{ "backend": "v4l2", "match": "$v0" }, { "backend": "v4l2", "match": "$v1" }],
+  "max_cameras": 2, "frame_rate_hz": 30, "trigger": { "mode": "software" } }
+EOF
+health() {  # GET /health from the daemon's HTTP port
+  exec 3<>/dev/tcp/127.0.0.1/9871 && printf 'GET /health HTTP/1.0\r\n\r\n' >&3 && cat <&3
+  exec 3<&-
+}
+HEALTH=
+mocapd_run() {  # mocapd_run NAME REGEX: run mocapd, read 2 messages, GET /health, SIGTERM
+  local name=$1 re=$2 out rc=0 drc=0
+  XDG_CACHE_HOME=/tmp "$BUILD/bin/mocapd" --board-dir "$boards" --board hil --state-dir "$state" \
+    --gpu cpu --input-size-px 65 --status-log-interval-s 0 &
+  local pid=$!
+  out=$("$MOCAP" stream --raw --messages 2 --timeout 150 2>&1) || rc=$?
+  HEALTH=$(health 2>&1 || true)
+  kill -TERM "$pid" 2>/dev/null || true
+  wait "$pid" || drc=$?
+  echo "$out" | cut -c1-200 | sed 's/^/    /'
+  echo "$HEALTH" | tail -n1 | cut -c1-600 | sed 's/^/    health: /'
+  if [[ $rc -eq 0 && $(echo "$out" | grep -c "$re") -eq 2 ]]; then
+    pass "$name"
+  else
+    fail "$name (stream exit $rc)"
+  fi
+  if [[ $drc -eq 0 ]]; then pass "$name: SIGTERM stops it, exit 0"; else fail "$name: mocapd exit $drc"; fi
+}
+mocapd_run "mocapd without calibration streams 2D detections" '"type":"detections"'
+if [[ $HEALTH == *'"state":"missing"'* && $HEALTH == *"$v0, $v1 have no calibration"* ]]; then
+  pass "mocapd /health names the uncalibrated cameras"
+else
+  fail "mocapd /health names the uncalibrated cameras"
+fi
+# Two cameras 1 m apart at 320x180, the size the cameras are then asked for.
+cat >"$state/calibration.json" <<EOF
+{ "0": { "K": [250, 0, 160, 0, 250, 90, 0, 0, 1], "RT": [1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 3], "imgSize": [320, 180] },
+  "1": { "K": [250, 0, 160, 0, 250, 90, 0, 0, 1], "RT": [1, 0, 0, -1, 0, 0, -1, 0, 0, 1, 0, 3], "imgSize": [320, 180] } }
+EOF
+mocapd_run "mocapd with a calibration in its state folder streams skeletons" '"type":"skeletons"'
+if [[ $HEALTH == *'"state":"ok"'* && $HEALTH == *'320x180'* ]]; then
+  pass "mocapd /health: calibration ok, cameras at the calibrated 320x180"
+else
+  fail "mocapd /health: calibration ok, cameras at the calibrated 320x180"
+fi
 
 echo "== HIL: $failures failure(s)"
 exit $((failures > 100 ? 100 : failures))

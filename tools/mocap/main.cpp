@@ -19,7 +19,7 @@ struct Command {
 const Command kCommands[] = {
   {"calib",   "show or check a calibration file",                        mocap::tools::run_calib, nullptr},
   {"eval",    "evaluate the association engine on a benchmark (shelf)",   mocap::tools::run_eval, nullptr},
-  {"bench",   "benchmarks: assoc, cnn (pipeline arrives with issue #6)", mocap::tools::run_bench, nullptr},
+  {"bench",   "benchmarks: assoc, cnn, pipeline",                         mocap::tools::run_bench, nullptr},
   {"infer",   "run the pose CNN on a tensor or an image",                 mocap::tools::run_infer, nullptr},
   {"model",   "convert and inspect model files",                          mocap::tools::run_model, nullptr},
   {"replay",  "run a recorded multi-view video through the pipeline",     mocap::tools::run_replay, nullptr},
@@ -27,6 +27,7 @@ const Command kCommands[] = {
   {"capture", "capture frames from cameras",                              mocap::tools::run_capture_cmd, nullptr},
   {"trigger", "drive or monitor a GPIO trigger line",                     mocap::tools::run_trigger_cmd, nullptr},
   {"sync",    "live frame-set synchronisation statistics",                mocap::tools::run_sync_cmd, nullptr},
+  {"stream",  "read mocapd's skeleton stream",                            mocap::tools::run_stream, nullptr},
 };
 // clang-format on
 

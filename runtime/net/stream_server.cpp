@@ -1,0 +1,1094 @@
+#include "runtime/net/stream_server.h"
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <sys/eventfd.h>
+#include <sys/socket.h>
+#include <sys/uio.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <climits>
+#include <cstring>
+#include <deque>
+#include <exception>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "runtime/core/log.h"
+#include "runtime/net/sha1.h"
+
+MOCAP_LOG_CATEGORY(Net)
+
+namespace mocap::net {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr std::string_view kWebSocketGuid = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11";
+constexpr std::size_t kMaxClientFrameBytes = 64 * 1024;  // payload of one frame from a client
+constexpr std::size_t kReadChunk = 16 * 1024;
+constexpr int kReadsPerEvent = 4;     // per connection and poll round: one client cannot starve
+constexpr int kAcceptsPerEvent = 64;  // the others
+constexpr std::size_t kMaxIov = 64;
+constexpr auto kRequestTimeout = std::chrono::seconds(10);     // the whole HTTP request head
+constexpr auto kFlushTimeout = std::chrono::seconds(10);       // sending the last answer
+constexpr auto kLingerTimeout = std::chrono::seconds(2);       // reading after our FIN
+constexpr auto kAcceptPause = std::chrono::milliseconds(100);  // after EMFILE/ENFILE
+constexpr std::uint16_t kWsProtocolError = 1002;
+
+std::string errno_text(int err) { return std::strerror(err); }
+
+// ------------------------------------------------------------------------------------ HTTP
+
+bool is_tchar(char c) {  // RFC 9110 token character
+  if ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9')) return true;
+  return std::string_view("!#$%&'*+-.^_`|~").find(c) != std::string_view::npos;
+}
+
+bool is_token(std::string_view s) {
+  return !s.empty() && std::all_of(s.begin(), s.end(), is_tchar);
+}
+
+char ascii_lower(char c) { return (c >= 'A' && c <= 'Z') ? static_cast<char>(c - 'A' + 'a') : c; }
+
+std::string lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) c = ascii_lower(c);
+  return out;
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
+  return s;
+}
+
+// The offset just past the empty line that ends a request head ("\r\n\r\n" or "\n\n"), or npos.
+// Starts looking at `from` (bytes before it were searched already).
+std::size_t find_head_end(std::string_view buf, std::size_t from) {
+  for (std::size_t i = buf.find('\n', from); i != std::string_view::npos;
+       i = buf.find('\n', i + 1)) {
+    if (i + 1 < buf.size() && buf[i + 1] == '\n') return i + 2;
+    if (i + 2 < buf.size() && buf[i + 1] == '\r' && buf[i + 2] == '\n') return i + 3;
+  }
+  return std::string_view::npos;
+}
+
+struct HttpRequest {
+  std::string method;
+  std::string path;                                          // the target without its query
+  std::vector<std::pair<std::string, std::string>> headers;  // names lower-cased
+
+  // The comma-separated tokens of every header `name`, lower-cased.
+  std::vector<std::string> tokens(std::string_view name) const {
+    std::vector<std::string> out;
+    for (const auto& [key, value] : headers) {
+      if (key != name) continue;
+      std::string_view rest = value;
+      while (!rest.empty()) {
+        const std::size_t comma = rest.find(',');
+        const std::string_view item = trim(rest.substr(0, comma));
+        if (!item.empty()) out.push_back(lower(item));
+        rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
+      }
+    }
+    return out;
+  }
+  bool has_token(std::string_view name, std::string_view token) const {
+    const auto all = tokens(name);
+    return std::find(all.begin(), all.end(), token) != all.end();
+  }
+  const std::string* header(std::string_view name) const {
+    for (const auto& [key, value] : headers) {
+      if (key == name) return &value;
+    }
+    return nullptr;
+  }
+};
+
+bool has_control_char(std::string_view s) {
+  return std::any_of(s.begin(), s.end(), [](char c) {
+    const auto u = static_cast<unsigned char>(c);
+    return (u < 0x20 && c != '\t') || u == 0x7f;
+  });
+}
+
+// Parses a request head (request line + header lines + empty line); nullopt when malformed.
+std::optional<HttpRequest> parse_request(std::string_view head) {
+  std::vector<std::string_view> lines;
+  while (!head.empty()) {
+    const std::size_t nl = head.find('\n');
+    std::string_view line = head.substr(0, nl);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    lines.push_back(line);
+    head = nl == std::string_view::npos ? std::string_view() : head.substr(nl + 1);
+  }
+  while (!lines.empty() && lines.back().empty()) lines.pop_back();
+  if (lines.empty()) return std::nullopt;
+
+  // Request line: METHOD SP target SP HTTP/1.x
+  const std::string_view request_line = lines.front();
+  const std::size_t sp1 = request_line.find(' ');
+  if (sp1 == std::string_view::npos) return std::nullopt;
+  const std::size_t sp2 = request_line.find(' ', sp1 + 1);
+  if (sp2 == std::string_view::npos) return std::nullopt;
+  const std::string_view method = request_line.substr(0, sp1);
+  const std::string_view target = request_line.substr(sp1 + 1, sp2 - sp1 - 1);
+  const std::string_view version = request_line.substr(sp2 + 1);
+  if (!is_token(method) || target.empty() || target.front() != '/' || has_control_char(target) ||
+      target.find(' ') != std::string_view::npos ||
+      (version != "HTTP/1.1" && version != "HTTP/1.0")) {
+    return std::nullopt;
+  }
+  HttpRequest req;
+  req.method = std::string(method);
+  req.path = std::string(target.substr(0, target.find('?')));
+
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const std::string_view line = lines[i];
+    const std::size_t colon = line.find(':');
+    if (colon == std::string_view::npos) return std::nullopt;
+    const std::string_view name = line.substr(0, colon);  // no space before ':' (RFC 9112)
+    const std::string_view value = trim(line.substr(colon + 1));
+    if (!is_token(name) || has_control_char(value)) return std::nullopt;
+    req.headers.emplace_back(lower(name), std::string(value));
+  }
+  return req;
+}
+
+std::string http_response(int code, std::string_view reason, std::string_view content_type,
+                          std::string_view body, std::string_view extra_headers = {}) {
+  std::string out = "HTTP/1.1 " + std::to_string(code) + " " + std::string(reason) + "\r\n";
+  out += "Content-Type: ";
+  out += content_type;
+  out += "\r\nContent-Length: " + std::to_string(body.size()) + "\r\n";
+  out += "Cache-Control: no-store\r\nConnection: close\r\n";
+  out += extra_headers;
+  out += "\r\n";
+  out += body;
+  return out;
+}
+
+std::string text_response(int code, std::string_view reason, std::string_view body,
+                          std::string_view extra_headers = {}) {
+  return http_response(code, reason, "text/plain; charset=utf-8", body, extra_headers);
+}
+
+bool is_base64_nonce(std::string_view key) {  // 16 bytes, base64: 22 characters + "=="
+  if (key.size() != 24 || key.substr(22) != "==") return false;
+  return std::all_of(key.begin(), key.begin() + 22, [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '+' ||
+           c == '/';
+  });
+}
+
+// ------------------------------------------------------------------------------- WebSocket
+
+// One unmasked server frame (FIN set): 7-bit, 16-bit or 64-bit payload length.
+std::string websocket_frame(std::uint8_t opcode, std::string_view payload) {
+  std::string out;
+  const std::size_t n = payload.size();
+  out.reserve(n + 10);
+  out.push_back(static_cast<char>(0x80u | opcode));
+  if (n < 126) {
+    out.push_back(static_cast<char>(n));
+  } else if (n <= 0xFFFF) {
+    out.push_back(static_cast<char>(126));
+    out.push_back(static_cast<char>((n >> 8) & 0xFFu));
+    out.push_back(static_cast<char>(n & 0xFFu));
+  } else {
+    out.push_back(static_cast<char>(127));
+    const auto n64 = static_cast<std::uint64_t>(n);
+    for (int shift = 56; shift >= 0; shift -= 8) {
+      out.push_back(static_cast<char>((n64 >> shift) & 0xFFu));
+    }
+  }
+  out.append(payload);
+  return out;
+}
+
+std::string websocket_close_frame(std::uint16_t status) {
+  const std::array<char, 2> payload = {static_cast<char>(status >> 8),
+                                       static_cast<char>(status & 0xFFu)};
+  return websocket_frame(0x8, std::string_view(payload.data(), payload.size()));
+}
+
+std::uint8_t byte_at(std::string_view s, std::size_t i) { return static_cast<std::uint8_t>(s[i]); }
+
+// ------------------------------------------------------------------------------ connections
+
+// Shared between publish() and the poll thread; every field guarded by Impl::mu.
+struct Outbox {
+  bool websocket = false;
+  std::deque<std::shared_ptr<const std::string>> pending;  // not yet taken by the poll thread
+  std::size_t backlog_bytes = 0;  // pending + what the poll thread holds unsent
+  bool overflow = false;          // backlog over the limit: drop the client
+};
+
+enum class Phase {
+  kHttpRequest,     // reading a request head
+  kStream,          // stream port client
+  kWebSocket,       // upgraded HTTP client
+  kFlushThenClose,  // sending the last answer; input discarded
+  kLinger,          // our side shut down; discarding input until EOF or the deadline
+};
+
+struct OutItem {
+  std::shared_ptr<const std::string> bytes;
+  bool counted = false;  // part of the outbox backlog (published messages)
+};
+
+// Owned by the poll thread.
+struct Connection {
+  Connection() = default;
+  Connection(const Connection&) = delete;
+  Connection& operator=(const Connection&) = delete;
+  ~Connection() {
+    if (fd >= 0) ::close(fd);
+  }
+
+  int fd = -1;
+  Phase phase = Phase::kStream;
+  std::string peer;                // "address:port", for logs
+  std::string in;                  // request head or WebSocket frame bytes
+  std::deque<OutItem> out;         // to send, front first
+  std::size_t out_offset = 0;      // bytes of out.front() already sent
+  std::size_t counted_sent = 0;    // counted bytes sent since the last sync
+  bool peer_closed = false;        // read EOF
+  bool dead = false;               // close at the next sync
+  bool dropped_slow = false;       // for the log line
+  std::shared_ptr<Outbox> outbox;  // stream and WebSocket clients
+  std::optional<Clock::time_point> deadline;
+};
+
+const char* kind_name(const Connection& c) {
+  switch (c.phase) {
+    case Phase::kStream:
+      return "stream";
+    case Phase::kWebSocket:
+      return "websocket";
+    default:
+      return "http";
+  }
+}
+
+std::string format_peer(const sockaddr_in& addr) {
+  std::array<char, INET_ADDRSTRLEN> text{};
+  if (::inet_ntop(AF_INET, &addr.sin_addr, text.data(), static_cast<socklen_t>(text.size())) ==
+      nullptr) {
+    return "?";
+  }
+  return std::string(text.data()) + ":" + std::to_string(ntohs(addr.sin_port));
+}
+
+Result<int> bind_listener(const std::string& address, int port, std::string_view what,
+                          std::string_view flag) {
+  const std::string where = std::string(what) + " port " + std::to_string(port);
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  if (fd < 0) {
+    return Error(ErrorCode::kIo, where + ": cannot create a TCP socket: " + errno_text(errno));
+  }
+  const int one = 1;
+  ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof(one));
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  if (::inet_pton(AF_INET, address.c_str(), &addr.sin_addr) != 1) {
+    ::close(fd);
+    return Error(ErrorCode::kInvalidArgument,
+                 "bind_address '" + address + "' is not an IPv4 address");
+  }
+  if (::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) != 0) {
+    const int err = errno;
+    ::close(fd);
+    const std::string p = std::to_string(port);
+    switch (err) {
+      case EADDRINUSE:
+        return Error(ErrorCode::kIo, "port " + p + " is in use: stop the other mocapd or pass " +
+                                         std::string(flag) + " to choose another " +
+                                         std::string(what) + " port");
+      case EACCES:
+        return Error(ErrorCode::kIo, "port " + p +
+                                         " needs privileges (ports below 1024 need root or "
+                                         "CAP_NET_BIND_SERVICE): pass " +
+                                         std::string(flag) + " with a " + std::string(what) +
+                                         " port of 1024 or more");
+      case EADDRNOTAVAIL:
+        return Error(ErrorCode::kIo, where + ": " + address +
+                                         " is not an address of this machine: bind to one of "
+                                         "its addresses or to 0.0.0.0");
+      default:
+        return Error(ErrorCode::kIo,
+                     where + ": cannot bind " + address + ":" + p + ": " + errno_text(err));
+    }
+  }
+  if (::listen(fd, SOMAXCONN) != 0) {
+    const int err = errno;
+    ::close(fd);
+    return Error(ErrorCode::kIo, where + ": listen failed: " + errno_text(err));
+  }
+  return fd;
+}
+
+int bound_port(int fd) {
+  sockaddr_in addr{};
+  socklen_t len = sizeof(addr);
+  if (::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) return -1;
+  return ntohs(addr.sin_port);
+}
+
+}  // namespace
+
+std::string websocket_accept_key(std::string_view client_key) {
+  std::string text(client_key);
+  text += kWebSocketGuid;
+  const auto digest = sha1(text);
+  return base64_encode(digest);
+}
+
+Status StreamServerOptions::validate() const {
+  auto bad = [](std::string message) {
+    return Error(ErrorCode::kInvalidArgument, std::move(message));
+  };
+  in_addr addr{};
+  if (::inet_pton(AF_INET, bind_address.c_str(), &addr) != 1) {
+    return bad("bind_address '" + bind_address +
+               "' is not an IPv4 address (e.g. 0.0.0.0 for all interfaces, 127.0.0.1)");
+  }
+  if (stream_port < 0 || stream_port > 65535) {
+    return bad("stream_port " + std::to_string(stream_port) + " is outside [0, 65535]");
+  }
+  if (http_port < -1 || http_port > 65535) {
+    return bad("http_port " + std::to_string(http_port) +
+               " is outside [0, 65535] (-1 disables the HTTP server)");
+  }
+  if (stream_port != 0 && stream_port == http_port) {
+    return bad("stream_port and http_port are both " + std::to_string(stream_port));
+  }
+  if (max_clients < 1 || max_clients > 4096) {
+    return bad("max_clients " + std::to_string(max_clients) + " is outside [1, 4096]");
+  }
+  if (max_client_backlog_bytes < (std::size_t{4} << 10) ||
+      max_client_backlog_bytes > (std::size_t{1} << 30)) {
+    return bad("max_client_backlog_bytes " + std::to_string(max_client_backlog_bytes) +
+               " is outside [4 KiB, 1 GiB]");
+  }
+  if (max_request_bytes < 256 || max_request_bytes > (std::size_t{1} << 20)) {
+    return bad("max_request_bytes " + std::to_string(max_request_bytes) +
+               " is outside [256, 1 MiB]");
+  }
+  return Status::Ok();
+}
+
+// ----------------------------------------------------------------------------------- Impl
+
+struct StreamServer::Impl {
+  Impl(const StreamServerOptions& opts, StatusProvider provider)
+      : options(opts), status(std::move(provider)) {}
+  ~Impl() {
+    close_listeners();
+    if (wake_fd >= 0) ::close(wake_fd);
+  }
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+
+  // Poll-thread deltas, folded into `shared` by sync().
+  struct Counters {
+    std::uint64_t accepted = 0;
+    std::uint64_t rejected_full = 0;
+    std::uint64_t dropped_bad_input = 0;
+    std::uint64_t http_requests = 0;
+    std::uint64_t bytes_sent = 0;
+  };
+
+  const StreamServerOptions options;
+  const StatusProvider status;
+  int stream_listen_fd = -1;
+  int http_listen_fd = -1;
+  int wake_fd = -1;  // eventfd; open until destruction so a late publish() never writes a
+                     // reused descriptor
+  int stream_port = -1;
+  int http_port = -1;
+  std::thread thread;
+  std::atomic<bool> stopping{false};
+  std::mutex stop_mu;
+  bool stopped = false;  // guarded by stop_mu
+
+  // Shared with publish() and stats().
+  mutable std::mutex mu;
+  std::vector<std::shared_ptr<Outbox>> subscribers;  // guarded by mu
+  ServerStats shared;                                // guarded by mu
+  bool wake_pending = false;                         // guarded by mu
+  bool closed = false;                               // guarded by mu: the thread has exited
+  std::atomic<int> stream_subscribers{0};            // hints for publish(): which framings
+  std::atomic<int> websocket_subscribers{0};
+
+  // Poll thread only.
+  std::vector<std::unique_ptr<Connection>> conns;
+  Counters local;
+  Clock::time_point accept_paused_until{};
+  Clock::time_point last_accept_warning{};
+
+  void close_listeners() {
+    if (stream_listen_fd >= 0) ::close(stream_listen_fd);
+    if (http_listen_fd >= 0) ::close(http_listen_fd);
+    stream_listen_fd = -1;
+    http_listen_fd = -1;
+  }
+
+  void wake() const {
+    const std::uint64_t one = 1;
+    [[maybe_unused]] const ssize_t r = ::write(wake_fd, &one, sizeof(one));
+  }
+
+  void drain_wake() const {
+    std::uint64_t value = 0;
+    [[maybe_unused]] const ssize_t r = ::read(wake_fd, &value, sizeof(value));
+  }
+
+  void run();
+  void sync();
+  void reap();
+  void shutdown_all();
+  int poll_timeout_ms() const;
+  void expire(Clock::time_point now);
+  void accept_from(int listen_fd, bool http);
+  void handle(Connection& c, short revents);
+  void flush(Connection& c);
+  void consume(Connection& c, std::size_t n);
+  void read_request(Connection& c);
+  void read_websocket(Connection& c);
+  void discard_input(Connection& c);
+  void on_eof(Connection& c);
+  void answer_request(Connection& c, std::size_t head_end);
+  void respond(Connection& c, std::string response);
+  void parse_frames(Connection& c);
+  void websocket_fail(Connection& c, const char* reason);
+  void queue(Connection& c, std::string bytes);
+  void drop_unsent(Connection& c);
+  void subscribe(Connection& c);
+  std::string index_page() const;
+};
+
+void StreamServer::Impl::run() {
+  std::vector<pollfd> fds;
+  while (!stopping.load()) {
+    sync();
+    const Clock::time_point now = Clock::now();
+    const bool accepting = now >= accept_paused_until;
+    fds.clear();
+    fds.push_back({wake_fd, POLLIN, 0});
+    fds.push_back({accepting ? stream_listen_fd : -1, POLLIN, 0});  // fd -1: ignored by poll
+    fds.push_back({accepting ? http_listen_fd : -1, POLLIN, 0});
+    const std::size_t polled = conns.size();
+    for (const auto& c : conns) {
+      short events = 0;
+      if (!c->peer_closed) events |= POLLIN;
+      if (!c->out.empty()) events |= POLLOUT;
+      fds.push_back({c->fd, events, 0});
+    }
+    const int n = ::poll(fds.data(), static_cast<nfds_t>(fds.size()), poll_timeout_ms());
+    if (n < 0) {
+      const int err = errno;
+      if (err == EINTR) continue;
+      MOCAP_LOG(Net, Warn) << "poll failed: " << errno_text(err);
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      continue;
+    }
+    if ((fds[0].revents & POLLIN) != 0) drain_wake();
+    if (stopping.load()) break;
+    for (std::size_t i = 0; i < polled; ++i) {
+      const short revents = fds[3 + i].revents;
+      if (revents != 0 && !conns[i]->dead) handle(*conns[i], revents);
+    }
+    if ((fds[1].revents & POLLIN) != 0) accept_from(stream_listen_fd, false);
+    if ((fds[2].revents & POLLIN) != 0) accept_from(http_listen_fd, true);
+    expire(Clock::now());
+  }
+  shutdown_all();
+}
+
+// Exchanges state with publish()/stats() under one lock per poll round: folds in the counters,
+// settles the backlog of what was sent, hands newly published messages to the connections,
+// drops clients over their backlog limit, (un)registers subscribers; then closes dead
+// connections.
+void StreamServer::Impl::sync() {
+  {
+    std::lock_guard lock(mu);
+    wake_pending = false;
+    shared.accepted += local.accepted;
+    shared.rejected_full += local.rejected_full;
+    shared.dropped_bad_input += local.dropped_bad_input;
+    shared.http_requests += local.http_requests;
+    shared.bytes_sent += local.bytes_sent;
+    local = Counters{};
+    int streams = 0;
+    int websockets = 0;
+    for (const auto& cp : conns) {
+      Connection& c = *cp;
+      if (c.outbox) {
+        Outbox& box = *c.outbox;
+        box.backlog_bytes -= c.counted_sent;
+        shared.backlog_bytes -= c.counted_sent;
+        c.counted_sent = 0;
+        bool leaving = c.dead || (c.phase != Phase::kStream && c.phase != Phase::kWebSocket);
+        if (!leaving && box.overflow) {
+          ++shared.dropped_slow;
+          c.dropped_slow = true;
+          c.dead = true;
+          leaving = true;
+        }
+        if (leaving) {
+          shared.backlog_bytes -= box.backlog_bytes;
+          std::erase(subscribers, c.outbox);
+          c.outbox.reset();
+        } else {
+          for (auto& item : box.pending) c.out.push_back({std::move(item), true});
+          box.pending.clear();
+        }
+      }
+      if (!c.dead && c.phase == Phase::kStream) ++streams;
+      if (!c.dead && c.phase == Phase::kWebSocket) ++websockets;
+    }
+    shared.stream_clients = streams;
+    shared.websocket_clients = websockets;
+    stream_subscribers.store(streams);
+    websocket_subscribers.store(websockets);
+  }
+  reap();
+}
+
+// Registers a stream or WebSocket client with publish() at once (sync() would be a poll round
+// later).
+void StreamServer::Impl::subscribe(Connection& c) {
+  const bool websocket = c.phase == Phase::kWebSocket;
+  auto box = std::make_shared<Outbox>();
+  box->websocket = websocket;
+  std::lock_guard lock(mu);
+  subscribers.push_back(box);
+  c.outbox = std::move(box);
+  if (websocket) {
+    ++shared.websocket_clients;
+    websocket_subscribers.fetch_add(1);
+  } else {
+    ++shared.stream_clients;
+    stream_subscribers.fetch_add(1);
+  }
+}
+
+void StreamServer::Impl::reap() {
+  for (const auto& c : conns) {
+    if (c->dropped_slow) {
+      MOCAP_LOG(Net, Info) << kind_name(*c) << " client " << c->peer << " dropped: more than "
+                           << options.max_client_backlog_bytes << " bytes unsent";
+    }
+  }
+  std::erase_if(conns, [](const std::unique_ptr<Connection>& c) { return c->dead; });
+}
+
+void StreamServer::Impl::shutdown_all() {
+  conns.clear();
+  std::lock_guard lock(mu);
+  closed = true;
+  subscribers.clear();
+  shared.accepted += local.accepted;
+  shared.rejected_full += local.rejected_full;
+  shared.dropped_bad_input += local.dropped_bad_input;
+  shared.http_requests += local.http_requests;
+  shared.bytes_sent += local.bytes_sent;
+  local = Counters{};
+  shared.stream_clients = 0;
+  shared.websocket_clients = 0;
+  shared.backlog_bytes = 0;
+  stream_subscribers.store(0);
+  websocket_subscribers.store(0);
+}
+
+int StreamServer::Impl::poll_timeout_ms() const {
+  std::optional<Clock::time_point> next;
+  if (Clock::now() < accept_paused_until) next = accept_paused_until;
+  for (const auto& c : conns) {
+    if (c->deadline && (!next || *c->deadline < *next)) next = c->deadline;
+  }
+  if (!next) return -1;
+  const auto ms = std::chrono::ceil<std::chrono::milliseconds>(*next - Clock::now()).count();
+  return static_cast<int>(std::clamp<long long>(ms, 0, INT_MAX));
+}
+
+void StreamServer::Impl::expire(Clock::time_point now) {
+  for (const auto& cp : conns) {
+    Connection& c = *cp;
+    if (c.dead || !c.deadline || *c.deadline > now) continue;
+    if (c.phase == Phase::kHttpRequest) {
+      respond(c, text_response(408, "Request Timeout", "request head not received in time\n"));
+    } else {
+      c.dead = true;
+    }
+  }
+}
+
+void StreamServer::Impl::accept_from(int listen_fd, bool http) {
+  for (int i = 0; i < kAcceptsPerEvent; ++i) {
+    sockaddr_in addr{};
+    socklen_t len = sizeof(addr);
+    const int fd = ::accept4(listen_fd, reinterpret_cast<sockaddr*>(&addr), &len,
+                             SOCK_NONBLOCK | SOCK_CLOEXEC);
+    if (fd < 0) {
+      const int err = errno;
+      if (err == EAGAIN || err == EWOULDBLOCK) return;
+      if (err == EMFILE || err == ENFILE || err == ENOBUFS || err == ENOMEM) {
+        const Clock::time_point now = Clock::now();
+        accept_paused_until = now + kAcceptPause;
+        if (now - last_accept_warning > std::chrono::seconds(10)) {
+          last_accept_warning = now;
+          MOCAP_LOG(Net, Warn) << "cannot accept connections: " << errno_text(err)
+                               << " (raise the open-file limit or lower max_clients)";
+        }
+        return;
+      }
+      continue;  // EINTR, ECONNABORTED and network errors of that one connection
+    }
+    if (conns.size() >= static_cast<std::size_t>(options.max_clients)) {
+      ::close(fd);
+      ++local.rejected_full;
+      MOCAP_LOG(Net, Debug) << "connection from " << format_peer(addr)
+                            << " refused: " << options.max_clients << " clients connected";
+      continue;
+    }
+    const int one = 1;
+    ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof(one));
+    auto c = std::make_unique<Connection>();
+    c->fd = fd;
+    c->peer = format_peer(addr);
+    if (http) {
+      c->phase = Phase::kHttpRequest;
+      c->deadline = Clock::now() + kRequestTimeout;
+    } else {
+      c->phase = Phase::kStream;
+      subscribe(*c);
+    }
+    ++local.accepted;
+    MOCAP_LOG(Net, Debug) << (http ? "http" : "stream") << " client " << c->peer << " connected";
+    conns.push_back(std::move(c));
+  }
+}
+
+void StreamServer::Impl::handle(Connection& c, short revents) {
+  if ((revents & (POLLERR | POLLNVAL)) != 0) {
+    c.dead = true;
+    return;
+  }
+  const bool had_output = !c.out.empty();
+  if ((revents & (POLLIN | POLLHUP)) != 0) {
+    switch (c.phase) {
+      case Phase::kHttpRequest:
+        read_request(c);
+        break;
+      case Phase::kWebSocket:
+        read_websocket(c);
+        break;
+      case Phase::kStream:
+      case Phase::kFlushThenClose:
+      case Phase::kLinger:
+        discard_input(c);
+        break;
+    }
+  }
+  if (!c.dead && !c.out.empty() && ((revents & POLLOUT) != 0 || !had_output)) flush(c);
+}
+
+void StreamServer::Impl::flush(Connection& c) {
+  while (!c.out.empty()) {
+    std::array<iovec, kMaxIov> iov{};
+    std::size_t n = 0;
+    for (auto it = c.out.begin(); it != c.out.end() && n < kMaxIov; ++it, ++n) {
+      const std::string& bytes = *it->bytes;
+      const std::size_t offset = n == 0 ? c.out_offset : 0;
+      iov[n].iov_base = const_cast<char*>(bytes.data() + offset);
+      iov[n].iov_len = bytes.size() - offset;
+    }
+    msghdr msg{};
+    msg.msg_iov = iov.data();
+    msg.msg_iovlen = n;
+    const ssize_t sent = ::sendmsg(c.fd, &msg, MSG_NOSIGNAL);
+    if (sent < 0) {
+      const int err = errno;
+      if (err == EINTR) continue;
+      if (err == EAGAIN || err == EWOULDBLOCK) return;
+      MOCAP_LOG(Net, Debug) << kind_name(c) << " client " << c.peer << ": " << errno_text(err);
+      c.dead = true;
+      return;
+    }
+    local.bytes_sent += static_cast<std::uint64_t>(sent);
+    consume(c, static_cast<std::size_t>(sent));
+  }
+  if (c.phase == Phase::kFlushThenClose) {
+    if (c.peer_closed) {
+      c.dead = true;
+    } else {
+      ::shutdown(c.fd, SHUT_WR);  // lingering close: the peer reads our answer before any RST
+      c.phase = Phase::kLinger;
+      c.deadline = Clock::now() + kLingerTimeout;
+    }
+  }
+}
+
+void StreamServer::Impl::consume(Connection& c, std::size_t n) {
+  while (n > 0) {
+    const OutItem& front = c.out.front();
+    const std::size_t take = std::min(n, front.bytes->size() - c.out_offset);
+    if (front.counted && c.outbox) c.counted_sent += take;
+    n -= take;
+    c.out_offset += take;
+    if (c.out_offset == front.bytes->size()) {
+      c.out.pop_front();
+      c.out_offset = 0;
+    }
+  }
+}
+
+void StreamServer::Impl::on_eof(Connection& c) {
+  c.peer_closed = true;
+  if (c.phase != Phase::kFlushThenClose || c.out.empty()) c.dead = true;
+}
+
+void StreamServer::Impl::discard_input(Connection& c) {
+  std::array<char, kReadChunk> buf;
+  for (int i = 0; i < kReadsPerEvent; ++i) {
+    const ssize_t r = ::recv(c.fd, buf.data(), buf.size(), 0);
+    if (r > 0) continue;
+    if (r == 0) {
+      on_eof(c);
+      return;
+    }
+    const int err = errno;
+    if (err == EINTR) continue;
+    if (err != EAGAIN && err != EWOULDBLOCK) c.dead = true;
+    return;
+  }
+}
+
+void StreamServer::Impl::read_request(Connection& c) {
+  const std::size_t cap = options.max_request_bytes + 1;  // one byte over: "too large"
+  for (int i = 0; i < kReadsPerEvent && c.in.size() < cap; ++i) {
+    const std::size_t old = c.in.size();
+    const std::size_t want = std::min(kReadChunk, cap - old);
+    c.in.resize(old + want);
+    const ssize_t r = ::recv(c.fd, c.in.data() + old, want, 0);
+    c.in.resize(old + static_cast<std::size_t>(std::max<ssize_t>(r, 0)));
+    if (r == 0) {
+      on_eof(c);
+      return;
+    }
+    if (r < 0) {
+      const int err = errno;
+      if (err == EINTR) continue;
+      if (err != EAGAIN && err != EWOULDBLOCK) c.dead = true;
+      return;
+    }
+    const std::size_t end = find_head_end(c.in, old >= 3 ? old - 3 : 0);
+    if (end != std::string::npos && end <= options.max_request_bytes) {
+      answer_request(c, end);
+      return;
+    }
+    if (c.in.size() > options.max_request_bytes) {
+      ++local.http_requests;
+      ++local.dropped_bad_input;
+      MOCAP_LOG(Net, Debug) << "http client " << c.peer << ": request head over "
+                            << options.max_request_bytes << " bytes";
+      respond(c, text_response(431, "Request Header Fields Too Large",
+                               "request head over " + std::to_string(options.max_request_bytes) +
+                                   " bytes\n"));
+      return;
+    }
+  }
+}
+
+void StreamServer::Impl::queue(Connection& c, std::string bytes) {
+  c.out.push_back({std::make_shared<const std::string>(std::move(bytes)), false});
+}
+
+void StreamServer::Impl::respond(Connection& c, std::string response) {
+  queue(c, std::move(response));
+  c.phase = Phase::kFlushThenClose;
+  c.in = std::string();
+  c.deadline = Clock::now() + kFlushTimeout;
+}
+
+std::string StreamServer::Impl::index_page() const {
+  std::string page = "mocapd stream server\n\n";
+  page += "tcp port " + std::to_string(stream_port) +
+          ": skeleton stream, newline-delimited JSON (one message per line)\n";
+  page += "http port " + std::to_string(http_port) + ":\n";
+  page += "  GET /health  status (JSON)\n";
+  page += "  GET /stream  WebSocket (RFC 6455): one text frame per message\n";
+  return page;
+}
+
+void StreamServer::Impl::answer_request(Connection& c, std::size_t head_end) {
+  ++local.http_requests;
+  const auto req = parse_request(std::string_view(c.in).substr(0, head_end));
+  if (!req) {
+    ++local.dropped_bad_input;
+    MOCAP_LOG(Net, Debug) << "http client " << c.peer << ": malformed request";
+    respond(c, text_response(400, "Bad Request", "malformed HTTP request\n"));
+    return;
+  }
+  if (req->method != "GET") {
+    respond(c, text_response(405, "Method Not Allowed", "only GET is served\n", "Allow: GET\r\n"));
+    return;
+  }
+  if (req->path == "/health") {
+    std::string body = "{}";
+    if (status) {
+      try {
+        body = status();
+      } catch (const std::exception& e) {
+        respond(c, text_response(500, "Internal Server Error",
+                                 std::string("status provider failed: ") + e.what() + "\n"));
+        return;
+      } catch (...) {
+        respond(c, text_response(500, "Internal Server Error", "status provider failed\n"));
+        return;
+      }
+    }
+    respond(c, http_response(200, "OK", "application/json", body));
+    return;
+  }
+  if (req->path == "/") {
+    respond(c, text_response(200, "OK", index_page()));
+    return;
+  }
+  if (req->path != "/stream") {
+    respond(c, text_response(404, "Not Found", "no such endpoint; GET / lists them\n"));
+    return;
+  }
+  if (!req->has_token("upgrade", "websocket")) {
+    respond(c, text_response(426, "Upgrade Required",
+                             "GET /stream is a WebSocket (RFC 6455): send Upgrade: websocket\n",
+                             "Upgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"));
+    return;
+  }
+  const std::string* version = req->header("sec-websocket-version");
+  if (version == nullptr || *version != "13") {
+    respond(c, text_response(426, "Upgrade Required", "WebSocket version 13 is served\n",
+                             "Upgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"));
+    return;
+  }
+  const std::string* key = req->header("sec-websocket-key");
+  if (!req->has_token("connection", "upgrade") || key == nullptr || !is_base64_nonce(*key)) {
+    ++local.dropped_bad_input;
+    MOCAP_LOG(Net, Debug) << "http client " << c.peer << ": malformed WebSocket handshake";
+    respond(c, text_response(400, "Bad Request",
+                             "WebSocket handshake needs Connection: Upgrade and a "
+                             "Sec-WebSocket-Key\n"));
+    return;
+  }
+  queue(c,
+        "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+        "Sec-WebSocket-Accept: " +
+            websocket_accept_key(*key) + "\r\n\r\n");
+  c.phase = Phase::kWebSocket;
+  c.deadline.reset();
+  subscribe(c);  // before the 101 goes out: the client gets every message published after it
+  c.in.erase(0, head_end);
+  MOCAP_LOG(Net, Debug) << "websocket client " << c.peer << " connected";
+  parse_frames(c);  // frames sent right behind the handshake
+}
+
+void StreamServer::Impl::read_websocket(Connection& c) {
+  std::array<char, kReadChunk> buf;
+  for (int i = 0; i < kReadsPerEvent && c.phase == Phase::kWebSocket; ++i) {
+    const ssize_t r = ::recv(c.fd, buf.data(), buf.size(), 0);
+    if (r == 0) {
+      on_eof(c);
+      return;
+    }
+    if (r < 0) {
+      const int err = errno;
+      if (err == EINTR) continue;
+      if (err != EAGAIN && err != EWOULDBLOCK) c.dead = true;
+      return;
+    }
+    c.in.append(buf.data(), static_cast<std::size_t>(r));
+    parse_frames(c);  // leaves at most one incomplete frame (<= 64 KiB + header) in c.in
+  }
+}
+
+// Keeps what was already partly sent (a frame cut in the middle would corrupt the stream),
+// drops the rest of the queue.
+void StreamServer::Impl::drop_unsent(Connection& c) {
+  if (c.out_offset > 0) {
+    c.out.resize(1);
+  } else {
+    c.out.clear();
+  }
+}
+
+void StreamServer::Impl::websocket_fail(Connection& c, const char* reason) {
+  ++local.dropped_bad_input;
+  MOCAP_LOG(Net, Debug) << "websocket client " << c.peer << ": " << reason << ", closing (1002)";
+  drop_unsent(c);
+  respond(c, websocket_close_frame(kWsProtocolError));
+}
+
+void StreamServer::Impl::parse_frames(Connection& c) {
+  std::size_t pos = 0;
+  while (c.phase == Phase::kWebSocket) {
+    const std::string_view b = std::string_view(c.in).substr(pos);
+    if (b.size() < 2) break;
+    const std::uint8_t b0 = byte_at(b, 0);
+    const std::uint8_t b1 = byte_at(b, 1);
+    const bool fin = (b0 & 0x80u) != 0;
+    const std::uint8_t opcode = b0 & 0x0Fu;
+    if ((b0 & 0x70u) != 0) return websocket_fail(c, "reserved bits set");
+    if ((b1 & 0x80u) == 0) return websocket_fail(c, "unmasked frame");
+    const bool control = (opcode & 0x8u) != 0;
+    if (opcode > 0x2 && (opcode < 0x8 || opcode > 0xA)) {
+      return websocket_fail(c, "unknown opcode");
+    }
+    std::uint64_t length = b1 & 0x7Fu;
+    if (control && (!fin || length > 125)) return websocket_fail(c, "invalid control frame");
+    std::size_t header = 2;
+    if (length == 126) {
+      if (b.size() < 4) break;
+      length = (std::uint64_t{byte_at(b, 2)} << 8) | byte_at(b, 3);
+      header = 4;
+    } else if (length == 127) {
+      if (b.size() < 10) break;
+      length = 0;
+      for (std::size_t i = 2; i < 10; ++i) length = (length << 8) | byte_at(b, i);
+      header = 10;
+    }
+    if (length > kMaxClientFrameBytes) return websocket_fail(c, "frame over 64 KiB");
+    const std::size_t size = static_cast<std::size_t>(length);
+    header += 4;  // masking key
+    if (b.size() < header + size) break;
+    pos += header + size;
+    if (opcode == 0x9 || opcode == 0x8) {
+      std::string payload(b.substr(header, size));
+      for (std::size_t i = 0; i < size; ++i) {
+        payload[i] = static_cast<char>(byte_at(payload, i) ^ byte_at(b, header - 4 + (i % 4)));
+      }
+      if (opcode == 0x9) {
+        queue(c, websocket_frame(0xA, payload));  // pong
+      } else {
+        if (size == 1) return websocket_fail(c, "close frame with a 1-byte payload");
+        MOCAP_LOG(Net, Debug) << "websocket client " << c.peer << " closed";
+        drop_unsent(c);
+        respond(c, websocket_frame(0x8, std::string_view(payload).substr(0, 2)));  // echo
+        return;
+      }
+    }
+    // Text, binary, continuation and pong frames from a client are ignored.
+  }
+  if (c.phase == Phase::kWebSocket) c.in.erase(0, pos);
+}
+
+// ---------------------------------------------------------------------------- StreamServer
+
+StreamServer::StreamServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+StreamServer::~StreamServer() { stop(); }
+
+Result<std::unique_ptr<StreamServer>> StreamServer::start(const StreamServerOptions& options,
+                                                          StatusProvider status) {
+  if (Status st = options.validate(); !st) return st.error();
+  auto impl = std::make_unique<Impl>(options, std::move(status));
+  impl->wake_fd = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+  if (impl->wake_fd < 0) {
+    return Error(ErrorCode::kIo, "stream server: eventfd failed: " + errno_text(errno));
+  }
+  auto stream_fd =
+      bind_listener(options.bind_address, options.stream_port, "stream", "--stream-port");
+  if (!stream_fd) return stream_fd.error();
+  impl->stream_listen_fd = *stream_fd;
+  impl->stream_port = bound_port(impl->stream_listen_fd);
+  if (options.http_port >= 0) {
+    auto http_fd = bind_listener(options.bind_address, options.http_port, "http", "--http-port");
+    if (!http_fd) return http_fd.error();
+    impl->http_listen_fd = *http_fd;
+    impl->http_port = bound_port(impl->http_listen_fd);
+  }
+  Impl* raw = impl.get();
+  try {
+    raw->thread = std::thread([raw] { raw->run(); });
+  } catch (const std::exception& e) {
+    return Error(ErrorCode::kInternal,
+                 std::string("stream server: cannot start thread: ") + e.what());
+  }
+  MOCAP_LOG(Net, Info) << "stream server on " << options.bind_address << ": stream port "
+                       << raw->stream_port << ", http port " << raw->http_port;
+  return std::unique_ptr<StreamServer>(new StreamServer(std::move(impl)));
+}
+
+void StreamServer::publish(std::string message) {
+  Impl& s = *impl_;
+  // Framed once per publish, shared by every client of that kind.
+  std::shared_ptr<const std::string> frame;
+  std::shared_ptr<const std::string> line;
+  if (s.websocket_subscribers.load() > 0) {
+    frame = std::make_shared<const std::string>(websocket_frame(0x1, message));
+  }
+  if (s.stream_subscribers.load() > 0) {
+    message.push_back('\n');
+    line = std::make_shared<const std::string>(std::move(message));
+  }
+  const std::size_t limit = s.options.max_client_backlog_bytes;
+  bool wake = false;
+  {
+    std::lock_guard lock(s.mu);
+    if (s.closed) return;
+    ++s.shared.messages_published;
+    for (const auto& box : s.subscribers) {
+      const std::shared_ptr<const std::string>& item = box->websocket ? frame : line;
+      if (!item || box->overflow) continue;
+      if (box->backlog_bytes + item->size() > limit) {
+        box->overflow = true;  // the poll thread drops it
+      } else {
+        box->pending.push_back(item);
+        box->backlog_bytes += item->size();
+        s.shared.backlog_bytes += item->size();
+      }
+      if (!s.wake_pending) {
+        s.wake_pending = true;
+        wake = true;
+      }
+    }
+  }
+  if (wake) s.wake();
+}
+
+void StreamServer::stop() {
+  Impl& s = *impl_;
+  std::lock_guard lock(s.stop_mu);
+  if (s.stopped) return;
+  s.stopped = true;
+  s.stopping.store(true);
+  s.wake();
+  if (s.thread.joinable()) s.thread.join();
+  s.close_listeners();
+  MOCAP_LOG(Net, Debug) << "stream server stopped";
+}
+
+int StreamServer::stream_port() const { return impl_->stream_port; }
+
+int StreamServer::http_port() const { return impl_->http_port; }
+
+ServerStats StreamServer::stats() const {
+  std::lock_guard lock(impl_->mu);
+  return impl_->shared;
+}
+
+}  // namespace mocap::net

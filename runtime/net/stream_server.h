@@ -1,0 +1,99 @@
+// StreamServer: the skeleton stream and the status endpoint of mocapd.
+//
+//   auto srv = net::StreamServer::start(options, [] { return health_json(); });
+//   srv->publish(json_line);   // from the pipeline thread; never blocks on a client
+//
+// Two listening sockets, one poll() thread:
+// - stream port (TCP): every published message goes to every connected client as one line
+//   (the message + '\n', newline-delimited JSON). Whatever a client sends is read and ignored;
+//   a client that closes its side of the connection is disconnected.
+// - HTTP port: `GET /health` answers the StatusProvider's JSON (200, application/json);
+//   `GET /stream` with `Upgrade: websocket` (RFC 6455) switches to a WebSocket that gets every
+//   published message as one text frame; `GET /` a short text page naming the endpoints;
+//   anything else 404/405/400 (426 for /stream without a version-13 upgrade) and the
+//   connection is closed.
+//
+// A client never stalls the pipeline: publish() only appends a shared, immutable message to
+// each client's queue and wakes the poll thread. A client whose unsent backlog exceeds
+// max_client_backlog_bytes is dropped (counted in dropped_slow), so memory stays bounded by
+// max_clients x max_client_backlog_bytes. Malformed HTTP/WebSocket input closes that
+// connection only (counted in dropped_bad_input): a request head over max_request_bytes (431),
+// an unparseable request (400), an unmasked, oversized (> 64 KiB) or otherwise invalid
+// WebSocket frame (close 1002). Client pings are answered, client text/binary frames ignored.
+// An HTTP client has 10 s to send its request head (then 408); after an answer the server
+// closes its side and discards input for at most 2 s before closing the connection.
+// When max_clients connections are open, a new one is accepted and closed at once.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "runtime/core/error.h"
+
+namespace mocap::net {
+
+// Documented defaults (docs/stream-format.md).
+inline constexpr int kDefaultStreamPort = 9870;
+inline constexpr int kDefaultHttpPort = 9871;
+
+struct StreamServerOptions {
+  std::string bind_address = "0.0.0.0";  // IPv4 address to listen on
+  int stream_port = kDefaultStreamPort;  // [0, 65535]; 0 = any free port (tests)
+  int http_port = kDefaultHttpPort;      // [0, 65535]; 0 = any free port; -1 = no HTTP server
+  int max_clients = 64;                  // stream + WebSocket + HTTP connections, [1, 4096]
+  std::size_t max_client_backlog_bytes = std::size_t{4} << 20;  // [4 KiB, 1 GiB]
+  std::size_t max_request_bytes = 8192;  // largest HTTP request head, [256, 1 MiB]
+  // Ranges above; the error names the field.
+  Status validate() const;
+};
+
+struct ServerStats {
+  int stream_clients = 0;     // connected now
+  int websocket_clients = 0;  // connected now
+  std::uint64_t accepted = 0;
+  std::uint64_t rejected_full = 0;      // refused: max_clients reached
+  std::uint64_t dropped_slow = 0;       // backlog over the limit
+  std::uint64_t dropped_bad_input = 0;  // malformed HTTP request or WebSocket frame
+  std::uint64_t http_requests = 0;
+  std::uint64_t messages_published = 0;
+  std::uint64_t bytes_sent = 0;
+  std::size_t backlog_bytes = 0;  // unsent, all clients, now
+};
+
+// The body of GET /health (a JSON object). Called on the server thread.
+using StatusProvider = std::function<std::string()>;
+
+class StreamServer {
+ public:
+  // Binds both ports (an error names the port and the fix, e.g. "port 9870 is in use: stop the
+  // other mocapd or pass --stream-port") and starts the poll thread.
+  static Result<std::unique_ptr<StreamServer>> start(const StreamServerOptions& options,
+                                                     StatusProvider status);
+  ~StreamServer();  // stop()
+  StreamServer(const StreamServer&) = delete;
+  StreamServer& operator=(const StreamServer&) = delete;
+
+  // Queues one message (a JSON object, no newline) for every stream and WebSocket client.
+  // Thread-safe; O(clients) pointer appends, no socket I/O on the caller's thread.
+  void publish(std::string message);
+  // Closes every connection and the listening sockets, joins the thread. Idempotent.
+  void stop();
+
+  int stream_port() const;  // the bound port (useful with 0)
+  int http_port() const;    // -1 when disabled
+  ServerStats stats() const;
+
+ private:
+  struct Impl;
+  explicit StreamServer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// Sec-WebSocket-Accept for a Sec-WebSocket-Key (RFC 6455 §4.2.2: base64(SHA-1(key + GUID))).
+std::string websocket_accept_key(std::string_view client_key);
+
+}  // namespace mocap::net

@@ -1,0 +1,119 @@
+// mocapd's configuration chain: defaults < --config file < MOCAPD_* environment < flags;
+// every bad value names where it came from, the key and the reason; docs/mocapd.md documents
+// every option.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "tests/support/temp_dir.h"
+#include "tools/mocapd/config.h"
+
+namespace mocap::daemon {
+namespace {
+
+Result<DaemonConfig> load(const std::vector<std::string_view>& args,
+                          std::vector<std::string> env = {}) {
+  auto cmd = parse_command_line(args);
+  if (!cmd.ok()) return cmd.error();
+  std::vector<char*> envp;
+  for (auto& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  return load_config(*cmd, envp.data());
+}
+
+std::string write(const std::filesystem::path& p, const std::string& text) {
+  std::ofstream(p) << text;
+  return p.string();
+}
+
+TEST(DaemonConfig, DefaultsAreTheDocumentedPorts) {
+  auto c = load({});
+  ASSERT_TRUE(c.ok()) << c.error().message();
+  EXPECT_EQ(c->stream_port, 9870);
+  EXPECT_EQ(c->http_port, 9871);
+  EXPECT_EQ(c->gpu, "auto");
+  EXPECT_TRUE(c->replay.empty());
+}
+
+TEST(DaemonConfig, FileThenEnvironmentThenFlags) {
+  testing::TestTempDir dir("cfg");
+  const std::string f =
+      write(dir.path() / "m.json", R"({"stream_port": 7000, "http_port": 7001, "sim_people": 3})");
+  auto c = load({"--config", f, "--http-port=7101"}, {"MOCAPD_STREAM_PORT=7100"});
+  ASSERT_TRUE(c.ok()) << c.error().message();
+  EXPECT_EQ(c->stream_port, 7100);  // environment over file
+  EXPECT_EQ(c->http_port, 7101);    // flag over file
+  EXPECT_EQ(c->sim_people, 3);      // file over default
+  auto d = load({"--config", f, "--stream-port", "7200"}, {"MOCAPD_STREAM_PORT=7100"});
+  ASSERT_TRUE(d.ok());
+  EXPECT_EQ(d->stream_port, 7200);  // flag over environment
+}
+
+TEST(DaemonConfig, BadValuesNameTheSourceAndTheKey) {
+  testing::TestTempDir dir("cfg");
+  auto expect_error = [](const Result<DaemonConfig>& r, std::vector<std::string> parts) {
+    ASSERT_FALSE(r.ok());
+    for (const auto& p : parts) {
+      EXPECT_NE(r.error().message().find(p), std::string::npos)
+          << "'" << p << "' not in: " << r.error().message();
+    }
+  };
+  expect_error(load({"--config", write(dir.path() / "a.json", R"({"stream_prot": 1})")}),
+               {"a.json", "unknown key \"stream_prot\"", "did you mean \"stream_port\""});
+  expect_error(load({"--config", write(dir.path() / "b.json", R"({"stream_port": "x"})")}),
+               {"b.json", "stream_port", "expected an integer"});
+  expect_error(load({"--config", write(dir.path() / "c.json", R"({"stream_port": 70000})")}),
+               {"c.json", "stream_port", "[0, 65535]", "70000"});
+  expect_error(load({"--config", write(dir.path() / "d.json", "{\"gpu\": ")}),
+               {"d.json", "not valid JSON"});
+  expect_error(load({"--config", write(dir.path() / "e.json", "[1, 2]")}), {"e.json", "object"});
+  expect_error(load({"--config", (dir.path() / "missing.json").string()}),
+               {"missing.json", "cannot open"});
+  expect_error(load({"--gpu", "tpu"}), {"--gpu", "auto, vulkan, cpu", "tpu"});
+  expect_error(load({"--stream-port"}), {"--stream-port", "needs a value"});
+  expect_error(load({"--frobnicate"}), {"unknown option", "--frobnicate"});
+  expect_error(load({}, {"MOCAPD_HTTP_PORT=abc"}), {"MOCAPD_HTTP_PORT", "abc"});
+  expect_error(load({}, {"MOCAPD_NOPE=1"}), {"MOCAPD_NOPE", "no such option"});
+  expect_error(load({"--stream-port", "9000", "--http-port", "9000"}),
+               {"stream_port and http_port", "9000"});
+  expect_error(load({"--loop"}), {"loop needs replay"});
+  expect_error(load({"--log", "Net:loud"}), {"log", "loud"});
+}
+
+TEST(DaemonConfig, BooleanFlagsAndPrintConfigRoundTrip) {
+  testing::TestTempDir dir("cfg");
+  auto c = load({"--replay", "/x", "--loop"});
+  ASSERT_TRUE(c.ok()) << c.error().message();
+  EXPECT_TRUE(c->loop);
+  // What --print-config prints is a valid config file giving the same configuration.
+  const std::string f = write(dir.path() / "round.json", config_to_json(*c));
+  auto d = load({"--config", f});
+  ASSERT_TRUE(d.ok()) << d.error().message();
+  EXPECT_EQ(config_to_json(*d), config_to_json(*c));
+}
+
+TEST(DaemonConfig, EveryOptionIsDocumentedWithItsDefault) {
+  std::ifstream in(std::string(MOCAP_SOURCE_DIR) + "/docs/mocapd.md");
+  ASSERT_TRUE(in) << "docs/mocapd.md missing";
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string doc = ss.str();
+  const DaemonConfig defaults;
+  for (const OptionSpec& o : config_options()) {
+    // A table row: | `key` | `--flag` | `MOCAPD_KEY` | unit | default | ...
+    const std::string row = "| `" + o.key + "` | `" + flag_name(o) + "` | `" + env_name(o) + "` |";
+    EXPECT_NE(doc.find(row), std::string::npos) << "docs/mocapd.md lacks the row for " << o.key;
+    const std::string def = o.show(defaults);
+    if (!def.empty()) {
+      EXPECT_NE(doc.find(row + " " + o.unit + " | `" + def + "` |"), std::string::npos)
+          << "docs/mocapd.md: " << o.key << " should show unit '" << o.unit << "' and default '"
+          << def << "'";
+    }
+  }
+}
+
+}  // namespace
+}  // namespace mocap::daemon

@@ -1,0 +1,866 @@
+// StreamServer over real loopback sockets (ports 0: the kernel picks free ones). Every wait is
+// bounded (socket timeouts, wait_until) so a failure fails instead of hanging; nothing asserts
+// on speed.
+#include "runtime/net/stream_server.h"
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <optional>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "runtime/net/sha1.h"
+
+namespace mocap::net {
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr auto kTimeout = 30s;  // generous: sanitizer builds on a loaded 2-core machine
+
+// ---------------------------------------------------------------------------------- sockets
+
+class Socket {
+ public:
+  Socket() = default;
+  explicit Socket(int fd) : fd_(fd) {}
+  Socket(Socket&& other) noexcept : fd_(std::exchange(other.fd_, -1)) {}
+  Socket& operator=(Socket&& other) noexcept {
+    if (this != &other) {
+      reset();
+      fd_ = std::exchange(other.fd_, -1);
+    }
+    return *this;
+  }
+  ~Socket() { reset(); }
+  int fd() const { return fd_; }
+  bool valid() const { return fd_ >= 0; }
+  void reset() {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+
+ private:
+  int fd_ = -1;
+};
+
+// A blocking loopback connection whose reads and writes time out after kTimeout.
+// rcvbuf > 0 shrinks the receive buffer (a slow client whose kernel absorbs little).
+Socket connect_to(int port, int rcvbuf = 0) {
+  Socket s(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0));
+  if (!s.valid()) return s;
+  timeval tv{};
+  tv.tv_sec = std::chrono::duration_cast<std::chrono::seconds>(kTimeout).count();
+  ::setsockopt(s.fd(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
+  ::setsockopt(s.fd(), SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof(tv));
+  if (rcvbuf > 0) ::setsockopt(s.fd(), SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof(rcvbuf));
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  ::inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
+  if (::connect(s.fd(), reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) != 0) s.reset();
+  return s;
+}
+
+bool send_all(const Socket& s, std::string_view data) {
+  while (!data.empty()) {
+    const ssize_t n = ::send(s.fd(), data.data(), data.size(), MSG_NOSIGNAL);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    data.remove_prefix(static_cast<std::size_t>(n));
+  }
+  return true;
+}
+
+bool recv_exact(const Socket& s, char* out, std::size_t n) {
+  while (n > 0) {
+    const ssize_t r = ::recv(s.fd(), out, n, 0);
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) return false;
+    out += r;
+    n -= static_cast<std::size_t>(r);
+  }
+  return true;
+}
+
+enum class End { kEof, kReset, kTimedOut };
+
+// Reads until the peer closes; what was read goes to *out when given.
+End read_to_end(const Socket& s, std::string* out = nullptr) {
+  std::array<char, 65536> buf;
+  for (;;) {
+    const ssize_t r = ::recv(s.fd(), buf.data(), buf.size(), 0);
+    if (r > 0) {
+      if (out != nullptr) out->append(buf.data(), static_cast<std::size_t>(r));
+      continue;
+    }
+    if (r == 0) return End::kEof;
+    if (errno == EINTR) continue;
+    return (errno == EAGAIN || errno == EWOULDBLOCK) ? End::kTimedOut : End::kReset;
+  }
+}
+
+class LineReader {
+ public:
+  explicit LineReader(const Socket& s) : fd_(s.fd()) {}
+  std::optional<std::string> next() {
+    for (;;) {
+      const std::size_t nl = buf_.find('\n', scanned_);
+      if (nl != std::string::npos) {
+        std::string line = buf_.substr(0, nl);
+        buf_.erase(0, nl + 1);
+        scanned_ = 0;
+        return line;
+      }
+      scanned_ = buf_.size();
+      std::array<char, 65536> chunk;
+      const ssize_t r = ::recv(fd_, chunk.data(), chunk.size(), 0);
+      if (r < 0 && errno == EINTR) continue;
+      if (r <= 0) return std::nullopt;
+      buf_.append(chunk.data(), static_cast<std::size_t>(r));
+    }
+  }
+
+ private:
+  int fd_;
+  std::string buf_;
+  std::size_t scanned_ = 0;
+};
+
+template <typename Pred>
+bool wait_until(Pred pred, std::chrono::steady_clock::duration timeout = kTimeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (!pred()) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    std::this_thread::sleep_for(2ms);
+  }
+  return true;
+}
+
+// ------------------------------------------------------------------------------------ HTTP
+
+std::string http_exchange(int port, std::string_view request) {
+  Socket s = connect_to(port);
+  if (!s.valid()) return "connect failed";
+  send_all(s, request);  // may fail half-way when the server answers early; read anyway
+  std::string response;
+  if (read_to_end(s, &response) == End::kTimedOut) return "timeout: " + response;
+  return response;
+}
+
+int status_code(const std::string& response) {
+  if (response.size() < 12 || response.compare(0, 9, "HTTP/1.1 ") != 0) return -1;
+  return std::stoi(response.substr(9, 3));
+}
+
+std::string body_of(const std::string& response) {
+  const std::size_t p = response.find("\r\n\r\n");
+  return p == std::string::npos ? std::string() : response.substr(p + 4);
+}
+
+// ------------------------------------------------------------------------------- WebSocket
+
+constexpr std::string_view kKey = "dGhlIHNhbXBsZSBub25jZQ==";  // RFC 6455 §1.3
+
+// Connects to /stream and completes the handshake; invalid socket on failure.
+Socket websocket_connect(int port, std::string* response_out = nullptr) {
+  Socket s = connect_to(port);
+  if (!s.valid()) return s;
+  const std::string request =
+      "GET /stream HTTP/1.1\r\nHost: localhost\r\nUpgrade: websocket\r\n"
+      "Connection: keep-alive, Upgrade\r\nSec-WebSocket-Version: 13\r\n"
+      "Sec-WebSocket-Key: " +
+      std::string(kKey) + "\r\n\r\n";
+  if (!send_all(s, request)) return Socket();
+  std::string head;
+  char c = 0;
+  while (head.size() < 4096 && head.find("\r\n\r\n") == std::string::npos) {
+    if (!recv_exact(s, &c, 1)) return Socket();
+    head.push_back(c);
+  }
+  if (response_out != nullptr) *response_out = head;
+  if (status_code(head) != 101) return Socket();
+  return s;
+}
+
+struct Frame {
+  bool fin = false;
+  int opcode = -1;
+  bool masked = false;
+  std::string payload;
+};
+
+std::optional<Frame> read_frame(const Socket& s) {
+  std::array<char, 8> h{};
+  if (!recv_exact(s, h.data(), 2)) return std::nullopt;
+  Frame f;
+  const auto b0 = static_cast<std::uint8_t>(h[0]);
+  const auto b1 = static_cast<std::uint8_t>(h[1]);
+  f.fin = (b0 & 0x80u) != 0;
+  f.opcode = b0 & 0x0F;
+  f.masked = (b1 & 0x80u) != 0;
+  std::uint64_t len = b1 & 0x7Fu;
+  const std::size_t ext = len == 126 ? 2 : len == 127 ? 8 : 0;
+  if (ext > 0) {
+    if (!recv_exact(s, h.data(), ext)) return std::nullopt;
+    len = 0;
+    for (std::size_t i = 0; i < ext; ++i) len = (len << 8) | static_cast<std::uint8_t>(h[i]);
+  }
+  if (f.masked && !recv_exact(s, h.data(), 4)) return std::nullopt;
+  f.payload.resize(static_cast<std::size_t>(len));
+  if (len > 0 && !recv_exact(s, f.payload.data(), f.payload.size())) return std::nullopt;
+  return f;
+}
+
+// A client frame (FIN set unless first_byte says otherwise). claimed_len overrides the length
+// field (an oversized frame whose payload is never sent).
+std::string client_frame(std::uint8_t first_byte, std::string_view payload, bool masked = true,
+                         std::optional<std::uint64_t> claimed_len = std::nullopt) {
+  const std::uint64_t len = claimed_len.value_or(payload.size());
+  std::string out;
+  out.push_back(static_cast<char>(first_byte));
+  const std::uint8_t mask_bit = masked ? 0x80 : 0x00;
+  if (len < 126) {
+    out.push_back(static_cast<char>(mask_bit | len));
+  } else if (len <= 0xFFFF) {
+    out.push_back(static_cast<char>(mask_bit | 126));
+    out.push_back(static_cast<char>(len >> 8));
+    out.push_back(static_cast<char>(len & 0xFF));
+  } else {
+    out.push_back(static_cast<char>(mask_bit | 127));
+    for (int shift = 56; shift >= 0; shift -= 8) out.push_back(static_cast<char>(len >> shift));
+  }
+  const std::array<std::uint8_t, 4> mask = {0x37, 0xfa, 0x21, 0x3d};
+  if (masked) {
+    for (std::uint8_t m : mask) out.push_back(static_cast<char>(m));
+  }
+  for (std::size_t i = 0; i < payload.size(); ++i) {
+    const auto b = static_cast<std::uint8_t>(payload[i]);
+    out.push_back(static_cast<char>(masked ? (b ^ mask[i % 4]) : b));
+  }
+  return out;
+}
+
+std::uint16_t close_status(const Frame& f) {
+  if (f.payload.size() < 2) return 0;
+  return static_cast<std::uint16_t>((static_cast<std::uint8_t>(f.payload[0]) << 8) |
+                                    static_cast<std::uint8_t>(f.payload[1]));
+}
+
+// ---------------------------------------------------------------------------------- server
+
+StreamServerOptions test_options() {
+  StreamServerOptions o;
+  o.bind_address = "127.0.0.1";
+  o.stream_port = 0;
+  o.http_port = 0;
+  return o;
+}
+
+constexpr std::string_view kHealthJson = R"({"state":"running","cameras":3})";
+
+std::unique_ptr<StreamServer> start_server(const StreamServerOptions& options = test_options()) {
+  auto server = StreamServer::start(options, [] { return std::string(kHealthJson); });
+  EXPECT_TRUE(server.ok()) << (server.ok() ? "" : server.error().to_string());
+  return server.ok() ? std::move(server).value() : nullptr;
+}
+
+std::string message(int seq, std::size_t pad = 0) {
+  return R"({"seq":)" + std::to_string(seq) + R"(,"pad":")" + std::string(pad, 'x') + "\"}";
+}
+
+int seq_of(const std::string& line) {  // -1 when the line is not message()
+  if (line.compare(0, 7, R"({"seq":)") != 0) return -1;
+  return std::atoi(line.c_str() + 7);
+}
+
+// Reads `count` lines and checks they are message(first..first+count-1) with `pad`.
+::testing::AssertionResult receives_in_order(LineReader& reader, int first, int count,
+                                             std::size_t pad = 0) {
+  for (int i = first; i < first + count; ++i) {
+    const auto line = reader.next();
+    if (!line) return ::testing::AssertionFailure() << "no line for message " << i;
+    if (*line != message(i, pad)) {
+      return ::testing::AssertionFailure() << "expected message " << i << ", got seq "
+                                           << seq_of(*line) << " (" << line->size() << " bytes)";
+    }
+  }
+  return ::testing::AssertionSuccess();
+}
+
+// -------------------------------------------------------------------------- helpers' tests
+
+std::string hex(const std::array<std::uint8_t, 20>& d) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string out;
+  for (std::uint8_t b : d) {
+    out.push_back(kDigits[b >> 4]);
+    out.push_back(kDigits[b & 15]);
+  }
+  return out;
+}
+
+std::string b64(std::string_view s) {
+  std::vector<std::uint8_t> bytes(s.begin(), s.end());
+  return base64_encode(bytes);
+}
+
+TEST(Sha1, FipsVectors) {
+  EXPECT_EQ(hex(sha1("")), "da39a3ee5e6b4b0d3255bfef95601890afd80709");
+  EXPECT_EQ(hex(sha1("abc")), "a9993e364706816aba3e25717850c26c9cd0d89d");
+  EXPECT_EQ(hex(sha1("abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq")),
+            "84983e441c3bd26ebaae4aa1f95129e5e54670f1");
+  EXPECT_EQ(hex(sha1(std::string(1000000, 'a'))), "34aa973cd4c4daa4f61eeb2bdbad27316534016f");
+  // Lengths around the padding boundary (55, 56, 63, 64 bytes): compared with sha1sum.
+  EXPECT_EQ(hex(sha1(std::string(55, 'a'))), "c1c8bbdc22796e28c0e15163d20899b65621d65a");
+  EXPECT_EQ(hex(sha1(std::string(56, 'a'))), "c2db330f6083854c99d4b5bfb6e8f29f201be699");
+  EXPECT_EQ(hex(sha1(std::string(64, 'a'))), "0098ba824b5c16427bd7a1122a5a442a25ec644d");
+}
+
+TEST(Base64, Rfc4648Vectors) {
+  EXPECT_EQ(b64(""), "");
+  EXPECT_EQ(b64("f"), "Zg==");
+  EXPECT_EQ(b64("fo"), "Zm8=");
+  EXPECT_EQ(b64("foo"), "Zm9v");
+  EXPECT_EQ(b64("foob"), "Zm9vYg==");
+  EXPECT_EQ(b64("fooba"), "Zm9vYmE=");
+  EXPECT_EQ(b64("foobar"), "Zm9vYmFy");
+}
+
+TEST(WebSocket, AcceptKeyOfRfc6455Example) {
+  EXPECT_EQ(websocket_accept_key(kKey), "s3pPLMBiTxaQ9kYGzzhZRbK+xOo=");
+}
+
+// ---------------------------------------------------------------------------------- options
+
+TEST(StreamServerOptions, DefaultsAreValidAndErrorsNameTheField) {
+  EXPECT_TRUE(StreamServerOptions{}.validate().ok());
+  auto expect_error = [](StreamServerOptions o, const std::string& field) {
+    const Status st = o.validate();
+    ASSERT_FALSE(st.ok()) << field;
+    EXPECT_EQ(st.error().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(st.error().message().find(field), std::string::npos) << st.error().message();
+  };
+  StreamServerOptions o;
+  o.bind_address = "localhost:80";
+  expect_error(o, "bind_address");
+  o = {};
+  o.stream_port = 70000;
+  expect_error(o, "stream_port");
+  o = {};
+  o.http_port = -2;
+  expect_error(o, "http_port");
+  o = {};
+  o.http_port = o.stream_port;
+  expect_error(o, "http_port");
+  o = {};
+  o.max_clients = 0;
+  expect_error(o, "max_clients");
+  o = {};
+  o.max_client_backlog_bytes = 100;
+  expect_error(o, "max_client_backlog_bytes");
+  o = {};
+  o.max_request_bytes = 10;
+  expect_error(o, "max_request_bytes");
+  o = test_options();
+  o.max_clients = 0;
+  auto server = StreamServer::start(o, nullptr);
+  ASSERT_FALSE(server.ok());
+  EXPECT_NE(server.error().message().find("max_clients"), std::string::npos);
+}
+
+TEST(StreamServer, BindErrorNamesThePortAndTheFix) {
+  auto first = start_server();
+  ASSERT_TRUE(first);
+  StreamServerOptions o = test_options();
+  o.stream_port = first->stream_port();
+  auto second = StreamServer::start(o, nullptr);
+  ASSERT_FALSE(second.ok());
+  const std::string& m = second.error().message();
+  EXPECT_NE(
+      m.find("port " + std::to_string(first->stream_port()) + " is in use: stop the other mocapd"),
+      std::string::npos)
+      << m;
+  EXPECT_NE(m.find("--stream-port"), std::string::npos) << m;
+
+  o = test_options();
+  o.http_port = first->http_port();
+  second = StreamServer::start(o, nullptr);
+  ASSERT_FALSE(second.ok());
+  EXPECT_NE(second.error().message().find("--http-port"), std::string::npos)
+      << second.error().message();
+}
+
+TEST(StreamServer, PortsAndIdempotentStop) {
+  StreamServerOptions o = test_options();
+  o.http_port = -1;
+  auto server = start_server(o);
+  ASSERT_TRUE(server);
+  EXPECT_GT(server->stream_port(), 0);
+  EXPECT_EQ(server->http_port(), -1);
+  Socket client = connect_to(server->stream_port());
+  ASSERT_TRUE(client.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
+  server->stop();
+  server->stop();
+  EXPECT_EQ(read_to_end(client), End::kEof);  // stop() closed the connection
+  server->publish(message(1));                // no client, no thread: a no-op
+  const ServerStats st = server->stats();
+  EXPECT_EQ(st.stream_clients, 0);
+  EXPECT_EQ(st.backlog_bytes, 0u);
+  EXPECT_EQ(st.accepted, 1u);
+}
+
+// ------------------------------------------------------------------------------ streaming
+
+TEST(StreamServer, StreamClientGetsMessagesInOrderAsLines) {
+  auto server = start_server();
+  ASSERT_TRUE(server);
+  Socket client = connect_to(server->stream_port());
+  ASSERT_TRUE(client.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
+  for (int i = 0; i < 100; ++i) server->publish(message(i, static_cast<std::size_t>(i) * 7));
+  LineReader reader(client);
+  for (int i = 0; i < 100; ++i) {
+    const auto line = reader.next();
+    ASSERT_TRUE(line) << i;
+    EXPECT_EQ(*line, message(i, static_cast<std::size_t>(i) * 7));
+  }
+  EXPECT_TRUE(wait_until([&] { return server->stats().backlog_bytes == 0; }));
+  const ServerStats st = server->stats();
+  EXPECT_EQ(st.messages_published, 100u);
+  EXPECT_GT(st.bytes_sent, 0u);
+  EXPECT_EQ(st.accepted, 1u);
+}
+
+TEST(StreamServer, WebSocketClientGetsTextFramesOfEveryLengthForm) {
+  auto server = start_server();
+  ASSERT_TRUE(server);
+  std::string head;
+  Socket ws = websocket_connect(server->http_port(), &head);
+  ASSERT_TRUE(ws.valid()) << head;
+  EXPECT_NE(head.find("Sec-WebSocket-Accept: s3pPLMBiTxaQ9kYGzzhZRbK+xOo=\r\n"), std::string::npos)
+      << head;
+  EXPECT_EQ(server->stats().websocket_clients, 1);  // registered before the 101 went out
+
+  // 7-bit, 16-bit and 64-bit payload lengths, at and around their bounds.
+  const std::vector<std::size_t> sizes = {0, 1, 125, 126, 200, 65535, 65536, 70000, 300000};
+  auto payload = [](std::size_t size) {
+    return std::string(size, static_cast<char>('a' + static_cast<int>(size % 26)));
+  };
+  for (std::size_t size : sizes) server->publish(payload(size));
+  for (std::size_t size : sizes) {
+    const auto f = read_frame(ws);
+    ASSERT_TRUE(f) << size;
+    EXPECT_TRUE(f->fin);
+    EXPECT_EQ(f->opcode, 1);
+    EXPECT_FALSE(f->masked);
+    EXPECT_EQ(f->payload, payload(size));
+  }
+}
+
+TEST(StreamServer, StreamAndWebSocketClientsGetTheSameMessages) {
+  auto server = start_server();
+  ASSERT_TRUE(server);
+  Socket ws = websocket_connect(server->http_port());
+  ASSERT_TRUE(ws.valid());
+  Socket tcp = connect_to(server->stream_port());
+  ASSERT_TRUE(tcp.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
+  for (int i = 0; i < 20; ++i) server->publish(message(i));
+  LineReader reader(tcp);
+  EXPECT_TRUE(receives_in_order(reader, 0, 20));
+  for (int i = 0; i < 20; ++i) {
+    const auto f = read_frame(ws);
+    ASSERT_TRUE(f);
+    EXPECT_EQ(f->payload, message(i));
+  }
+}
+
+TEST(StreamServer, WebSocketPingGetsPongAndCloseIsEchoed) {
+  auto server = start_server();
+  ASSERT_TRUE(server);
+  Socket ws = websocket_connect(server->http_port());
+  ASSERT_TRUE(ws.valid());
+  // Ignored client data, then a ping split over two writes.
+  ASSERT_TRUE(send_all(ws, client_frame(0x81, "hello server")));
+  ASSERT_TRUE(send_all(ws, client_frame(0x82, std::string(65536, 'b'))));  // the limit
+  const std::string ping = client_frame(0x89, "are you there");
+  ASSERT_TRUE(send_all(ws, ping.substr(0, 5)));
+  std::this_thread::sleep_for(20ms);
+  ASSERT_TRUE(send_all(ws, ping.substr(5)));
+  auto pong = read_frame(ws);
+  ASSERT_TRUE(pong);
+  EXPECT_EQ(pong->opcode, 0xA);
+  EXPECT_EQ(pong->payload, "are you there");
+
+  ASSERT_TRUE(send_all(ws, client_frame(0x88, std::string("\x03\xe8", 2) + "bye")));
+  auto close = read_frame(ws);
+  ASSERT_TRUE(close);
+  EXPECT_EQ(close->opcode, 0x8);
+  EXPECT_EQ(close_status(*close), 1000);
+  EXPECT_EQ(read_to_end(ws), End::kEof);
+  EXPECT_TRUE(wait_until([&] { return server->stats().websocket_clients == 0; }));
+  EXPECT_EQ(server->stats().dropped_bad_input, 0u);
+}
+
+TEST(StreamServer, BadWebSocketFramesCloseWithProtocolError) {
+  auto server = start_server();
+  ASSERT_TRUE(server);
+  const std::vector<std::pair<const char*, std::string>> cases = {
+      {"unmasked", client_frame(0x81, "no mask", false)},
+      {"oversize", client_frame(0x82, "", true, std::uint64_t{100000})},
+      {"bad opcode", client_frame(0x83, "x")},
+      {"reserved bit", client_frame(0xC1, "x")},
+      {"fragmented ping", client_frame(0x09, "x")},
+  };
+  std::uint64_t expected_bad = 0;
+  for (const auto& [name, bytes] : cases) {
+    Socket ws = websocket_connect(server->http_port());
+    ASSERT_TRUE(ws.valid()) << name;
+    ASSERT_TRUE(send_all(ws, bytes)) << name;
+    const auto f = read_frame(ws);
+    ASSERT_TRUE(f) << name;
+    EXPECT_EQ(f->opcode, 0x8) << name;
+    EXPECT_EQ(close_status(*f), 1002) << name;
+    EXPECT_EQ(read_to_end(ws), End::kEof) << name;
+    ++expected_bad;
+    EXPECT_TRUE(wait_until([&] { return server->stats().dropped_bad_input == expected_bad; }))
+        << name;
+  }
+}
+
+// ------------------------------------------------------------------------------------ HTTP
+
+TEST(StreamServer, HealthReturnsTheProvidersJson) {
+  auto server = start_server();
+  ASSERT_TRUE(server);
+  const std::string r =
+      http_exchange(server->http_port(), "GET /health HTTP/1.1\r\nHost: x\r\n\r\n");
+  EXPECT_EQ(status_code(r), 200) << r;
+  EXPECT_NE(r.find("\r\nContent-Type: application/json\r\n"), std::string::npos) << r;
+  EXPECT_NE(r.find("\r\nConnection: close\r\n"), std::string::npos) << r;
+  EXPECT_NE(r.find("\r\nContent-Length: " + std::to_string(kHealthJson.size()) + "\r\n"),
+            std::string::npos)
+      << r;
+  EXPECT_EQ(body_of(r), kHealthJson);
+
+  // Header names and values case-insensitively, a query string, bare LF line ends.
+  const std::string r2 = http_exchange(server->http_port(), "GET /health?x=1 HTTP/1.0\n\n");
+  EXPECT_EQ(status_code(r2), 200) << r2;
+  EXPECT_EQ(body_of(r2), kHealthJson);
+
+  const std::string index = http_exchange(server->http_port(), "GET / HTTP/1.1\r\n\r\n");
+  EXPECT_EQ(status_code(index), 200) << index;
+  EXPECT_NE(index.find("text/plain"), std::string::npos);
+  EXPECT_NE(index.find("/health"), std::string::npos);
+  EXPECT_NE(index.find("/stream"), std::string::npos);
+  EXPECT_NE(index.find(std::to_string(server->stream_port())), std::string::npos);
+  EXPECT_TRUE(wait_until([&] { return server->stats().http_requests == 3; }));
+}
+
+TEST(StreamServer, HealthProviderThatThrowsGets500) {
+  auto server = StreamServer::start(
+      test_options(), []() -> std::string { throw std::runtime_error("pipeline gone"); });
+  ASSERT_TRUE(server.ok());
+  const std::string r = http_exchange((*server)->http_port(), "GET /health HTTP/1.1\r\n\r\n");
+  EXPECT_EQ(status_code(r), 500) << r;
+  EXPECT_NE(r.find("pipeline gone"), std::string::npos);
+}
+
+TEST(StreamServer, HttpErrorsAnswerAndClose) {
+  auto server = start_server();
+  ASSERT_TRUE(server);
+  const int port = server->http_port();
+  EXPECT_EQ(status_code(http_exchange(port, "GET /nope HTTP/1.1\r\n\r\n")), 404);
+  const std::string r405 =
+      http_exchange(port, "POST /health HTTP/1.1\r\nContent-Length: 0\r\n\r\n");
+  EXPECT_EQ(status_code(r405), 405);
+  EXPECT_NE(r405.find("Allow: GET"), std::string::npos);
+  EXPECT_EQ(status_code(http_exchange(port, "HELLO\r\n\r\n")), 400);
+  EXPECT_EQ(status_code(http_exchange(port, "GET / HTTP/9.9\r\n\r\n")), 400);
+  EXPECT_EQ(status_code(http_exchange(port, "GET / HTTP/1.1\r\nno colon here\r\n\r\n")), 400);
+  EXPECT_EQ(status_code(http_exchange(port, "GET / HTTP/1.1\r\nBad Name: x\r\n\r\n")), 400);
+  // A 100 KB header: 431 after max_request_bytes, the rest is read and discarded.
+  const std::string big =
+      "GET /health HTTP/1.1\r\nX-Big: " + std::string(100 * 1024, 'y') + "\r\n\r\n";
+  EXPECT_EQ(status_code(http_exchange(port, big)), 431);
+  // WebSocket handshakes that are not.
+  EXPECT_EQ(status_code(http_exchange(port, "GET /stream HTTP/1.1\r\n\r\n")), 426);
+  EXPECT_EQ(status_code(http_exchange(port,
+                                      "GET /stream HTTP/1.1\r\nUpgrade: websocket\r\n"
+                                      "Connection: Upgrade\r\nSec-WebSocket-Version: 8\r\n"
+                                      "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n")),
+            426);
+  EXPECT_EQ(status_code(http_exchange(port,
+                                      "GET /stream HTTP/1.1\r\nUpgrade: websocket\r\n"
+                                      "Connection: Upgrade\r\nSec-WebSocket-Version: 13\r\n\r\n")),
+            400);
+  // 400 x 5 (4 malformed requests + the handshake without a key) and 431.
+  EXPECT_TRUE(wait_until([&] { return server->stats().dropped_bad_input == 6; }))
+      << server->stats().dropped_bad_input;
+  EXPECT_TRUE(wait_until([&] { return server->stats().http_requests == 10; }))
+      << server->stats().http_requests;
+  // Still serving.
+  EXPECT_EQ(status_code(http_exchange(port, "GET /health HTTP/1.1\r\n\r\n")), 200);
+}
+
+// ------------------------------------------------------------------------------ admission
+
+TEST(StreamServer, ConnectionsBeyondMaxClientsAreClosedAtOnce) {
+  StreamServerOptions o = test_options();
+  o.max_clients = 2;
+  auto server = start_server(o);
+  ASSERT_TRUE(server);
+  Socket a = connect_to(server->stream_port());
+  Socket b = connect_to(server->stream_port());
+  ASSERT_TRUE(a.valid() && b.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 2; }));
+  Socket c = connect_to(server->stream_port());
+  ASSERT_TRUE(c.valid());  // the kernel completes the handshake; the server closes it
+  EXPECT_EQ(read_to_end(c), End::kEof);
+  Socket d = connect_to(server->http_port());
+  ASSERT_TRUE(d.valid());
+  EXPECT_EQ(read_to_end(d), End::kEof);
+  EXPECT_TRUE(wait_until([&] { return server->stats().rejected_full == 2; }));
+
+  a.reset();  // a slot frees up
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
+  Socket e = connect_to(server->stream_port());
+  ASSERT_TRUE(e.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 2; }));
+  server->publish(message(7));
+  LineReader reader(e);
+  EXPECT_TRUE(receives_in_order(reader, 7, 1));
+  EXPECT_EQ(server->stats().accepted, 3u);
+}
+
+// ------------------------------------------------------------------- misbehaving clients
+
+// (a) A client that never reads while ~200 MB are published is dropped; a client that reads
+// gets every message; the server's backlog stays bounded.
+TEST(StreamServer, NonReadingClientIsDroppedOthersGetEveryMessage) {
+  StreamServerOptions o = test_options();
+  o.max_clients = 4;
+  o.max_client_backlog_bytes = std::size_t{1} << 20;
+  auto server = start_server(o);
+  ASSERT_TRUE(server);
+  Socket stuck = connect_to(server->stream_port(), /*rcvbuf=*/4096);
+  Socket good = connect_to(server->stream_port());
+  ASSERT_TRUE(stuck.valid() && good.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 2; }));
+
+  constexpr std::size_t kPad = 64 * 1024 - 32;  // ~64 KiB lines
+  constexpr int kMessages = 3200;               // ~200 MB
+  constexpr int kBatch = 4;  // a quarter of the backlog limit: the reader never falls behind
+  const std::size_t bound = static_cast<std::size_t>(o.max_clients) * o.max_client_backlog_bytes;
+  LineReader reader(good);
+  std::size_t max_backlog = 0;
+  for (int first = 0; first < kMessages; first += kBatch) {
+    for (int i = first; i < first + kBatch; ++i) server->publish(message(i, kPad));
+    max_backlog = std::max(max_backlog, server->stats().backlog_bytes);
+    ASSERT_TRUE(receives_in_order(reader, first, kBatch, kPad));
+  }
+  EXPECT_LE(max_backlog, bound);
+  EXPECT_TRUE(wait_until([&] { return server->stats().dropped_slow >= 1; }));
+  EXPECT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
+  const ServerStats st = server->stats();
+  EXPECT_EQ(st.dropped_slow, 1u);
+  EXPECT_LE(st.backlog_bytes, bound);
+  EXPECT_EQ(st.messages_published, static_cast<std::uint64_t>(kMessages));
+  // The stuck client's connection was closed by the server (it sees the end after its data).
+  EXPECT_NE(read_to_end(stuck), End::kTimedOut);
+}
+
+// publish() never waits for a client: a loop of publishes with a client that does not read
+// completes. The time is printed, not asserted.
+TEST(StreamServer, PublishNeverBlocksOnANonReadingClient) {
+  StreamServerOptions o = test_options();
+  o.max_client_backlog_bytes = 64 * 1024;
+  auto server = start_server(o);
+  ASSERT_TRUE(server);
+  Socket stuck = connect_to(server->stream_port(), /*rcvbuf=*/4096);
+  Socket ws = websocket_connect(server->http_port());  // a WebSocket that never reads either
+  ASSERT_TRUE(stuck.valid() && ws.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
+  constexpr int kMessages = 40000;
+  const std::string payload(1000, 'p');
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < kMessages; ++i) server->publish(payload);
+  const auto ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0);
+  std::printf("%d publishes of 1 KB with two non-reading clients: %.1f ms\n", kMessages,
+              ms.count());
+  EXPECT_TRUE(wait_until([&] { return server->stats().dropped_slow == 2; }))
+      << server->stats().dropped_slow;
+  EXPECT_LE(server->stats().backlog_bytes, 2 * o.max_client_backlog_bytes);
+}
+
+// (b) Connect-and-close churn on both ports while publishing; a normal client is unaffected.
+TEST(StreamServer, SurvivesConnectCloseChurn) {
+  auto server = start_server();
+  ASSERT_TRUE(server);
+  Socket normal = connect_to(server->stream_port());
+  ASSERT_TRUE(normal.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
+  constexpr int kRounds = 500;
+  for (int i = 0; i < kRounds; ++i) {
+    const bool http = i % 3 == 1;
+    Socket s = connect_to(http ? server->http_port() : server->stream_port());
+    ASSERT_TRUE(s.valid()) << i;
+    if (i % 5 == 0) send_all(s, http ? "GET /hea" : "partial");
+    if (i % 7 == 0) {  // abortive close: RST instead of FIN
+      const linger l{1, 0};
+      ::setsockopt(s.fd(), SOL_SOCKET, SO_LINGER, &l, sizeof(l));
+    }
+    server->publish(message(i));
+  }
+  LineReader reader(normal);
+  EXPECT_TRUE(receives_in_order(reader, 0, kRounds));
+  EXPECT_TRUE(wait_until([&] {
+    const ServerStats st = server->stats();
+    return st.stream_clients == 1 && st.websocket_clients == 0;
+  }));
+  EXPECT_EQ(status_code(http_exchange(server->http_port(), "GET /health HTTP/1.1\r\n\r\n")), 200);
+  Socket late = connect_to(server->stream_port());
+  ASSERT_TRUE(late.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 2; }));
+  server->publish(message(kRounds));
+  LineReader late_reader(late);
+  EXPECT_TRUE(receives_in_order(late_reader, kRounds, 1));
+  EXPECT_TRUE(receives_in_order(reader, kRounds, 1));
+}
+
+// (c) Garbage on both ports closes (or is ignored on) that connection only.
+TEST(StreamServer, SurvivesGarbageInput) {
+  auto server = start_server();
+  ASSERT_TRUE(server);
+  Socket normal = connect_to(server->stream_port());
+  ASSERT_TRUE(normal.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
+  std::mt19937 rng(1234);
+  auto random_bytes = [&](std::size_t n) {
+    std::string s(n, '\0');
+    for (char& c : s) c = static_cast<char>(rng() & 0xFF);
+    return s;
+  };
+
+  // Stream port: 1 MB of random bytes is read and discarded; the client stays subscribed
+  // until it closes its side.
+  {
+    Socket s = connect_to(server->stream_port());
+    ASSERT_TRUE(s.valid());
+    ASSERT_TRUE(send_all(s, random_bytes(1 << 20)));
+    ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 2; }));
+    server->publish(message(0));
+    LineReader r(s);
+    EXPECT_TRUE(receives_in_order(r, 0, 1));
+    ::shutdown(s.fd(), SHUT_WR);
+    EXPECT_NE(read_to_end(s), End::kTimedOut);
+  }
+  // HTTP port: random bytes (400 or 431), a 100 KB header (431), random bytes after a valid
+  // request line.
+  for (int round = 0; round < 5; ++round) {
+    const std::string r = http_exchange(server->http_port(), random_bytes(64 * 1024));
+    EXPECT_TRUE(status_code(r) == 400 || status_code(r) == 431) << r.substr(0, 40);
+  }
+  EXPECT_EQ(
+      status_code(http_exchange(server->http_port(),
+                                "GET / HTTP/1.1\r\nX: " + std::string(100000, 'z') + "\r\n\r\n")),
+      431);
+  EXPECT_EQ(status_code(http_exchange(server->http_port(),
+                                      "GET / HTTP/1.1\r\n" + random_bytes(200) + "\r\n\r\n")),
+            400);
+  // A WebSocket that sends an unmasked frame, then random bytes.
+  {
+    Socket ws = websocket_connect(server->http_port());
+    ASSERT_TRUE(ws.valid());
+    ASSERT_TRUE(send_all(ws, client_frame(0x81, "unmasked", false) + random_bytes(1000)));
+    const auto f = read_frame(ws);
+    ASSERT_TRUE(f);
+    EXPECT_EQ(close_status(*f), 1002);
+    EXPECT_NE(read_to_end(ws), End::kTimedOut);
+  }
+  EXPECT_TRUE(wait_until([&] { return server->stats().dropped_bad_input >= 8; }))
+      << server->stats().dropped_bad_input;
+
+  // Still serving everyone.
+  EXPECT_EQ(status_code(http_exchange(server->http_port(), "GET /health HTTP/1.1\r\n\r\n")), 200);
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
+  server->publish(message(1));
+  LineReader reader(normal);
+  EXPECT_TRUE(receives_in_order(reader, 0, 2));
+}
+
+// (d) 50 concurrent stream clients (and a few WebSocket clients) each get all N messages.
+TEST(StreamServer, FiftyConcurrentClientsGetEveryMessage) {
+  auto server = start_server();
+  ASSERT_TRUE(server);
+  constexpr int kClients = 50;
+  constexpr int kWebSockets = 5;
+  constexpr int kMessages = 2000;
+  std::vector<Socket> clients;
+  for (int i = 0; i < kClients; ++i) {
+    clients.push_back(connect_to(server->stream_port()));
+    ASSERT_TRUE(clients.back().valid()) << i;
+  }
+  std::vector<Socket> websockets;
+  for (int i = 0; i < kWebSockets; ++i) {
+    websockets.push_back(websocket_connect(server->http_port()));
+    ASSERT_TRUE(websockets.back().valid()) << i;
+  }
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == kClients; }));
+
+  std::vector<int> received(kClients + kWebSockets, 0);  // one slot per reader thread
+  std::vector<std::thread> readers;
+  for (int c = 0; c < kClients; ++c) {
+    readers.emplace_back([&, c] {
+      LineReader reader(clients[static_cast<std::size_t>(c)]);
+      for (int i = 0; i < kMessages; ++i) {
+        const auto line = reader.next();
+        if (!line || *line != message(i, 40)) return;
+        received[static_cast<std::size_t>(c)] = i + 1;
+      }
+    });
+  }
+  for (int w = 0; w < kWebSockets; ++w) {
+    readers.emplace_back([&, w] {
+      for (int i = 0; i < kMessages; ++i) {
+        const auto f = read_frame(websockets[static_cast<std::size_t>(w)]);
+        if (!f || f->opcode != 1 || f->payload != message(i, 40)) return;
+        received[static_cast<std::size_t>(kClients + w)] = i + 1;
+      }
+    });
+  }
+  for (int i = 0; i < kMessages; ++i) server->publish(message(i, 40));
+  for (auto& t : readers) t.join();
+  for (std::size_t c = 0; c < received.size(); ++c) {
+    EXPECT_EQ(received[c], kMessages) << "client " << c;
+  }
+  const ServerStats st = server->stats();
+  EXPECT_EQ(st.dropped_slow, 0u);
+  EXPECT_EQ(st.stream_clients, kClients);
+  EXPECT_EQ(st.websocket_clients, kWebSockets);
+}
+
+}  // namespace
+}  // namespace mocap::net

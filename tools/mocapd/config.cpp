@@ -1,0 +1,469 @@
+#include "tools/mocapd/config.h"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "runtime/core/log.h"
+
+namespace mocap::daemon {
+namespace {
+
+using nlohmann::json;
+
+Error bad(std::string_view expected, std::string_view text) {
+  return Error(ErrorCode::kInvalidArgument,
+               "expected " + std::string(expected) + ", got '" + std::string(text) + "'");
+}
+
+OptionSpec int_opt(std::string key, std::string unit, std::string help, int DaemonConfig::*field,
+                   int lo, int hi) {
+  OptionSpec o{std::move(key),  OptionType::kInt, std::move(unit),
+               std::move(help), nullptr,          nullptr};
+  o.show = [field](const DaemonConfig& c) { return std::to_string(c.*field); };
+  o.set = [field, lo, hi](DaemonConfig& c, std::string_view t) -> Status {
+    int v = 0;
+    auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+    const std::string range =
+        "an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    if (ec != std::errc() || p != t.data() + t.size() || v < lo || v > hi) return bad(range, t);
+    c.*field = v;
+    return {};
+  };
+  return o;
+}
+
+OptionSpec double_opt(std::string key, std::string unit, std::string help,
+                      double DaemonConfig::*field, double lo, double hi) {
+  OptionSpec o{std::move(key), OptionType::kDouble, std::move(unit), std::move(help), nullptr,
+               nullptr};
+  o.show = [field](const DaemonConfig& c) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", c.*field);
+    return std::string(buf);
+  };
+  o.set = [field, lo, hi](DaemonConfig& c, std::string_view t) -> Status {
+    const std::string s(t);
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    char range[96];
+    std::snprintf(range, sizeof range, "a number in [%g, %g]", lo, hi);
+    if (s.empty() || end != s.c_str() + s.size() || !std::isfinite(v) || v < lo || v > hi) {
+      return bad(range, t);
+    }
+    c.*field = v;
+    return {};
+  };
+  return o;
+}
+
+OptionSpec bool_opt(std::string key, std::string help, bool DaemonConfig::*field) {
+  OptionSpec o{std::move(key), OptionType::kBool, "", std::move(help), nullptr, nullptr};
+  o.show = [field](const DaemonConfig& c) { return std::string(c.*field ? "true" : "false"); };
+  o.set = [field](DaemonConfig& c, std::string_view t) -> Status {
+    if (t == "true" || t == "1" || t == "yes") {
+      c.*field = true;
+    } else if (t == "false" || t == "0" || t == "no") {
+      c.*field = false;
+    } else {
+      return bad("true or false", t);
+    }
+    return {};
+  };
+  return o;
+}
+
+// `choices` empty: any string (a path, a name); otherwise one of them.
+OptionSpec string_opt(std::string key, std::string unit, std::string help,
+                      std::string DaemonConfig::*field, std::vector<std::string> choices = {}) {
+  OptionSpec o{std::move(key), OptionType::kString, std::move(unit), std::move(help), nullptr,
+               nullptr};
+  o.show = [field](const DaemonConfig& c) { return c.*field; };
+  o.set = [field, choices](DaemonConfig& c, std::string_view t) -> Status {
+    if (!choices.empty() && std::find(choices.begin(), choices.end(), t) == choices.end()) {
+      std::string list;
+      for (const auto& ch : choices) list += (list.empty() ? "" : ", ") + ch;
+      return bad("one of " + list, t);
+    }
+    if (t.find('\0') != std::string_view::npos) return bad("text without NUL bytes", "\\0");
+    c.*field = std::string(t);
+    return {};
+  };
+  return o;
+}
+
+std::vector<OptionSpec> make_options() {
+  std::vector<OptionSpec> v;
+  // Network
+  v.push_back(string_opt("bind_address", "IPv4", "address the stream and HTTP servers listen on",
+                         &DaemonConfig::bind_address));
+  v.push_back(int_opt("stream_port", "port",
+                      "TCP port of the skeleton stream (newline-delimited JSON); 0 = any free port",
+                      &DaemonConfig::stream_port, 0, 65535));
+  v.push_back(int_opt("http_port", "port",
+                      "HTTP port: GET /health (status JSON), GET /stream (WebSocket); 0 = any free "
+                      "port, -1 = off",
+                      &DaemonConfig::http_port, -1, 65535));
+  v.push_back(int_opt("max_clients", "connections",
+                      "most simultaneous stream, WebSocket and HTTP connections; more are refused",
+                      &DaemonConfig::max_clients, 1, 4096));
+  v.push_back(int_opt("client_backlog_kib", "KiB",
+                      "unsent data a client may fall behind by before it is dropped (a slow client "
+                      "never stalls the pipeline)",
+                      &DaemonConfig::client_backlog_kib, 4, 1048576));
+  // Sources
+  v.push_back(string_opt("replay", "path",
+                         "run a recording (calibration.json + videos/<view>.mp4) through the whole "
+                         "pipeline instead of cameras; exits at its end unless loop",
+                         &DaemonConfig::replay));
+  v.push_back(
+      bool_opt("loop", "replay: start the recording again at its end", &DaemonConfig::loop));
+  v.push_back(bool_opt("replay_realtime",
+                       "replay: deliver frames at the recorded rate and drop what the pipeline "
+                       "cannot keep up with (as cameras would); default: every frame, as fast as "
+                       "the pipeline goes",
+                       &DaemonConfig::replay_realtime));
+  v.push_back(string_opt("board", "name",
+                         "board/<name>/board.json to use; empty = the first board whose cameras "
+                         "are found (the simulator board when none)",
+                         &DaemonConfig::board));
+  v.push_back(string_opt("board_dir", "path",
+                         "folder of boards; empty = <prefix>/share/mocap-box/board, else the "
+                         "source tree's board/",
+                         &DaemonConfig::board_dir));
+  v.push_back(string_opt("calibration", "path",
+                         "calibration file; empty = <state_dir>/calibration.json, then the "
+                         "board's; cameras without one stream 2D detections",
+                         &DaemonConfig::calibration));
+  v.push_back(string_opt("state_dir", "path", "the box's state folder (calibration.json)",
+                         &DaemonConfig::state_dir));
+  v.push_back(string_opt("dev_dir", "path", "where V4L2 device nodes are looked for",
+                         &DaemonConfig::dev_dir));
+  v.push_back(int_opt("max_cameras", "cameras", "most cameras used (the first ones found)",
+                      &DaemonConfig::max_cameras, 1, 32));
+  v.push_back(double_opt("frame_rate_hz", "Hz",
+                         "capture (and simulator) frame rate; 0 = the board's",
+                         &DaemonConfig::frame_rate_hz, 0, 1000));
+  // CNN
+  v.push_back(string_opt("model", "path",
+                         "pose network (.mcnn or TF.js model.json); empty = the installed "
+                         "models/posenet.mcnn, else the source tree's",
+                         &DaemonConfig::model));
+  v.push_back(int_opt("input_size_px", "px",
+                      "network input height and width (PoseNet: 16k+1, e.g. 257, 353, 513)",
+                      &DaemonConfig::input_size_px, 17, 1025));
+  v.push_back(string_opt("gpu", "backend",
+                         "auto (Vulkan, the CPU with a warning when no device opens), vulkan "
+                         "(fail without one) or cpu",
+                         &DaemonConfig::gpu, {"auto", "vulkan", "cpu"}));
+  v.push_back(string_opt("gpu_device", "name",
+                         "Vulkan device index or name substring; empty = the board's preferred "
+                         "GPU, else the best one",
+                         &DaemonConfig::gpu_device));
+  // Pipeline
+  v.push_back(int_opt("queue_depth", "frames",
+                      "frames waiting between two stages (CNN, association) at most",
+                      &DaemonConfig::queue_depth, 1, 64));
+  v.push_back(string_opt("drop_policy", "policy",
+                         "when a stage queue is full: drop-oldest (live: latency stays bounded, "
+                         "drops are counted), block (every frame is processed), auto (block for "
+                         "a replay at full speed, drop-oldest otherwise)",
+                         &DaemonConfig::drop_policy, {"auto", "drop-oldest", "block"}));
+  v.push_back(int_opt("realtime_priority", "SCHED_FIFO",
+                      "real-time priority of the pipeline threads (1-99; needs CAP_SYS_NICE or "
+                      "LimitRTPRIO); 0 = normal scheduling",
+                      &DaemonConfig::realtime_priority, 0, 99));
+  v.push_back(int_opt("max_frames", "frames", "stop after this many frames; -1 = run until stopped",
+                      &DaemonConfig::max_frames, -1, 2147483647));
+  // Simulator
+  v.push_back(int_opt("sim_people", "persons", "simulator board: people in the scene",
+                      &DaemonConfig::sim_people, 0, 16));
+  v.push_back(int_opt("sim_views", "cameras", "simulator board: virtual cameras",
+                      &DaemonConfig::sim_views, 2, 16));
+  // Status
+  v.push_back(double_opt("status_log_interval_s", "s",
+                         "how often a status line is logged; 0 = never",
+                         &DaemonConfig::status_log_interval_s, 0, 86400));
+  v.push_back(string_opt("log", "levels",
+                         "log levels, e.g. \"*:info,Pipeline:debug\" (MOCAP_LOG syntax); empty = "
+                         "MOCAP_LOG or info",
+                         &DaemonConfig::log));
+  return v;
+}
+
+std::string upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
+const OptionSpec* find_option(std::string_view key) {
+  for (const OptionSpec& o : config_options()) {
+    if (o.key == key) return &o;
+  }
+  return nullptr;
+}
+
+std::string nearest_key(std::string_view key) {
+  // The option sharing the longest prefix, for "did you mean".
+  const OptionSpec* best = nullptr;
+  std::size_t best_len = 0;
+  for (const OptionSpec& o : config_options()) {
+    std::size_t n = 0;
+    while (n < o.key.size() && n < key.size() && o.key[n] == key[n]) ++n;
+    if (n > best_len) best_len = n, best = &o;
+  }
+  return best != nullptr && best_len >= 3 ? " (did you mean \"" + best->key + "\"?)" : "";
+}
+
+}  // namespace
+
+const std::vector<OptionSpec>& config_options() {
+  static const std::vector<OptionSpec> options = make_options();
+  return options;
+}
+
+std::string env_name(const OptionSpec& o) {
+  std::string e("MOCAPD_");
+  e += upper(o.key);
+  return e;
+}
+
+std::string flag_name(const OptionSpec& o) {
+  std::string f("--");
+  f += o.key;
+  std::replace(f.begin(), f.end(), '_', '-');
+  return f;
+}
+
+Status apply_config_file(DaemonConfig& config, const std::string& path) {
+  std::ifstream in(path);
+  if (!in) {
+    return Error(ErrorCode::kNotFound, path + ": cannot open the config file (" +
+                                           std::strerror(errno) + "); check --config");
+  }
+  std::stringstream ss;
+  ss << in.rdbuf();
+  json j = json::parse(ss.str(), nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) {
+    return Error(ErrorCode::kParse, path + ": not valid JSON (docs/mocapd.md has an example)");
+  }
+  if (!j.is_object()) return Error(ErrorCode::kParse, path + ": expected a JSON object");
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    const OptionSpec* o = find_option(it.key());
+    if (o == nullptr) {
+      return Error(ErrorCode::kInvalidArgument, path + ": unknown key \"" + it.key() + "\"" +
+                                                    nearest_key(it.key()) +
+                                                    "; `mocapd --help` lists the options");
+    }
+    const json& v = *it;
+    std::string text;
+    bool type_ok = false;
+    switch (o->type) {
+      case OptionType::kInt:
+        type_ok = v.is_number_integer();
+        if (type_ok) text = v.dump();
+        break;
+      case OptionType::kDouble:
+        type_ok = v.is_number();
+        if (type_ok) text = v.dump();
+        break;
+      case OptionType::kBool:
+        type_ok = v.is_boolean();
+        if (type_ok) text = v.get<bool>() ? "true" : "false";
+        break;
+      case OptionType::kString:
+        type_ok = v.is_string();
+        if (type_ok) text = v.get<std::string>();
+        break;
+    }
+    if (!type_ok) {
+      static const char* names[] = {"an integer", "a number", "true or false", "a string"};
+      return Error(ErrorCode::kInvalidArgument, path + ": key \"" + o->key + "\": expected " +
+                                                    names[static_cast<int>(o->type)] + ", got " +
+                                                    v.dump());
+    }
+    if (Status s = o->set(config, text); !s.ok()) {
+      return Error(ErrorCode::kInvalidArgument,
+                   path + ": key \"" + o->key + "\": " + s.error().message());
+    }
+  }
+  return {};
+}
+
+Status apply_environment(DaemonConfig& config, char** env) {
+  if (env == nullptr) return {};
+  for (char** e = env; *e != nullptr; ++e) {
+    std::string_view kv(*e);
+    if (kv.substr(0, 7) != "MOCAPD_") continue;
+    const std::size_t eq = kv.find('=');
+    if (eq == std::string_view::npos) continue;
+    const std::string_view name = kv.substr(0, eq);
+    const OptionSpec* found = nullptr;
+    for (const OptionSpec& o : config_options()) {
+      if (env_name(o) == name) found = &o;
+    }
+    if (found == nullptr) {
+      return Error(ErrorCode::kInvalidArgument,
+                   "environment variable " + std::string(name) +
+                       ": no such option (`mocapd --help` lists the MOCAPD_* variables)");
+    }
+    if (Status s = found->set(config, kv.substr(eq + 1)); !s.ok()) {
+      return Error(ErrorCode::kInvalidArgument,
+                   "environment variable " + std::string(name) + ": " + s.error().message());
+    }
+  }
+  return {};
+}
+
+Status validate(const DaemonConfig& c) {
+  auto err = [](const std::string& m) { return Error(ErrorCode::kInvalidArgument, m); };
+  if (c.http_port > 0 && c.http_port == c.stream_port) {
+    return err("stream_port and http_port are both " + std::to_string(c.http_port) +
+               ": give them different ports");
+  }
+  if (c.loop && c.replay.empty()) return err("loop needs replay (a recording folder)");
+  if (c.replay_realtime && c.replay.empty()) {
+    return err("replay_realtime needs replay (a recording folder)");
+  }
+  if (!c.log.empty()) {
+    if (Status s = set_log_levels(c.log); !s.ok()) {
+      return err("log \"" + c.log + "\": " + s.error().message());
+    }
+  }
+  if (c.state_dir.empty()) return err("state_dir must not be empty");
+  return {};
+}
+
+std::string config_to_json(const DaemonConfig& config) {
+  json j = json::object();
+  for (const OptionSpec& o : config_options()) {
+    const std::string v = o.show(config);
+    switch (o.type) {
+      case OptionType::kInt:
+        j[o.key] = std::stoll(v);
+        break;
+      case OptionType::kDouble:
+        j[o.key] = std::stod(v);
+        break;
+      case OptionType::kBool:
+        j[o.key] = v == "true";
+        break;
+      case OptionType::kString:
+        j[o.key] = v;
+        break;
+    }
+  }
+  return j.dump(2);
+}
+
+std::string options_help(const DaemonConfig& defaults) {
+  std::string out;
+  for (const OptionSpec& o : config_options()) {
+    const std::string def = o.show(defaults);
+    out += "  ";
+    out += flag_name(o);
+    if (o.type != OptionType::kBool) {
+      out += ' ';
+      out += o.unit.empty() ? std::string("VALUE") : upper(o.unit);
+    }
+    out += "\n      ";
+    out += o.help;
+    out += "\n      default: ";
+    out += def.empty() ? std::string("(empty)") : def;
+    out += "; config key \"";
+    out += o.key;
+    out += "\"; env ";
+    out += env_name(o);
+    out += '\n';
+  }
+  return out;
+}
+
+std::string options_markdown(const DaemonConfig& defaults) {
+  std::string out =
+      "| key | flag | environment | unit | default | what it does |\n"
+      "|---|---|---|---|---|---|\n";
+  for (const OptionSpec& o : config_options()) {
+    const std::string def = o.show(defaults);
+    out += "| `" + o.key + "` | `" + flag_name(o) + "` | `" + env_name(o) + "` | " + o.unit +
+           " | " + (def.empty() ? std::string("(empty)") : "`" + def + "`") + " | " + o.help +
+           " |\n";
+  }
+  return out;
+}
+
+Result<CommandLine> parse_command_line(std::span<const std::string_view> args) {
+  CommandLine cmd;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    std::string_view a = args[i];
+    std::string_view value;
+    bool has_value = false;
+    if (const std::size_t eq = a.find('=');
+        eq != std::string_view::npos && a.substr(0, 2) == "--") {
+      value = a.substr(eq + 1);
+      a = a.substr(0, eq);
+      has_value = true;
+    }
+    auto take_value = [&](std::string_view flag) -> Result<std::string> {
+      if (has_value) return std::string(value);
+      if (i + 1 >= args.size()) {
+        return Error(ErrorCode::kInvalidArgument, std::string(flag) + " needs a value");
+      }
+      return std::string(args[++i]);
+    };
+    if (a == "--help" || a == "-h") {
+      cmd.help = true;
+    } else if (a == "--version") {
+      cmd.version = true;
+    } else if (a == "--print-config") {
+      cmd.print_config = true;
+    } else if (a == "--help-markdown") {
+      cmd.help_markdown = true;
+    } else if (a == "--config") {
+      auto v = take_value(a);
+      if (!v) return v.error();
+      cmd.config_file = *v;
+    } else {
+      const OptionSpec* found = nullptr;
+      for (const OptionSpec& o : config_options()) {
+        if (flag_name(o) == a) found = &o;
+      }
+      if (found == nullptr) {
+        return Error(ErrorCode::kInvalidArgument,
+                     "unknown option '" + std::string(args[i]) + "' (see mocapd --help)");
+      }
+      if (found->type == OptionType::kBool && !has_value) {
+        cmd.settings.emplace_back(found, "true");
+        continue;
+      }
+      auto v = take_value(a);
+      if (!v) return v.error();
+      cmd.settings.emplace_back(found, *v);
+    }
+  }
+  return cmd;
+}
+
+Result<DaemonConfig> load_config(const CommandLine& cmd, char** env) {
+  DaemonConfig c;
+  if (!cmd.config_file.empty()) {
+    if (Status s = apply_config_file(c, cmd.config_file); !s.ok()) return s.error();
+  }
+  if (Status s = apply_environment(c, env); !s.ok()) return s.error();
+  for (const auto& [o, v] : cmd.settings) {
+    if (Status s = o->set(c, v); !s.ok()) {
+      return Error(ErrorCode::kInvalidArgument, flag_name(*o) + ": " + s.error().message());
+    }
+  }
+  if (Status s = validate(c); !s.ok()) return s.error();
+  return c;
+}
+
+}  // namespace mocap::daemon

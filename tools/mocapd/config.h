@@ -1,0 +1,104 @@
+// mocapd's configuration: every option with its unit, default and range in one table
+// (config_options()), read from a JSON file (--config), then environment variables
+// (MOCAPD_<KEY>), then command-line flags (--<key-with-dashes>), each overriding the one
+// before. Every value is validated where it is read; the error names the file, variable or
+// flag, the key and the reason. docs/mocapd.md lists the same table (a test checks it).
+#pragma once
+
+#include <functional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "runtime/core/error.h"
+
+namespace mocap::daemon {
+
+inline constexpr const char* kDaemonVersion = "0.2.0";
+inline constexpr const char* kDefaultStateDir = "/var/lib/mocap";
+
+struct DaemonConfig {
+  // Network
+  std::string bind_address = "0.0.0.0";
+  int stream_port = 9870;
+  int http_port = 9871;
+  int max_clients = 64;
+  int client_backlog_kib = 4096;
+  // Where frames come from
+  std::string replay;  // recording folder; empty = cameras, or the simulator when none
+  bool loop = false;
+  bool replay_realtime = false;
+  std::string board;        // board name; empty = auto (first board whose cameras are found)
+  std::string board_dir;    // empty = the installed boards, else the source tree's board/
+  std::string calibration;  // empty = <state_dir>/calibration.json, then the board's
+  std::string state_dir = kDefaultStateDir;
+  std::string dev_dir = "/dev";
+  int max_cameras = 8;
+  double frame_rate_hz = 0;  // 0 = the board's
+  // CNN
+  std::string model;  // empty = the installed models/posenet.mcnn
+  int input_size_px = 353;
+  std::string gpu = "auto";
+  std::string gpu_device;  // empty = the board's preferred GPU, else the best one
+  // Pipeline
+  int queue_depth = 2;
+  std::string drop_policy = "auto";
+  int realtime_priority = 0;
+  int max_frames = -1;
+  // Simulator (no camera)
+  int sim_people = 2;
+  int sim_views = 4;
+  // Status
+  double status_log_interval_s = 30;
+  std::string log;  // MOCAP_LOG syntax, e.g. "*:info,Pipeline:debug"
+};
+
+enum class OptionType { kInt, kDouble, kBool, kString };
+
+struct OptionSpec {
+  std::string key;  // JSON key; env MOCAPD_<KEY upper>; flag --<key with '-' for '_'>
+  OptionType type;
+  std::string unit;  // "", "port", "ms", "Hz", "px", "KiB", "s", "path", ...
+  std::string help;  // what it does, the range, the default's meaning
+  std::function<std::string(const DaemonConfig&)> show;  // the current value as text
+  // Parses and validates `text` into the config; the error says what is expected.
+  std::function<Status(DaemonConfig&, std::string_view text)> set;
+};
+
+const std::vector<OptionSpec>& config_options();
+
+std::string env_name(const OptionSpec& o);   // MOCAPD_STREAM_PORT
+std::string flag_name(const OptionSpec& o);  // --stream-port
+
+// Applies a JSON config file's object. Unknown keys and wrong types are errors naming the
+// file and the key.
+Status apply_config_file(DaemonConfig& config, const std::string& path);
+// Applies MOCAPD_* variables from `env` (KEY=VALUE strings, e.g. environ).
+Status apply_environment(DaemonConfig& config, char** env);
+// Cross-field checks after all sources are applied.
+Status validate(const DaemonConfig& config);
+
+// The effective configuration as a JSON object (what --print-config prints).
+std::string config_to_json(const DaemonConfig& config);
+// Help text: one block per option with flag, env variable, unit and default.
+std::string options_help(const DaemonConfig& defaults);
+// The same as a Markdown table (docs/mocapd.md): | key | flag | env | unit | default | help |
+std::string options_markdown(const DaemonConfig& defaults);
+
+struct CommandLine {
+  std::string config_file;
+  bool help = false;
+  bool version = false;
+  bool print_config = false;
+  bool help_markdown = false;
+  std::vector<std::pair<const OptionSpec*, std::string>> settings;  // flag values, in order
+};
+// Parses --config, --help, --version, --print-config and every option flag (--key VALUE or
+// --key=VALUE; boolean flags take no value, or =true/false).
+Result<CommandLine> parse_command_line(std::span<const std::string_view> args);
+
+// The whole chain: defaults, --config file, environment, flags, validate().
+Result<DaemonConfig> load_config(const CommandLine& cmd, char** env);
+
+}  // namespace mocap::daemon

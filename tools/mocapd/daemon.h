@@ -1,0 +1,104 @@
+// mocapd assembled: configuration -> source (replay, cameras of a board, or the simulator)
+// -> GPU pose detector -> association engine -> skeleton stream, with the status endpoint.
+//
+//   auto d = daemon::Daemon::create(config);      // finds cameras, calibration, GPU, model
+//   d->start();                                   // binds the ports, starts the pipeline
+//   int rc = d->run([] { return g_stop; });       // until the source ends or a stop request
+//
+// With cameras but no usable calibration the daemon still runs: it streams per-view 2D
+// detections and its status names the cameras and the fix. A calibration or config the user
+// named explicitly that cannot be used is an error at create().
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "runtime/core/error.h"
+#include "runtime/geometry/calibration.h"
+#include "tools/mocapd/config.h"
+#include "tools/mocapd/pipeline.h"
+
+namespace mocap::net {
+class StreamServer;
+}
+namespace mocap::gpu {
+class PoseDetector;
+struct BackendChoice;
+}  // namespace mocap::gpu
+namespace mocap::hal {
+class TriggerMaster;
+}
+
+namespace mocap::daemon {
+
+// Test and bench hooks: called on the association thread after a frame was published.
+struct DaemonHooks {
+  std::function<void(const PipelineFrame&)> on_frame;
+};
+
+// Where the installed (or source-tree) data lives: <exe>/../share/mocap-box/<sub> when it
+// exists, else the source tree's <sub>.
+std::filesystem::path share_path(const std::string& sub);
+
+class Daemon {
+ public:
+  static Result<std::unique_ptr<Daemon>> create(const DaemonConfig& config, DaemonHooks hooks = {});
+  ~Daemon();
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  // Binds the stream and HTTP ports and starts the pipeline (and the trigger master of a
+  // GPIO-master board).
+  Status start();
+  // Blocks until the source ends (a replay without loop), the pipeline fails, or
+  // should_stop() returns true (polled every 100 ms). Logs a status line every
+  // status_log_interval_s. Returns the exit status: 0 ended or stopped, 1 failed.
+  int run(const std::function<bool()>& should_stop);
+  void stop();
+
+  // GET /health's JSON.
+  std::string health_json() const;
+  int stream_port() const;
+  int http_port() const;
+  PipelineMetrics metrics() const;
+  const std::vector<std::string>& problems() const { return problems_; }
+  bool calibrated() const { return engine_ != nullptr; }
+  // The calibrated views (empty when not calibrated), in the engine's view order.
+  const std::vector<Camera>& cameras() const { return cameras_; }
+  std::string source_kind() const { return source_kind_; }
+  const std::string& gpu_description() const { return gpu_description_; }
+
+ private:
+  Daemon() = default;
+  void sink(const PipelineFrame& frame);
+
+  DaemonConfig config_;
+  DaemonHooks hooks_;
+  std::string source_kind_;
+  std::string board_name_;
+  std::string calibration_state_ = "missing";  // ok, missing, invalid, mismatch, not needed
+  std::string calibration_file_;
+  std::vector<std::string> problems_;  // what is degraded and how to fix it
+  std::vector<std::string> notes_;     // discovery notes (skipped nodes, ...)
+  std::string gpu_description_;
+  std::string gpu_backend_;
+  std::int64_t unix_offset_ns_ = 0;
+  std::int64_t started_ns_ = 0;
+  std::vector<Camera> cameras_;
+  std::unique_ptr<gpu::BackendChoice> backend_;
+  std::unique_ptr<gpu::PoseDetector> detector_;
+  std::unique_ptr<assoc::Engine> engine_;
+  std::unique_ptr<FrameSource> pending_source_;  // until start() hands it to the pipeline
+  std::unique_ptr<hal::TriggerMaster> trigger_;
+  std::unique_ptr<net::StreamServer> server_;
+  std::unique_ptr<Pipeline> pipeline_;
+  std::atomic<bool> stopped_{false};
+};
+
+}  // namespace mocap::daemon
