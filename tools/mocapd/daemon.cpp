@@ -92,6 +92,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
   assoc::AssociationOptions assoc_options = assoc::posenet_coco17_options();
   bool need_cnn = true;
   int view_count = 0;
+  std::string preferred_gpu;  // the board's
   std::optional<Calibration> calibration;
 
   // ---- The source.
@@ -115,6 +116,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
     if (!disc.ok()) return disc.error();
     d->board_name_ = disc->board_name;
     d->notes_ = disc->notes;
+    preferred_gpu = disc->board.preferred_gpu;
     for (const auto& n : disc->notes) MOCAP_LOG(Daemon, Info) << n;
     const double rate_hz =
         config.frame_rate_hz > 0 ? config.frame_rate_hz : disc->board.frame_rate_hz;
@@ -248,7 +250,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
           "model (install it with tools/fetch_models.sh, or set model)");
     }
     gpu::GpuOptions go;
-    go.device = config.gpu_device;
+    go.device = config.gpu_device.empty() ? preferred_gpu : config.gpu_device;
     auto b = gpu::choose_backend(config.gpu, go);
     if (!b.ok()) return b.error();
     d->backend_ = std::make_unique<gpu::BackendChoice>(std::move(*b));
@@ -280,16 +282,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
 }
 
 Status Daemon::start() {
-  net::StreamServerOptions so;
-  so.bind_address = config_.bind_address;
-  so.stream_port = config_.stream_port;
-  so.http_port = config_.http_port;
-  so.max_clients = config_.max_clients;
-  so.max_client_backlog_bytes = static_cast<std::size_t>(config_.client_backlog_kib) * 1024;
-  auto srv = net::StreamServer::start(so, [this] { return health_json(); });
-  if (!srv.ok()) return srv.error();
-  server_ = std::move(*srv);
-
+  started_ns_ = hal::monotonic_ns();
   PipelineOptions po;
   po.queue_depth = config_.queue_depth;
   po.realtime_priority = config_.realtime_priority;
@@ -303,7 +296,19 @@ Status Daemon::start() {
       [this](const PipelineFrame& f) { sink(f); }, po);
   if (!p.ok()) return p.error();
   pipeline_ = std::move(*p);
-  started_ns_ = hal::monotonic_ns();
+  // The server starts after the pipeline object exists (GET /health reads it from the server
+  // thread) and before its threads do (the sink publishes).
+  net::StreamServerOptions so;
+  so.bind_address = config_.bind_address;
+  so.stream_port = config_.stream_port;
+  so.http_port = config_.http_port;
+  so.max_clients = config_.max_clients;
+  so.max_client_backlog_bytes = static_cast<std::size_t>(config_.client_backlog_kib) * 1024;
+  auto srv = net::StreamServer::start(so, [this] { return health_json(); });
+  if (!srv.ok()) return srv.error();
+  server_ = std::move(*srv);
+  server_view_.store(server_.get());
+
   if (Status s = pipeline_->start(); !s.ok()) return s;
   if (trigger_) {
     if (Status s = trigger_->start(); !s.ok()) return s;
@@ -415,10 +420,11 @@ std::string Daemon::health_json() const {
                   {"end_to_end", latency_json(m.end_to_end)}};
   j["pipeline"] = p;
   j["persons"] = m.persons;
-  if (server_) {
+  // server_view_: set once the server exists (a request can arrive before start() returns).
+  if (const net::StreamServer* srv = server_view_.load(); srv != nullptr) {
     // stats() does not take the lock publish() holds; safe from the server thread.
-    const net::ServerStats s = server_->stats();
-    j["stream"] = {{"port", server_->stream_port()},   {"http_port", server_->http_port()},
+    const net::ServerStats s = srv->stats();
+    j["stream"] = {{"port", srv->stream_port()},       {"http_port", srv->http_port()},
                    {"clients", s.stream_clients},      {"websocket_clients", s.websocket_clients},
                    {"dropped_slow", s.dropped_slow},   {"dropped_bad_input", s.dropped_bad_input},
                    {"rejected_full", s.rejected_full}, {"messages", s.messages_published},

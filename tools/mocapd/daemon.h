@@ -97,6 +97,7 @@ class Daemon {
   std::unique_ptr<FrameSource> pending_source_;  // until start() hands it to the pipeline
   std::unique_ptr<hal::TriggerMaster> trigger_;
   std::unique_ptr<net::StreamServer> server_;
+  std::atomic<const net::StreamServer*> server_view_{nullptr};  // for health_json()
   std::unique_ptr<Pipeline> pipeline_;
   std::atomic<bool> stopped_{false};
 };
