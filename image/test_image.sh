@@ -11,7 +11,7 @@
 #                  or 420)
 # Environment:
 #   MOCAP_IMAGE_TEST=1   required: without it the test is skipped (exit 77), so the default
-#                        `ctest` run never boots the image (run it with `ctest -L image`)
+#                        `ctest` run never boots the image (run it with `ctest -L appliance`)
 #   MOCAP_IMAGE_BUILD=0  do not (re)build the image, use the one in --image (skip when absent);
 #                        default: image/build_image.sh first (incremental: ~10 s when nothing
 #                        changed, ~20 s when the binaries did, ~13 min the first time)
@@ -59,7 +59,7 @@ t0=$(date +%s.%N)
 elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN{printf "%.1f", b-a}'; }
 
 [[ ${MOCAP_IMAGE_TEST:-0} == 1 ]] ||
-    skip "boots the full appliance image (~2.5 min, more when the image must be built): set MOCAP_IMAGE_TEST=1 and run ctest -L image"
+    skip "boots the full appliance image (~2.5 min, more when the image must be built): set MOCAP_IMAGE_TEST=1 and run ctest -L appliance"
 command -v qemu-system-x86_64 >/dev/null 2>&1 ||
     skip "qemu-system-x86_64 not found (apt-get install -y qemu-system-x86, or run tools/setup.sh)"
 for c in jq curl; do
