@@ -111,7 +111,8 @@ TEST(DaemonSimulator, StreamsTheSimulatedPeopleWhenNoCameraIsAttached) {
   ASSERT_FALSE(h["problems"].empty());
   EXPECT_NE(h["problems"][0].get<std::string>().find("no camera found"), std::string::npos);
   EXPECT_EQ(h["output"], "skeletons");
-  EXPECT_GE(h["pipeline"]["frames_out"].get<int>(), kMessages);
+  // frames_out moves once publish() returned: the last message read may be ahead of it.
+  EXPECT_GE(h["pipeline"]["frames_out"].get<int>(), kMessages - 1);
   EXPECT_TRUE(h["pipeline"]["latency"]["end_to_end"].contains("p99_ms"));
   EXPECT_EQ(h["stream"]["clients"], 1);
   (*d)->stop();
