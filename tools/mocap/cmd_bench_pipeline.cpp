@@ -14,16 +14,10 @@
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
 #include "tools/mocapd/daemon.h"
+#include "tools/replay/replay.h"
 
 namespace mocap::tools {
 namespace {
-
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 void print_stage(const char* name, const daemon::LatencyStats& s) {
   std::printf("  %-11s median %8.2f ms   p99 %8.2f ms   max %8.2f ms   (%llu frames)\n", name,
@@ -111,8 +105,8 @@ int run_bench_pipeline(Args args) {
   std::printf(
       "median over %d passes: %.2f frames/s, end-to-end latency median %.1f ms, "
       "overlap %.2fx\n",
-      passes, median_of(fps), median_of(e2e), median_of(serial_over_frame));
-  std::printf("pipeline_fps=%.2f\n", median_of(fps));
+      passes, replay::median(fps), replay::median(e2e), replay::median(serial_over_frame));
+  std::printf("pipeline_fps=%.2f\n", replay::median(fps));
   return 0;
 }
 
