@@ -66,6 +66,9 @@ Status TriangulationOptions::validate() const {
   MOCAP_CHECK(max_reprojection_error_px > 0, "triangulation.max_reprojection_error_px",
               "must be > 0");
   MOCAP_CHECK(proposal_views >= 2, "triangulation.proposal_views", "must be >= 2");
+  MOCAP_CHECK(
+      all_views_accept_error_px >= 0 && all_views_accept_error_px <= max_reprojection_error_px,
+      "triangulation.all_views_accept_error_px", "must be in [0, max_reprojection_error_px]");
   return Status::Ok();
 }
 
@@ -86,6 +89,7 @@ AssociationOptions posenet_coco17_options() {
   //    person (errors of 20-70 px from PoseNet and 5-30 px of calibration) is dropped from
   //    most joints, which are then triangulated from the two far views only.
   o.triangulation.max_reprojection_error_px = 60.0;
+  o.triangulation.all_views_accept_error_px = 30.0;  // half the rejection threshold, as above
   //  - fit.robust_loss_px 8 -> 20: the Huber scale of the fit's reprojection term, same scaling.
   o.fit.robust_loss_px = 20.0;
   //  - fit.confident_min_views 3 -> 2: with 4 views and the two people occluding each other,

@@ -94,6 +94,10 @@ struct TriangulationOptions {
   double max_reprojection_error_px = 25.0;
   // Consensus proposals come from pairs of the this-many highest-score views.
   int proposal_views = 6;
+  // Fast path: the least-squares point of all views is taken as it is, without the consensus
+  // search, when it reprojects within this distance in every view (0 = always search).
+  // Half the rejection threshold leaves every Shelf frame's result as the search gives it.
+  double all_views_accept_error_px = 12.5;
 
   Status validate() const;
 };

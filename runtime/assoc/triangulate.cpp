@@ -41,6 +41,33 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
   const int n = static_cast<int>(obs.size());
   if (n < options.min_views || n > 32) return out;
   const double thr = options.max_reprojection_error_px;
+  const unsigned all = n == 32 ? ~0u : (1u << n) - 1u;
+
+  // Accepts X solved from `used` as the result.
+  auto accept = [&](const Eigen::Vector3d& X, unsigned used, double worst) {
+    out.X_m = X;
+    out.valid = true;
+    out.views_used = std::popcount(used);
+    out.max_reprojection_error_px = worst;
+    for (int i = 0; i < n; ++i) {
+      const int v = obs[static_cast<std::size_t>(i)].view;
+      if ((used & (1u << i)) && v >= 0 && v < 32) out.view_mask |= 1u << v;
+    }
+    return out;
+  };
+
+  // No outlier (the common case, bundles are already consistent): the point of all views
+  // reprojects well within thr in every view, which is where the refinement below would end.
+  if (const double fast = options.all_views_accept_error_px; fast > 0) {
+    Eigen::Vector3d X;
+    if (solve_rays(obs, all, &X)) {
+      double worst = 0;
+      for (int i = 0; i < n && worst <= fast; ++i) {
+        worst = std::max(worst, reprojection_error(obs[static_cast<std::size_t>(i)], cameras, X));
+      }
+      if (worst <= fast) return accept(X, all, worst);
+    }
+  }
 
   // Consensus: every pair of views proposes a point; the one whose inliers (reprojection error
   // below thr) carry the most soft weight sum w·(1 − err/thr) wins. With 2 views this is
@@ -93,17 +120,7 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
         worst_i = i;
       }
     }
-    if (worst <= thr) {
-      out.X_m = X;
-      out.valid = true;
-      out.views_used = std::popcount(used);
-      out.max_reprojection_error_px = worst;
-      for (int i = 0; i < n; ++i) {
-        const int v = obs[static_cast<std::size_t>(i)].view;
-        if ((used & (1u << i)) && v >= 0 && v < 32) out.view_mask |= 1u << v;
-      }
-      return out;
-    }
+    if (worst <= thr) return accept(X, used, worst);
     used &= ~(1u << worst_i);
   }
   return out;

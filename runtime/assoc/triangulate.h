@@ -34,8 +34,10 @@ inline void add_ray_normal_equations(const Ray& ray, double weight, Eigen::Matri
   b += weight * (P * ray.origin_m);
 }
 
-// Consensus triangulation: every pair of views proposes a point (least squares over rays);
-// the proposal whose inlier views (reprojection error < max_reprojection_error_px) carry the
+// Robust triangulation. When the weighted least-squares point of all views (over rays,
+// weights = detection scores) reprojects within all_views_accept_error_px in every view, it
+// is the result. Otherwise consensus: every pair of views proposes a point (least squares over
+// rays); the proposal whose inlier views (reprojection error < max_reprojection_error_px) carry the
 // largest soft weight wins; the point is then re-solved on its inliers (weighted least squares
 // over rays, weights = detection scores), dropping the worst view while any exceeds the
 // threshold. Invalid when fewer than min_views views agree or the point is behind a camera.

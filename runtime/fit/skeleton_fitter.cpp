@@ -5,6 +5,7 @@
 #include <ceres/sphere_manifold.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -476,8 +477,17 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
   Mat A(n, n);
   Vec g(n);
   Eigen::LLT<Mat> llt(n);
-  std::vector<int> path;
-  std::vector<Eigen::Matrix<double, 2, 3>> Jb;
+  // Gauss–Newton normal equations by the chain rule, aggregated per joint: an observation of
+  // joint j depends on the parameters only through X_j, so its contribution is
+  // B_qᵀ (J_pᵀ J_p) B_k for every pair of blocks q, k on the path root -> j (B = ∂X_j/∂block:
+  // I for the root, −L[u]× for a bone). Summing J_pᵀ J_p and J_pᵀ res per joint (M_j, m_j),
+  // then over subtrees (S_k = Σ_{j in subtree(k)} M_j), gives H(q, k) = B_qᵀ S_k B_k for k in
+  // the subtree of q and g_q = B_qᵀ Σ_{subtree(q)} m_j: the same H and g as summing each
+  // observation's path blocks, at a cost independent of the number of views.
+  std::array<Eigen::Matrix3d, kMaxFitJoints> S;
+  std::array<Eigen::Vector3d, kMaxFitJoints> G;
+  std::array<Eigen::Matrix3d, kMaxFitJoints> B;
+  std::vector<Eigen::Vector3d> u2(ix(J));
   double lambda = 1e-3;
   double current = cost(r, u);
   int it = 0;
@@ -485,6 +495,12 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
     forward(r, u);
     H.setZero();
     g.setZero();
+    for (int j = 0; j < J; ++j) {
+      S[ix(j)].setZero();
+      G[ix(j)].setZero();
+      B[ix(j)] = parents_[ix(j)] < 0 ? Eigen::Matrix3d::Identity()
+                                     : Eigen::Matrix3d(-L[ix(j)] * skew(u[ix(j)]));
+    }
     for (const JointObservation& o : observations) {
       if (o.joint < 0 || o.joint >= J || o.view < 0 || o.view >= static_cast<int>(cameras.size())) {
         continue;
@@ -500,37 +516,26 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
       double w = options_.reprojection_weight * o.score;
       const double e = w * res.norm();
       if (e > a) w *= std::sqrt(a / e);  // IRLS weight of the Huber loss
-      res *= w;
-      Jp *= w;
-      // Blocks on the path root -> joint.
-      path.clear();
-      for (int q = o.joint; q >= 0; q = parents_[ix(q)]) path.push_back(q);
-      Jb.resize(path.size());
-      for (std::size_t i = 0; i < path.size(); ++i) {
-        const int q = path[i];
-        Jb[i] = parents_[ix(q)] < 0
-                    ? Jp
-                    : Eigen::Matrix<double, 2, 3>(Jp * (-L[ix(q)] * skew(u[ix(q)])));
-      }
-      for (std::size_t i = 0; i < path.size(); ++i) {
-        const int bi = 3 * (parents_[ix(path[i])] < 0 ? 0 : block[ix(path[i])]);
-        g.segment<3>(bi) += Jb[i].transpose() * res;
-        for (std::size_t k = 0; k < path.size(); ++k) {
-          const int bk = 3 * (parents_[ix(path[k])] < 0 ? 0 : block[ix(path[k])]);
-          H.block<3, 3>(bi, bk) += Jb[i].transpose() * Jb[k];
-        }
-      }
+      const double w2 = w * w;
+      S[ix(o.joint)].noalias() += w2 * (Jp.transpose() * Jp);
+      G[ix(o.joint)].noalias() += w2 * (Jp.transpose() * res);
     }
-    if (wt > 0) {
-      H.block<3, 3>(0, 0) += wt * wt * Eigen::Matrix3d::Identity();
-      g.segment<3>(0) += wt * wt * (r - state.root_prev);
-      for (int j = 0; j < J; ++j) {
-        if (parents_[ix(j)] < 0) continue;
-        const int bj = 3 * block[ix(j)];
-        const Eigen::Matrix3d Jt = wt * L[ix(j)] * (-skew(u[ix(j)]));
-        const Eigen::Vector3d res = wt * L[ix(j)] * (u[ix(j)] - state.dir_prev[ix(j)]);
-        H.block<3, 3>(bj, bj) += Jt.transpose() * Jt;
-        g.segment<3>(bj) += Jt.transpose() * res;
+    // Subtree sums, children before parents (reverse BFS order).
+    for (auto it_j = order_.rbegin(); it_j != order_.rend(); ++it_j) {
+      const int p = parents_[ix(*it_j)];
+      if (p < 0) continue;
+      S[ix(p)] += S[ix(*it_j)];
+      G[ix(p)] += G[ix(*it_j)];
+    }
+    for (int k = 0; k < J; ++k) {
+      const int bk = 3 * (parents_[ix(k)] < 0 ? 0 : block[ix(k)]);
+      const Eigen::Matrix3d SB = S[ix(k)] * B[ix(k)];
+      g.segment<3>(bk) += B[ix(k)].transpose() * G[ix(k)];
+      for (int q = k; q >= 0; q = parents_[ix(q)]) {
+        const int bq = 3 * (parents_[ix(q)] < 0 ? 0 : block[ix(q)]);
+        const Eigen::Matrix3d Hqk = B[ix(q)].transpose() * SB;
+        H.block<3, 3>(bq, bk) += Hqk;
+        if (q != k) H.block<3, 3>(bk, bq) += Hqk.transpose();
       }
     }
     // Untouched parameters are fixed: identity rows.
@@ -558,7 +563,7 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
         continue;
       }
       Eigen::Vector3d r2 = r + delta.segment<3>(0);
-      std::vector<Eigen::Vector3d> u2 = u;
+      u2 = u;
       for (int j = 0; j < J; ++j) {
         if (parents_[ix(j)] < 0) continue;
         const Eigen::Vector3d d = delta.segment<3>(3 * block[ix(j)]);
@@ -570,7 +575,7 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
       if (c2 < current) {
         const double rel = (current - c2) / std::max(current, 1e-12);
         r = r2;
-        u = std::move(u2);
+        std::swap(u, u2);
         current = c2;
         lambda = std::max(lambda * 0.3, 1e-7);
         improved = true;

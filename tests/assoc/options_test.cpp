@@ -126,6 +126,10 @@ TEST(AssocOptions, TriangulationOptionsRejectOutOfRange) {
        [](auto& o) { o.triangulation.max_reprojection_error_px = 0; }},
       {"triangulation.max_reprojection_error_px",
        [](auto& o) { o.triangulation.max_reprojection_error_px = kNaN; }},
+      {"triangulation.all_views_accept_error_px",
+       [](auto& o) { o.triangulation.all_views_accept_error_px = -1; }},
+      {"triangulation.all_views_accept_error_px",
+       [](auto& o) { o.triangulation.all_views_accept_error_px = 30; }},  // > 25 px rejection
   };
   for (const BadCase& c : cases) expect_rejected(c);
 }

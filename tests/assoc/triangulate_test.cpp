@@ -96,6 +96,29 @@ TEST_F(TriangulateTest, SmallNoiseStaysWithinThreshold) {
   EXPECT_LT(p.max_reprojection_error_px, 3.0);
 }
 
+TEST_F(TriangulateTest, AllViewsFastPathGivesTheConsensusResult) {
+  // Small noise: the consensus search ends on all four views, which is what the fast path takes
+  // directly; with the fast path off (0) the same point comes from the search.
+  const std::vector<Observation> o = {obs(0, X_, {2.5, -0.5}, 0.8), obs(1, X_, {-1, 2}, 0.6),
+                                      obs(2, X_, {0.5, 1.5}, 0.9), obs(3, X_, {-2.5, -1}, 0.7)};
+  TriangulationOptions search = opt_;
+  search.all_views_accept_error_px = 0;
+  const TriangulatedPoint fast = triangulate(o, cams_, opt_);
+  const TriangulatedPoint slow = triangulate(o, cams_, search);
+  ASSERT_TRUE(fast.valid);
+  ASSERT_TRUE(slow.valid);
+  EXPECT_EQ(fast.view_mask, 0xFu);
+  EXPECT_EQ(slow.view_mask, 0xFu);
+  EXPECT_LT((fast.X_m - slow.X_m).norm(), 1e-12);
+  EXPECT_DOUBLE_EQ(fast.max_reprojection_error_px, slow.max_reprojection_error_px);
+  // An outlier the fast path would let through only if its threshold were the rejection one.
+  std::vector<Observation> bad = o;
+  bad[1] = obs(1, X_, {60, 0}, 0.6);
+  const TriangulatedPoint p = triangulate(bad, cams_, opt_);
+  ASSERT_TRUE(p.valid);
+  EXPECT_EQ(p.view_mask, 0b1101u);
+}
+
 TEST_F(TriangulateTest, TooFewViewsIsInvalid) {
   EXPECT_FALSE(triangulate(std::vector<Observation>{}, cams_, opt_).valid);
   const std::vector<Observation> one = {obs(2, X_)};

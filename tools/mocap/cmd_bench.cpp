@@ -78,7 +78,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   std::vector<double> assoc;
   std::vector<double> fit;
   std::vector<double> total;
-  std::vector<double> graph_ms, parse_ms, assemble_ms;
+  std::vector<double> graph_ms, parse_ms, assemble_ms, fit_only_ms;
   int count_ok = 0;
   int candidates = 0;
   for (std::size_t f = 0; f < rendered.size(); ++f) {
@@ -93,6 +93,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
     parse_ms.push_back(st.parse_ms);
     assemble_ms.push_back(st.assemble_ms);
     fit.push_back(st.reconstruct_ms);
+    fit_only_ms.push_back(st.fit_ms);
     total.push_back(assoc.back() + fit.back());
     if (st.persons == truth_count[f]) ++count_ok;
     candidates += st.candidates;
@@ -105,6 +106,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   print_row("  bundle parsing", percentiles(parse_ms));
   print_row("  assembling", percentiles(assemble_ms));
   print_row("reconstruct+fit", percentiles(fit));
+  print_row("  skeleton fit", percentiles(fit_only_ms));
   const Percentiles t = percentiles(total);
   print_row("total", t);
   std::printf("frames with the true person count: %.1f %%\n", 100.0 * count_ok / frames);
