@@ -222,7 +222,10 @@ struct Scorer {
     const double e_paf = paf / n;
     const double e_match = n > 1 ? match / (0.5 * n * (n - 1)) : 0.0;
     const double e_track = has_track ? trk / n : 0.0;
-    const double r = n / opt.view_welsch_c;
+    const double c = opt.view_welsch_c > 0
+                         ? opt.view_welsch_c
+                         : 0.5 * std::max(1.0, static_cast<double>(graph.view_count() - 1));
+    const double r = n / c;
     const double e_view = 1.0 - std::exp(-0.5 * r * r);
     return (opt.w_match * e_match + opt.w_track * e_track + opt.w_paf * e_paf +
             opt.w_view * e_view + opt.w_hier * hier) /
@@ -399,15 +402,28 @@ double score_bundle(const FrameGraph& graph, const SkeletonTopology& topology, i
 
 void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
                         double hierarchy_weight, const CliqueOptions& options,
-                        std::vector<Bundle>& out, ParsingStats& stats) {
+                        std::vector<Bundle>& out, ParsingStats& stats,
+                        const LimbExclusions* exclusions) {
   const Limb& L = topology.limb(limb);
   const std::span<const LimbEdge> edges = graph.limb_edges(limb);
-  const int n2d = static_cast<int>(edges.size());
+  const auto edge_dead = [&](int e) {
+    return exclusions && !exclusions->edge_dead.empty() && exclusions->edge_dead[ix(e)];
+  };
+  // Clique-graph nodes: the live 2D limbs (node i is edge node_edge[i]), then the tracks.
+  std::vector<int> node_edge;
+  std::vector<int> edge_node(edges.size(), -1);
+  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+    if (edge_dead(e)) continue;
+    edge_node[ix(e)] = static_cast<int>(node_edge.size());
+    node_edge.push_back(e);
+  }
+  const int n2d = static_cast<int>(node_edge.size());
   if (n2d == 0) return;
 
   CliqueGraph cg;
   cg.n2d = n2d;
   for (int t = 0; t < graph.track_count(); ++t) {
+    if (exclusions && !exclusions->track_dead.empty() && exclusions->track_dead[ix(t)]) continue;
     if (graph.track_has_joint(t, L.joint_a) && graph.track_has_joint(t, L.joint_b)) {
       cg.track_of_node.push_back(t);
     }
@@ -415,11 +431,11 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   const int n = n2d + static_cast<int>(cg.track_of_node.size());
   cg.adj.resize(ix(n));
   for (auto& b : cg.adj) b.reset(n);
-  // 2D limbs by candidate, so compatibility only visits matching neighbours (sparse) and
-  // taking a bundle only visits the limbs sharing its candidates.
+  // Live 2D limbs (edge indices) by candidate, so compatibility only visits matching neighbours
+  // (sparse) and taking a bundle only visits the limbs sharing its candidates.
   std::vector<std::vector<int>> by_ka(ix(graph.candidate_count(L.joint_a)));
   std::vector<std::vector<int>> by_kb(ix(graph.candidate_count(L.joint_b)));
-  for (int e = 0; e < n2d; ++e) {
+  for (int e : node_edge) {
     by_ka[ix(edges[ix(e)].ka)].push_back(e);
     by_kb[ix(edges[ix(e)].kb)].push_back(e);
   }
@@ -427,12 +443,13 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   // matching edges join different views only: the pairs y > x are exactly those through
   // neighbours ka2 > ka, so each pair is visited once.
   for (int x = 0; x < n2d; ++x) {
-    const LimbEdge& ex = edges[ix(x)];
+    const LimbEdge& ex = edges[ix(node_edge[ix(x)])];
     const std::span<const int> nbrs = graph.match_neighbors(L.joint_a, ex.ka);
     const std::span<const float> match_b = graph.match_row(L.joint_b, ex.kb);
     for (auto it = std::upper_bound(nbrs.begin(), nbrs.end(), ex.ka); it != nbrs.end(); ++it) {
-      for (int y : by_ka[ix(*it)]) {
-        if (match_b[ix(edges[ix(y)].kb)] <= 0.f) continue;
+      for (int ye : by_ka[ix(*it)]) {
+        if (match_b[ix(edges[ix(ye)].kb)] <= 0.f) continue;
+        const int y = edge_node[ix(ye)];
         cg.adj[ix(x)].set(y);
         cg.adj[ix(y)].set(x);
       }
@@ -471,16 +488,20 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
                             << " maximal cliques (" << n << " nodes); greedy clique growth";
     maximal.clear();
     auto weight = [&](int a, int b) {
-      if (a >= n2d) return scorer.track_match(cg.track_of_node[ix(a - n2d)], edges[ix(b)]);
-      if (b >= n2d) return scorer.track_match(cg.track_of_node[ix(b - n2d)], edges[ix(a)]);
-      return scorer.pair_match(edges[ix(a)], edges[ix(b)]);
+      const auto edge_of = [&](int node) -> const LimbEdge& {
+        return edges[ix(node_edge[ix(node)])];
+      };
+      if (a >= n2d) return scorer.track_match(cg.track_of_node[ix(a - n2d)], edge_of(b));
+      if (b >= n2d) return scorer.track_match(cg.track_of_node[ix(b - n2d)], edge_of(a));
+      return scorer.pair_match(edge_of(a), edge_of(b));
     };
     std::vector<double> acc(ix(n), 0.0);
     // Seeds by parsing score; a seed already inside a grown clique would mostly regrow it.
     std::vector<int> seeds(ix(n2d));
     for (int i = 0; i < n2d; ++i) seeds[ix(i)] = i;
-    std::sort(seeds.begin(), seeds.end(),
-              [&](int a, int b) { return edges[ix(a)].p > edges[ix(b)].p; });
+    std::sort(seeds.begin(), seeds.end(), [&](int a, int b) {
+      return edges[ix(node_edge[ix(a)])].p > edges[ix(node_edge[ix(b)])].p;
+    });
     std::vector<char> covered(ix(n2d), 0);
     for (int seed : seeds) {
       if (covered[ix(seed)]) continue;
@@ -514,7 +535,7 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     Cand c{0, -1, {}};
     for (int v : nodes) {
       if (v < n2d) {
-        c.members.push_back(v);
+        c.members.push_back(node_edge[ix(v)]);
       } else {
         c.track = cg.track_of_node[ix(v - n2d)];
       }
@@ -535,7 +556,7 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   for (auto& m : maximal) push_pruned(make(std::move(m)));
 
   // Take the best; removing its limbs kills every 2D limb sharing a candidate, and its track.
-  std::vector<char> dead(ix(n2d), 0);
+  std::vector<char> dead(edges.size(), 0);
   std::vector<char> track_dead(ix(graph.track_count()), 0);
   while (!queue.empty()) {
     Cand c = queue.top();
@@ -556,6 +577,153 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     }
     if (c.track >= 0) track_dead[ix(c.track)] = 1;
     out.push_back(Bundle{limb, c.track, std::move(c.members), c.score});
+  }
+}
+
+namespace {
+
+// Do the least-squares points of the members' rays lie within max_track_dist_m of track t's
+// joints, at both ends of the limb?
+bool near_track(const FrameGraph& graph, const Limb& L, int t, std::span<const LimbEdge> edges,
+                const std::vector<int>& members) {
+  const double max_m = graph.options().max_track_dist_m;
+  for (int end = 0; end < 2; ++end) {
+    const int joint = end == 0 ? L.joint_a : L.joint_b;
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    for (int m : members) {
+      const LimbEdge& x = edges[ix(m)];
+      add_ray_normal_equations(graph.candidates(joint)[ix(end == 0 ? x.ka : x.kb)].ray, 1.0, A, b);
+    }
+    Eigen::Matrix3d inv;
+    bool ok = false;
+    double det = 0;
+    A.computeInverseAndDetWithCheck(inv, det, ok, 1e-12);
+    if (!ok || ((inv * b) - graph.track_joint_m(t, joint)).norm() > max_m) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, int limb,
+                         double hierarchy_weight, const CliqueOptions& options,
+                         std::vector<Bundle>& out, LimbExclusions& exclusions,
+                         std::vector<std::vector<int>>& covered, ParsingStats& stats) {
+  const Limb& L = topology.limb(limb);
+  const std::span<const LimbEdge> edges = graph.limb_edges(limb);
+  const int T = graph.track_count();
+  const int V = graph.view_count();
+  exclusions.edge_dead.assign(edges.size(), 0);
+  exclusions.track_dead.assign(ix(T), 0);
+  if (T == 0 || edges.empty()) return;
+
+  // Each 2D limb goes to the track closest to both its endpoints (the larger of the smaller
+  // tracking probabilities; two tracks can lie near one camera ray when one person hides the
+  // other). Per track and view: the one 2D limb that went to it (-1 none; -2 ambiguous: two
+  // 2D limbs went to it, or a candidate of its 2D limb is also in another track's 2D limb).
+  thread_local std::vector<int> pick;
+  thread_local std::vector<int> owner_a, owner_b;  // [k] track whose picked limb uses k; -2 two
+  pick.assign(ix(T * V), -1);
+  owner_a.assign(ix(graph.candidate_count(L.joint_a)), -1);
+  owner_b.assign(ix(graph.candidate_count(L.joint_b)), -1);
+  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+    const LimbEdge& x = edges[ix(e)];
+    if (graph.tracks_of_candidate(L.joint_a, x.ka) == 0 ||
+        graph.tracks_of_candidate(L.joint_b, x.kb) == 0) {
+      continue;
+    }
+    int best = -1;
+    float best_p = 0.f;
+    for (int t = 0; t < T; ++t) {
+      const float p = std::min(graph.track(L.joint_a, t, x.ka), graph.track(L.joint_b, t, x.kb));
+      if (p > best_p) {
+        best_p = p;
+        best = t;
+      }
+    }
+    if (best < 0) continue;
+    int& slot = pick[ix(best * V + x.view)];
+    slot = slot == -1 ? e : -2;
+    for (int* o : {&owner_a[ix(x.ka)], &owner_b[ix(x.kb)]})
+      *o = (*o == -1 || *o == best) ? best : -2;
+  }
+  for (int& e : pick) {
+    if (e >= 0 && (owner_a[ix(edges[ix(e)].ka)] < 0 || owner_b[ix(edges[ix(e)].kb)] < 0)) e = -2;
+  }
+
+  const double wsum =
+      options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
+  const Scorer scorer{graph,
+                      L,
+                      hierarchy_weight,
+                      options,
+                      edges,
+                      wsum,
+                      fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
+                                                        topology.joint_name(L.joint_b))};
+  std::vector<int> members;
+  std::vector<int> dropped;
+  const std::size_t first = out.size();
+  for (int t = 0; t < T; ++t) {
+    if (!graph.track_has_joint(t, L.joint_a) || !graph.track_has_joint(t, L.joint_b)) continue;
+    // Views where the track's 2D limb is ambiguous stay out of its bundle (the clique search
+    // and assembling place their 2D limbs).
+    members.clear();
+    bool ambiguous = false;
+    for (int v = 0; v < V; ++v) {
+      const int e = pick[ix(t * V + v)];
+      if (e >= 0) members.push_back(e);
+    }
+    if (members.empty()) continue;
+    // A limb clique: every two of its 2D limbs are joined by matching edges at both ends.
+    for (std::size_t i = 0; i < members.size() && !ambiguous; ++i) {
+      const LimbEdge& x = edges[ix(members[i])];
+      for (std::size_t j = i + 1; j < members.size() && !ambiguous; ++j) {
+        const LimbEdge& y = edges[ix(members[j])];
+        ambiguous = graph.ensure_match(L.joint_a, x.ka, y.ka) <= 0.f ||
+                    graph.ensure_match(L.joint_b, x.kb, y.kb) <= 0.f;
+      }
+    }
+    int track = t;
+    dropped.clear();
+    const double score = ambiguous ? 0.0 : prune_clique(scorer, track, members, dropped);
+    // Pruning that gives up the track says the clique is not clear-cut, and so does a clique
+    // whose 2D limbs, triangulated, are not where the track was (rays of a person who moved
+    // far can pass near the old joints in the views looking along the motion), or that has a
+    // single view to triangulate from: the clique search decides those instead. 2D limbs
+    // pruned away stay in the graph for the search (they share no candidate with the kept
+    // ones: one per view).
+    if (!ambiguous && track >= 0) {
+      ambiguous = members.size() < 2 || !near_track(graph, L, t, edges, members);
+    }
+    if (ambiguous || track < 0 || score < options.min_bundle_score) {
+      ++stats.track_first_deferred;
+      continue;
+    }
+    for (int m : members) {
+      const LimbEdge& x = edges[ix(m)];
+      ++covered[ix(L.joint_a)][ix(x.ka)];
+      ++covered[ix(L.joint_b)][ix(x.kb)];
+    }
+    exclusions.track_dead[ix(t)] = 1;
+    ++stats.track_first_bundles;
+    out.push_back(Bundle{limb, t, members, score});
+  }
+  // 2D limbs sharing a candidate with a taken one are gone for the clique search (at most one
+  // limb of a type per candidate). Limb edges are sorted by view, so this is a scan per view.
+  if (out.size() == first) return;
+  thread_local std::vector<char> used_a, used_b;
+  used_a.assign(ix(graph.candidate_count(L.joint_a)), 0);
+  used_b.assign(ix(graph.candidate_count(L.joint_b)), 0);
+  for (std::size_t i = first; i < out.size(); ++i) {
+    for (int m : out[i].edges) {
+      used_a[ix(edges[ix(m)].ka)] = 1;
+      used_b[ix(edges[ix(m)].kb)] = 1;
+    }
+  }
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (used_a[ix(edges[e].ka)] || used_b[ix(edges[e].kb)]) exclusions.edge_dead[e] = 1;
   }
 }
 

@@ -43,14 +43,40 @@ double score_bundle(const FrameGraph& graph, const SkeletonTopology& topology, i
                     const std::vector<int>& edges);
 
 struct ParsingStats {
-  long cliques_enumerated = 0;  // maximal cliques found by Bron–Kerbosch
-  int clique_cap_hits = 0;      // limb types whose enumeration hit max_cliques_per_limb
+  long cliques_enumerated = 0;   // maximal cliques found by Bron–Kerbosch
+  int clique_cap_hits = 0;       // limb types whose enumeration hit max_cliques_per_limb
+  int track_first_bundles = 0;   // (limb, track) bundles taken by track-first parsing
+  int track_first_deferred = 0;  // (limb, track) pairs left to the clique search (ambiguous)
 };
 
-// Limb-bundle parsing of one limb type; appends the chosen bundles to `out`.
+// What earlier parsing of a limb type already took: 2D limbs (by index into
+// graph.limb_edges(limb)) and tracks that the clique search must leave alone.
+struct LimbExclusions {
+  std::vector<char> edge_dead;   // [edge]; empty = none
+  std::vector<char> track_dead;  // [track]; empty = none
+};
+
+// Limb-bundle parsing of one limb type; appends the chosen bundles to `out`. `exclusions`
+// (optional) removes 2D limbs and tracks from the graph first.
 void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
                         double hierarchy_weight, const CliqueOptions& options,
-                        std::vector<Bundle>& out, ParsingStats& stats);
+                        std::vector<Bundle>& out, ParsingStats& stats,
+                        const LimbExclusions* exclusions = nullptr);
+
+// Track-first parsing of one limb type (CliqueOptions::track_first): a previous 3D limb whose
+// tracking edges select, in each view, exactly one 2D limb whose candidates have a tracking
+// edge to that track only, and whose selected 2D limbs are pairwise joined by matching edges
+// at both ends, is a limb clique the clique search would find as it is; it is scored and pruned
+// like any clique (prune_clique) and taken when the track survives pruning. Everything else
+// (tracks with rival candidates or rival tracks in a view, new people) is left to
+// parse_limb_bundles, with the taken 2D limbs, the 2D limbs sharing their candidates and the
+// taken tracks recorded in `exclusions`. Matching edges between the selected 2D limbs are
+// computed here on demand (FrameGraph::ensure_match); `covered[joint][k]` counts, per
+// candidate, the limb types whose track-first bundle used it.
+void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, int limb,
+                         double hierarchy_weight, const CliqueOptions& options,
+                         std::vector<Bundle>& out, LimbExclusions& exclusions,
+                         std::vector<std::vector<int>>& covered, ParsingStats& stats);
 
 // One person's 2D assignments after assembling.
 struct PersonAssignment {

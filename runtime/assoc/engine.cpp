@@ -44,6 +44,11 @@ Engine::Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
       options_(options),
       hierarchy_(limb_hierarchy_weights(topology)),
       parents_(topology.parents()) {
+  joint_limb_degree_.assign(static_cast<std::size_t>(topology.joint_count()), 0);
+  for (int l = 0; l < topology.limb_count(); ++l) {
+    ++joint_limb_degree_[static_cast<std::size_t>(topology.limb(l).joint_a)];
+    ++joint_limb_degree_[static_cast<std::size_t>(topology.limb(l).joint_b)];
+  }
   limb_template_m_.resize(static_cast<std::size_t>(topology.limb_count()));
   for (int l = 0; l < topology.limb_count(); ++l) {
     limb_template_m_[static_cast<std::size_t>(l)] =
@@ -91,7 +96,8 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
       tp.valid[ix(j)] = age >= 0 && age <= topt.max_missed_frames;
     }
   }
-  if (Status s = graph_.build(det, cameras_, track_poses_, options_.graph); !s.ok()) {
+  const bool track_first = options_.clique.track_first && !track_poses_.empty();
+  if (Status s = graph_.build(det, cameras_, track_poses_, options_.graph, !track_first); !s.ok()) {
     return s.error();
   }
   for (int j = 0; j < J; ++j) st.candidates += graph_.candidate_count(j);
@@ -110,9 +116,29 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
   // 4D limb-bundle parsing.
   t0 = clock::now();
   bundles_.clear();
-  for (int l = 0; l < topology_.limb_count(); ++l) {
+  const int Lc = topology_.limb_count();
+  if (track_first) {
+    // Clear-cut tracked limbs first; then matching edges only between candidates some limb
+    // type still needs, and the clique search over what is left.
+    exclusions_.resize(ix(Lc));
+    covered_.resize(ix(J));
+    settled_.resize(ix(J));
+    for (int j = 0; j < J; ++j) covered_[ix(j)].assign(ix(graph_.candidate_count(j)), 0);
+    for (int l = 0; l < Lc; ++l) {
+      track_first_bundles(graph_, topology_, l, hierarchy_[ix(l)], options_.clique, bundles_,
+                          exclusions_[ix(l)], covered_, st.parsing);
+    }
+    for (int j = 0; j < J; ++j) {
+      settled_[ix(j)].resize(covered_[ix(j)].size());
+      for (std::size_t k = 0; k < covered_[ix(j)].size(); ++k) {
+        settled_[ix(j)][k] = covered_[ix(j)][k] >= joint_limb_degree_[ix(j)] ? 1 : 0;
+      }
+    }
+    graph_.build_matching(settled_);
+  }
+  for (int l = 0; l < Lc; ++l) {
     parse_limb_bundles(graph_, topology_, l, hierarchy_[ix(l)], options_.clique, bundles_,
-                       st.parsing);
+                       st.parsing, track_first ? &exclusions_[ix(l)] : nullptr);
   }
   st.bundles = static_cast<int>(bundles_.size());
   st.parse_ms = ms_since(t0);

@@ -106,6 +106,10 @@ class Engine {
   FrameGraph graph_;
   std::vector<TrackPose> track_poses_;
   std::vector<Bundle> bundles_;
+  std::vector<int> joint_limb_degree_;      // [joint] limb types touching the joint
+  std::vector<LimbExclusions> exclusions_;  // [limb] taken by track-first parsing
+  std::vector<std::vector<int>> covered_;   // [joint][k] limb types that took candidate k
+  std::vector<std::vector<char>> settled_;  // [joint][k] taken by every limb type touching it
   std::vector<PersonAssignment> persons_;
   std::vector<std::vector<TriangulatedPoint>> person_pts_;
   std::vector<std::vector<float>> person_conf_;

@@ -28,7 +28,9 @@ bool ray_pair_distance(const Ray& a, const Ray& b, double min_depth_m, double ma
 }  // namespace
 
 Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera> cameras,
-                         std::span<const TrackPose> tracks, const GraphOptions& options) {
+                         std::span<const TrackPose> tracks, const GraphOptions& options,
+                         bool matching) {
+  options_ = options;
   const SkeletonTopology& topo = *detections.topology;
   const int J = topo.joint_count();
   view_count_ = static_cast<int>(cameras.size());
@@ -38,8 +40,10 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
   match_.resize(idx(J));
   nbr_.resize(idx(J));
   track_.resize(idx(J));
+  track_deg_.resize(idx(J));
   limb_edges_.resize(idx(topo.limb_count()));
   track_valid_.assign(idx(track_count_ * J), false);
+  track_pos_.assign(idx(track_count_ * J), Eigen::Vector3d::Zero());
 
   // Views sorted by id so candidates come grouped by view.
   std::vector<const ViewDetections*> views;
@@ -90,41 +94,27 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
       }
     }
     const int n = static_cast<int>(cj.size());
-    // Matching edges.
-    auto& m = match_[idx(j)];
-    m.assign(idx(n * n), 0.f);
+    // Matching edges (below, or by the caller through build_matching / ensure_match).
+    match_[idx(j)].assign(idx(n * n), 0.f);
     auto& nb = nbr_[idx(j)];
     if (nb.size() < idx(n)) nb.resize(idx(n));
     for (int k = 0; k < n; ++k) nb[idx(k)].clear();  // keeps the rows' storage
-    for (int k1 = 0; k1 < n; ++k1) {
-      const GraphCandidate& a = cj[idx(k1)];
-      for (int k2 = k1 + 1; k2 < n; ++k2) {
-        const GraphCandidate& b = cj[idx(k2)];
-        if (a.view == b.view) continue;
-        double d = 0;
-        if (!ray_pair_distance(a.ray, b.ray, options.min_depth_m, options.max_epipolar_dist_m,
-                               &d)) {
-          continue;
-        }
-        const float p = static_cast<float>(1.0 - d / options.max_epipolar_dist_m);
-        m[idx(k1 * n + k2)] = p;
-        m[idx(k2 * n + k1)] = p;
-        nb[idx(k1)].push_back(k2);
-        nb[idx(k2)].push_back(k1);
-      }
-    }
     // Tracking edges.
     auto& tr = track_[idx(j)];
     tr.assign(idx(track_count_ * n), 0.f);
+    auto& deg = track_deg_[idx(j)];
+    deg.assign(idx(n), 0);
     for (int t = 0; t < track_count_; ++t) {
       const TrackPose& tp = tracks[idx(t)];
       if (!tp.valid[idx(j)]) continue;
       track_valid_[idx(t * J + j)] = true;
+      track_pos_[idx(t * J + j)] = tp.joints_m[idx(j)];
       const Eigen::Vector3d& X = tp.joints_m[idx(j)];
       for (int k = 0; k < n; ++k) {
         const double d = point_ray_distance_m(X, cj[idx(k)].ray);
         if (d >= options.max_track_dist_m) continue;
         tr[idx(t * n + k)] = static_cast<float>(1.0 - d / options.max_track_dist_m);
+        ++deg[idx(k)];
       }
     }
   }
@@ -162,7 +152,49 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
       b0 = b1;
     }
   }
+  if (matching) build_matching({});
   return Status::Ok();
+}
+
+void FrameGraph::matching_pair(int joint, int k1, int k2, bool link) {
+  const auto& cj = cands_[idx(joint)];
+  const GraphCandidate& a = cj[idx(k1)];
+  const GraphCandidate& b = cj[idx(k2)];
+  if (a.view == b.view) return;
+  double d = 0;
+  if (!ray_pair_distance(a.ray, b.ray, options_.min_depth_m, options_.max_epipolar_dist_m, &d)) {
+    return;
+  }
+  const int n = static_cast<int>(cj.size());
+  const float p = static_cast<float>(1.0 - d / options_.max_epipolar_dist_m);
+  auto& m = match_[idx(joint)];
+  m[idx(k1 * n + k2)] = p;
+  m[idx(k2 * n + k1)] = p;
+  if (link) {
+    nbr_[idx(joint)][idx(k1)].push_back(k2);
+    nbr_[idx(joint)][idx(k2)].push_back(k1);
+  }
+}
+
+void FrameGraph::build_matching(std::span<const std::vector<char>> settled) {
+  for (int j = 0; j < joint_count(); ++j) {
+    const int n = candidate_count(j);
+    const std::vector<char>* sj =
+        idx(j) < settled.size() && !settled[idx(j)].empty() ? &settled[idx(j)] : nullptr;
+    // Pairs (k1 < k2) in ascending k1 then k2: every neighbour list comes out ascending.
+    for (int k1 = 0; k1 < n; ++k1) {
+      if (sj && (*sj)[idx(k1)]) continue;
+      for (int k2 = k1 + 1; k2 < n; ++k2) {
+        if (sj && (*sj)[idx(k2)]) continue;
+        matching_pair(j, k1, k2, true);
+      }
+    }
+  }
+}
+
+float FrameGraph::ensure_match(int joint, int k1, int k2) {
+  if (k1 != k2) matching_pair(joint, std::min(k1, k2), std::max(k1, k2), false);
+  return match(joint, k1, k2);
 }
 
 }  // namespace mocap::assoc

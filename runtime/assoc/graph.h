@@ -71,6 +71,11 @@ class FrameGraph {
   // Candidates of `joint` joined to candidate k by a matching edge (sparse view of match()),
   // in ascending order; they are all in other views than k's.
   std::span<const int> match_neighbors(int joint, int k) const { return nbr_[idx(joint)][idx(k)]; }
+  // Track t's previous 3D joint (meaningful when track_has_joint(t, joint)).
+  const Eigen::Vector3d& track_joint_m(int t, int joint) const {
+    return track_pos_[idx(t * joint_count() + joint)];
+  }
+  const GraphOptions& options() const { return options_; }
   bool track_has_joint(int t, int joint) const {
     return track_valid_[idx(t * joint_count() + joint)];
   }
@@ -78,13 +83,32 @@ class FrameGraph {
   std::span<const LimbEdge> limb_edges(int limb) const { return limb_edges_[idx(limb)]; }
 
   // Builds the graph. `cameras` is indexed by view id (DetectionSet view_id = camera index);
-  // detections must already be validated and in the engine topology.
+  // detections must already be validated and in the engine topology. With `matching` false
+  // the matching edges are left out (all 0): the caller adds them with build_matching() and
+  // ensure_match() (track-first parsing computes them only where they can still matter).
   Status build(const DetectionSet& detections, std::span<const Camera> cameras,
-               std::span<const TrackPose> tracks, const GraphOptions& options);
+               std::span<const TrackPose> tracks, const GraphOptions& options,
+               bool matching = true);
+
+  // Matching edges between every two candidates of a joint that are both unsettled
+  // (settled[joint][k] == 0; an empty row = none settled), with their neighbour lists.
+  // Pairs involving a settled candidate keep what ensure_match() put there.
+  void build_matching(std::span<const std::vector<char>> settled);
+
+  // Computes (once per pair is enough; recomputing gives the same value) and stores the
+  // matching edge between candidates k1, k2 of `joint`; returns its probability. Does not add
+  // the pair to match_neighbors().
+  float ensure_match(int joint, int k1, int k2);
+
+  // How many tracks have a tracking edge to candidate k of `joint`.
+  int tracks_of_candidate(int joint, int k) const { return track_deg_[idx(joint)][idx(k)]; }
 
  private:
   static std::size_t idx(int i) { return static_cast<std::size_t>(i); }
 
+  void matching_pair(int joint, int k1, int k2, bool link);
+
+  GraphOptions options_;
   int view_count_ = 0;
   int track_count_ = 0;
   int candidates_dropped_ = 0;
@@ -92,8 +116,10 @@ class FrameGraph {
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
   std::vector<std::vector<float>> match_;           // [joint][k1 * n + k2]
   std::vector<std::vector<float>> track_;           // [joint][t * n + k]
+  std::vector<std::vector<int>> track_deg_;         // [joint][k] tracks with an edge to k
   std::vector<std::vector<std::vector<int>>> nbr_;  // [joint][k] matching neighbours
   std::vector<bool> track_valid_;                   // [t * joints + joint]
+  std::vector<Eigen::Vector3d> track_pos_;          // [t * joints + joint]
   std::vector<std::vector<LimbEdge>> limb_edges_;   // [limb]
 };
 

@@ -38,7 +38,7 @@ Status CliqueOptions::validate() const {
               "clique.w_*", "weights must be >= 0");
   MOCAP_CHECK(w_match + w_track + w_paf + w_view + w_hier > 0, "clique.w_*",
               "at least one weight must be > 0");
-  MOCAP_CHECK(view_welsch_c > 0, "clique.view_welsch_c", "must be > 0");
+  MOCAP_CHECK(view_welsch_c >= 0, "clique.view_welsch_c", "must be >= 0 (0 = (views - 1) / 2)");
   MOCAP_CHECK(max_cliques_per_limb >= 1, "clique.max_cliques_per_limb", "must be >= 1");
   MOCAP_CHECK(min_limb_length_ratio >= 0 && max_limb_length_ratio > min_limb_length_ratio,
               "clique.min/max_limb_length_ratio", "need 0 <= min < max");

@@ -44,13 +44,22 @@ struct CliqueOptions {
   double w_paf = 1.0;
   double w_view = 2.0;
   double w_hier = 0.5;
-  double view_welsch_c = 1.5;
+  // Welsch scale of the view-count term. 0 = the paper's (N − 1) / 2 for a rig of N calibrated
+  // views (2 on Shelf's 5; the authors' Shelf code uses 1.5): a fixed small c saturates E_view
+  // at a few views, so on large rigs pruning by average edge energy splits a person's limb
+  // into several bundles of ~5 views.
+  double view_welsch_c = 0.0;
   // Bound on the work per limb type and frame: maximal cliques enumerated exhaustively
   // (Bron–Kerbosch). Past it the limb type switches to greedy clique growth from every 2D limb
   // (linear in the nodes); each switch is counted in ParsingStats::clique_cap_hits.
   int max_cliques_per_limb = 64;
   // Bundles below this score are not used.
   double min_bundle_score = 0.0;
+  // Track-first parsing (bundles.h track_first_bundles): previous 3D limbs whose 2D limbs are
+  // unambiguous in every view are taken before the clique search, which then runs only on what
+  // is left, and matching edges are computed only where they can still matter. Off = the
+  // clique search over the whole graph.
+  bool track_first = true;
   // A bundle seen in >= 2 views is triangulated; when its 3D limb length falls outside
   // [min, max] x the template length of that limb (known body limbs only), the bundle is
   // implausible and pruned (two views can agree epipolarly on two different people).

@@ -356,7 +356,10 @@ TEST_F(BundleTest, ScoreMatchesTheDocumentedFormula) {
   ASSERT_LT(m_b, 0.95);
   const double e_match = 0.5 * (m_a + m_b);  // one pair of views
   const double e_paf = 0.5 * (0.64 + 0.81);
-  const double e_view = 1.0 - std::exp(-0.5 * std::pow(2.0 / 1.5, 2));
+  // view_welsch_c = 0 (default): the paper's (N - 1) / 2 for the rig's N views.
+  ASSERT_EQ(opt_.view_welsch_c, 0.0);
+  const double c = 0.5 * (G.view_count() - 1);
+  const double e_view = 1.0 - std::exp(-0.5 * std::pow(2.0 / c, 2));
   const double h = 0.7;
   const double wsum = 2.0 + 2.0 + 1.0 + 2.0 + 0.5;
   const double expected = (2.0 * e_match + 1.0 * e_paf + 2.0 * e_view + 0.5 * h) / wsum;
@@ -375,7 +378,7 @@ TEST_F(BundleTest, ScoreMatchesTheDocumentedFormula) {
 
   // A single view: no matching term.
   const double single =
-      (1.0 * 0.64 + 2.0 * (1.0 - std::exp(-0.5 * std::pow(1.0 / 1.5, 2))) + 0.5 * h) / wsum;
+      (1.0 * 0.64 + 2.0 * (1.0 - std::exp(-0.5 * std::pow(1.0 / c, 2))) + 0.5 * h) / wsum;
   EXPECT_NEAR(score_bundle(G, s_.topo_, limb, h, opt_, -1, {edges[0]}), single, 1e-6);
 }
 

@@ -297,7 +297,7 @@ TEST(AssocEngine, CreateRejectsTooFewCamerasAndInvalidOptions) {
   EXPECT_FALSE(Engine::create(body19_topology(), {}, AssociationOptions{}).ok());
 
   AssociationOptions bad;
-  bad.clique.view_welsch_c = 0;
+  bad.clique.view_welsch_c = -1;
   auto r = Engine::create(body19_topology(), cams, bad);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message().find("clique.view_welsch_c"), std::string::npos)

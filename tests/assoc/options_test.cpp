@@ -94,7 +94,7 @@ TEST(AssocOptions, CliqueOptionsRejectOutOfRange) {
          o.clique.w_match = o.clique.w_track = o.clique.w_paf = o.clique.w_view = 0;
          o.clique.w_hier = 0;
        }},
-      {"clique.view_welsch_c", [](auto& o) { o.clique.view_welsch_c = 0; }},
+      {"clique.view_welsch_c", [](auto& o) { o.clique.view_welsch_c = -0.5; }},
       {"clique.view_welsch_c", [](auto& o) { o.clique.view_welsch_c = kNaN; }},
       {"clique.max_cliques_per_limb", [](auto& o) { o.clique.max_cliques_per_limb = 0; }},
       {"limb_length_ratio", [](auto& o) { o.clique.min_limb_length_ratio = -0.1; }},

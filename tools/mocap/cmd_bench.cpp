@@ -81,6 +81,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   std::vector<double> graph_ms, parse_ms, assemble_ms, fit_only_ms;
   int count_ok = 0;
   int candidates = 0;
+  long track_first = 0, deferred = 0, cap_hits = 0, cliques = 0;
   for (std::size_t f = 0; f < rendered.size(); ++f) {
     auto r = (*engine)->process(rendered[f]);
     if (!r.ok()) {
@@ -97,6 +98,10 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
     total.push_back(assoc.back() + fit.back());
     if (st.persons == truth_count[f]) ++count_ok;
     candidates += st.candidates;
+    track_first += st.parsing.track_first_bundles;
+    deferred += st.parsing.track_first_deferred;
+    cap_hits += st.parsing.clique_cap_hits;
+    cliques += st.parsing.cliques_enumerated;
   }
   std::printf("simulator: %d views x %d people, %d frames, %d candidates/frame, single thread\n",
               views, people, frames, candidates / frames);
@@ -110,6 +115,11 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   const Percentiles t = percentiles(total);
   print_row("total", t);
   std::printf("frames with the true person count: %.1f %%\n", 100.0 * count_ok / frames);
+  std::printf(
+      "per frame: %.1f track-first limb bundles, %.1f deferred to the clique search, %.1f "
+      "maximal cliques enumerated, %.2f limb types over the clique cap\n",
+      static_cast<double>(track_first) / frames, static_cast<double>(deferred) / frames,
+      static_cast<double>(cliques) / frames, static_cast<double>(cap_hits) / frames);
   std::printf("frames_per_s=%.0f\n", t.median > 0 ? 1000.0 / t.median : 0.0);
   std::printf("assoc_fit_median_ms=%.3f\n", t.median);
   return 0;
