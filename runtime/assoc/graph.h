@@ -115,6 +115,7 @@ class FrameGraph {
   std::vector<int> order_scratch_;
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
   std::vector<std::vector<float>> match_;           // [joint][k1 * n + k2]
+  std::vector<std::vector<char>> match_done_;       // [joint][k1 * n + k2], k1 < k2: computed
   std::vector<std::vector<float>> track_;           // [joint][t * n + k]
   std::vector<std::vector<int>> track_deg_;         // [joint][k] tracks with an edge to k
   std::vector<std::vector<std::vector<int>>> nbr_;  // [joint][k] matching neighbours

@@ -476,7 +476,6 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
   Mat H(n, n);
   Mat A(n, n);
   Vec g(n);
-  Eigen::LLT<Mat> llt(n);
   // Gauss–Newton normal equations by the chain rule, aggregated per joint: an observation of
   // joint j depends on the parameters only through X_j, so its contribution is
   // B_qᵀ (J_pᵀ J_p) B_k for every pair of blocks q, k on the path root -> j (B = ∂X_j/∂block:
@@ -552,12 +551,15 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
     for (int tries = 0; tries < 6 && !improved; ++tries) {
       A = H;
       for (int i = 0; i < n; ++i) A(i, i) += lambda * (H(i, i) + 1e-6);
-      llt.compute(A);
-      if (llt.info() != Eigen::Success) {
+      // Cholesky in place, unblocked: at this size (3 x joints) the blocked LLT spends more in
+      // its GEMM dispatch than in arithmetic.
+      if (Eigen::internal::llt_inplace<double, Eigen::Lower>::unblocked(A) >= 0) {
         lambda *= 10;
         continue;
       }
-      const Vec delta = -llt.solve(g);
+      Vec delta = -g;
+      A.triangularView<Eigen::Lower>().solveInPlace(delta);
+      A.triangularView<Eigen::Lower>().adjoint().solveInPlace(delta);
       if (!delta.allFinite()) {
         lambda *= 10;
         continue;
