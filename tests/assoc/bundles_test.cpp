@@ -382,6 +382,118 @@ TEST_F(BundleTest, ScoreMatchesTheDocumentedFormula) {
   EXPECT_NEAR(score_bundle(G, s_.topo_, limb, h, opt_, -1, {edges[0]}), single, 1e-6);
 }
 
+// ------------------------------------------------------------------------ track-first parsing
+
+// Tracks at both persons' true joints: every (limb, track) is clear-cut, so track-first parsing
+// takes one 3-view bundle per track, the same bundles as the clique search over the whole
+// graph, and leaves nothing for the search.
+TEST_F(BundleTest, TrackFirstTakesWhatTheSearchWouldTake) {
+  const std::vector<TrackPose> tracks = {s_.track_of(0, 5), s_.track_of(1, 6)};
+  ASSERT_TRUE(s_.build(tracks).ok());
+  std::vector<std::vector<std::pair<int, std::vector<int>>>> searched(2);
+  for (int limb = 0; limb < 2; ++limb) {
+    ParsingStats st;
+    for (const Bundle& b : parse(limb, opt_, st)) {
+      searched[static_cast<std::size_t>(limb)].push_back({b.track, b.edges});
+    }
+  }
+
+  FrameGraph& g = s_.graph_;
+  ASSERT_TRUE(g.build(s_.det_, s_.cams_, tracks, GraphOptions{}, /*matching=*/false).ok());
+  std::vector<std::vector<int>> covered(3);
+  for (int j = 0; j < 3; ++j) covered[static_cast<std::size_t>(j)].assign(2 * kViews, 0);
+  ParsingStats st;
+  for (int limb = 0; limb < 2; ++limb) {
+    std::vector<Bundle> out;
+    LimbExclusions ex;
+    track_first_bundles(g, s_.topo_, limb, hier_[static_cast<std::size_t>(limb)], opt_, out, ex,
+                        covered, st);
+    ASSERT_EQ(out.size(), 2u) << "limb " << limb;
+    std::vector<std::pair<int, std::vector<int>>> taken;
+    for (const Bundle& b : out) {
+      EXPECT_EQ(bundle_person(b), b.track) << "track t is person t's";
+      EXPECT_EQ(b.edges.size(), static_cast<std::size_t>(kViews));
+      EXPECT_GT(b.score, 0.0);
+      taken.push_back({b.track, b.edges});
+    }
+    auto sorted = [](auto v) {
+      std::sort(v.begin(), v.end());
+      return v;
+    };
+    EXPECT_EQ(sorted(taken), sorted(searched[static_cast<std::size_t>(limb)])) << "limb " << limb;
+    EXPECT_EQ(ex.track_dead, (std::vector<char>{1, 1}));
+    for (char dead : ex.edge_dead) EXPECT_EQ(dead, 1) << "every 2D limb is taken";
+    // Nothing is left for the search.
+    std::vector<Bundle> rest;
+    parse_limb_bundles(g, s_.topo_, limb, hier_[static_cast<std::size_t>(limb)], opt_, rest, st,
+                       &ex);
+    EXPECT_TRUE(rest.empty());
+  }
+  EXPECT_EQ(st.track_first_bundles, 4);
+  EXPECT_EQ(st.track_first_deferred, 0);
+  // Joint b belongs to both limb types, a and c to one: every candidate was used by each.
+  EXPECT_EQ(covered[1], std::vector<int>(2 * kViews, 2));
+  EXPECT_EQ(covered[0], std::vector<int>(2 * kViews, 1));
+}
+
+// Person 0 has a second joint-b candidate 3 px from the first in view 2, with full affinity to
+// its joint a: two 2D limbs of track 0 in that view. View 2 stays out of track 0's bundle and
+// both of its 2D limbs are left to the clique search, which takes one of them.
+TEST_F(BundleTest, TrackFirstLeavesAnAmbiguousViewToTheSearch) {
+  ViewDetections& v2 = s_.det_.views[2];
+  const int b0 = s_.det_index(2, 0);
+  JointCandidate dup = v2.candidates[1][static_cast<std::size_t>(b0)];
+  dup.x_px += 3.f;
+  v2.candidates[1].push_back(dup);
+  AffinityMatrix ab(2, 3, 0.f);
+  for (int r = 0; r < 2; ++r) ab.at(r, r) = 1.f;
+  ab.at(s_.det_index(2, 0), 2) = 1.f;
+  v2.affinities[0] = ab;
+  AffinityMatrix bc(3, 2, 0.f);
+  for (int r = 0; r < 2; ++r) bc.at(r, r) = 1.f;
+  v2.affinities[1] = bc;
+  const std::vector<TrackPose> tracks = {s_.track_of(0, 5), s_.track_of(1, 6)};
+  FrameGraph& g = s_.graph_;
+  ASSERT_TRUE(g.build(s_.det_, s_.cams_, tracks, GraphOptions{}, /*matching=*/false).ok());
+  std::vector<std::vector<int>> covered(3);
+  for (int j = 0; j < 3; ++j) {
+    covered[static_cast<std::size_t>(j)].assign(static_cast<std::size_t>(g.candidate_count(j)), 0);
+  }
+  ParsingStats st;
+  std::vector<Bundle> out;
+  LimbExclusions ex;
+  const int limb = 0;
+  track_first_bundles(g, s_.topo_, limb, hier_[0], opt_, out, ex, covered, st);
+  ASSERT_EQ(out.size(), 2u);
+  const std::span<const LimbEdge> edges = g.limb_edges(limb);
+  int view2_live = 0;
+  for (const Bundle& b : out) {
+    if (b.track != 0) {
+      EXPECT_EQ(b.edges.size(), static_cast<std::size_t>(kViews));
+      continue;
+    }
+    EXPECT_EQ(b.edges.size(), 2u);
+    for (int m : b.edges) EXPECT_NE(edges[static_cast<std::size_t>(m)].view, 2);
+  }
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (edges[e].view == 2 && !ex.edge_dead[e]) ++view2_live;
+  }
+  EXPECT_EQ(view2_live, 2) << "both of person 0's view-2 limbs go to the search";
+  std::vector<std::vector<char>> settled(3);
+  for (int j = 0; j < 3; ++j) {
+    for (int c : covered[static_cast<std::size_t>(j)]) {
+      settled[static_cast<std::size_t>(j)].push_back(c >= (j == 1 ? 2 : 1) ? 1 : 0);
+    }
+  }
+  g.build_matching(settled);
+  std::vector<Bundle> rest;
+  parse_limb_bundles(g, s_.topo_, limb, hier_[0], opt_, rest, st, &ex);
+  ASSERT_EQ(rest.size(), 1u) << "the two view-2 limbs share joint a: one is taken";
+  EXPECT_EQ(rest[0].track, -1);
+  ASSERT_EQ(rest[0].edges.size(), 1u);
+  EXPECT_EQ(edges[static_cast<std::size_t>(rest[0].edges[0])].view, 2);
+}
+
 // ---------------------------------------------------------------------------- assembling
 
 // No (joint, candidate) is assigned to two persons; returns the total assignment count.

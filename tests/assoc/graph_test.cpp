@@ -366,6 +366,68 @@ TEST_F(GraphTest, RebuildReusesStorageWithoutStaleEdges) {
 // a brute-force evaluation of every candidate pair with closest_points (the line-to-line
 // prefilter changes no edge), neighbour lists are ascending and in other views, and limb edges
 // are sorted by view and ka: the orders parse_limb_bundles relies on.
+// Matching edges built lazily (none at build, some on demand, then the rest for a set of
+// unsettled candidates) equal the eager build wherever both ends are unsettled or the pair was
+// asked for, and are 0 elsewhere; neighbour lists hold exactly the unsettled pairs, in order.
+TEST(GraphSimTest, LazyMatchingEdgesEqualTheEagerOnes) {
+  sim::SceneOptions scene;
+  scene.people = 6;
+  sim::RigOptions rig;
+  rig.views = 8;
+  Result<sim::Simulator> s =
+      sim::Simulator::create(rig, scene, sim::DetectionNoiseOptions{}, body19_topology());
+  ASSERT_TRUE(s.ok()) << s.error().message();
+  Result<sim::RenderedFrame> f = s->next();
+  ASSERT_TRUE(f.ok()) << f.error().message();
+  FrameGraph eager;
+  ASSERT_TRUE(eager.build(f->detections, s->rig().cameras, {}, GraphOptions{}).ok());
+  FrameGraph lazy;
+  ASSERT_TRUE(
+      lazy.build(f->detections, s->rig().cameras, {}, GraphOptions{}, /*matching=*/false).ok());
+  std::vector<std::vector<char>> settled(static_cast<std::size_t>(lazy.joint_count()));
+  long asked = 0;
+  for (int j = 0; j < lazy.joint_count(); ++j) {
+    const int n = lazy.candidate_count(j);
+    auto& sj = settled[static_cast<std::size_t>(j)];
+    for (int k = 0; k < n; ++k) sj.push_back(k % 3 == 0 ? 1 : 0);
+    for (int k1 = 0; k1 < n; ++k1) {
+      for (int k2 = 0; k2 < n; ++k2) {
+        EXPECT_EQ(lazy.match(j, k1, k2), 0.f) << "no matching edge before it is asked for";
+      }
+    }
+    // On demand: every pair of settled candidates.
+    for (int k1 = 0; k1 < n; k1 += 3) {
+      for (int k2 = 0; k2 < n; k2 += 3) {
+        EXPECT_EQ(lazy.ensure_match(j, k1, k2), eager.match(j, k1, k2));
+        ++asked;
+      }
+    }
+  }
+  ASSERT_GT(asked, 0);
+  lazy.build_matching(settled);
+  long compared = 0;
+  for (int j = 0; j < lazy.joint_count(); ++j) {
+    const int n = lazy.candidate_count(j);
+    const auto& sj = settled[static_cast<std::size_t>(j)];
+    for (int k1 = 0; k1 < n; ++k1) {
+      std::vector<int> want_nb;
+      for (int k2 = 0; k2 < n; ++k2) {
+        const bool both_settled =
+            sj[static_cast<std::size_t>(k1)] && sj[static_cast<std::size_t>(k2)];
+        const bool both_unsettled =
+            !sj[static_cast<std::size_t>(k1)] && !sj[static_cast<std::size_t>(k2)];
+        const float want = both_settled || both_unsettled ? eager.match(j, k1, k2) : 0.f;
+        EXPECT_EQ(lazy.match(j, k1, k2), want) << "joint " << j << " " << k1 << "-" << k2;
+        if (both_unsettled && want > 0.f) want_nb.push_back(k2);
+        compared += want > 0.f ? 1 : 0;
+      }
+      const auto nb = lazy.match_neighbors(j, k1);
+      EXPECT_EQ(std::vector<int>(nb.begin(), nb.end()), want_nb) << "joint " << j << " k " << k1;
+    }
+  }
+  EXPECT_GT(compared, 100);
+}
+
 TEST(GraphSimTest, MatchingEdgesEqualBruteForceAndAreOrdered) {
   sim::SceneOptions scene;
   scene.people = 10;

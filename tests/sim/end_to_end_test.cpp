@@ -47,13 +47,14 @@ struct EndToEndStats {
 };
 
 EndToEndStats run_end_to_end(const RigOptions& rig, const SceneOptions& scene,
-                             const DetectionNoiseOptions& noise, int frames, int warmup) {
+                             const DetectionNoiseOptions& noise, int frames, int warmup,
+                             const assoc::AssociationOptions& options = {}) {
   EndToEndStats st;
   Result<Simulator> sim = Simulator::create(rig, scene, noise, body19_topology());
   EXPECT_TRUE(sim.ok()) << sim.error().message();
   if (!sim.ok()) return st;
   Result<std::unique_ptr<assoc::Engine>> engine =
-      assoc::Engine::create(body19_topology(), sim->rig().cameras, assoc::AssociationOptions{});
+      assoc::Engine::create(body19_topology(), sim->rig().cameras, options);
   EXPECT_TRUE(engine.ok()) << engine.error().message();
   if (!engine.ok()) return st;
 
@@ -151,6 +152,28 @@ TEST(SimEndToEnd, FiveViewsThreePeopleEnteringAndLeaving) {
   scene.enter_leave = true;
   const EndToEndStats st = run_end_to_end(rig, scene, DetectionNoiseOptions{}, 300, 5);
   check_targets(st, "5 views x 3 people entering/leaving, 300 frames");
+}
+
+// A crowded rig, with track-first parsing (the default) and with the clique search over the
+// whole graph: both meet the targets, and track-first parsing loses no accuracy.
+TEST(SimEndToEnd, TwelveViewsTenPeopleWithAndWithoutTrackFirst) {
+  RigOptions rig;
+  rig.views = 12;
+  SceneOptions scene;
+  scene.people = 10;
+  scene.seed = 7;
+  scene.enter_leave = false;
+  assoc::AssociationOptions search_only;
+  search_only.clique.track_first = false;
+  const EndToEndStats first =
+      run_end_to_end(rig, scene, DetectionNoiseOptions{}, 60, 5, assoc::AssociationOptions{});
+  const EndToEndStats search =
+      run_end_to_end(rig, scene, DetectionNoiseOptions{}, 60, 5, search_only);
+  check_targets(first, "12 views x 10 people, track-first");
+  check_targets(search, "12 views x 10 people, clique search only");
+  EXPECT_LE(first.mpjpe_m, search.mpjpe_m + 0.002) << first.summary() << " vs " << search.summary();
+  EXPECT_GE(first.count_correct, search.count_correct)
+      << first.summary() << " vs " << search.summary();
 }
 
 }  // namespace
