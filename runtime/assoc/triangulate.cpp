@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cmath>
 #include <limits>
 
 namespace mocap::assoc {
@@ -19,9 +20,16 @@ bool solve_rays(std::span<const Observation> obs, unsigned used, Eigen::Vector3d
     if (!(used & (1u << i))) continue;
     add_ray_normal_equations(obs[i].ray, obs[i].weight, A, b);
   }
-  Eigen::LDLT<Eigen::Matrix3d> ldlt(A);
-  if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-9) return false;
-  *X = ldlt.solve(b);
+  // Closed-form 3x3 inverse; degenerate (near-parallel rays) when the reciprocal L1 condition
+  // number 1 / (|A|_1 |A^-1|_1) is below 1e-9.
+  const double det = A.determinant();
+  if (!(std::abs(det) > 0.0) || !std::isfinite(det)) return false;
+  const Eigen::Matrix3d inv = A.inverse();
+  const auto norm1 = [](const Eigen::Matrix3d& M) {
+    return M.cwiseAbs().colwise().sum().maxCoeff();
+  };
+  if (1.0 / (norm1(A) * norm1(inv)) < 1e-9) return false;
+  *X = inv * b;
   return X->allFinite();
 }
 

@@ -229,6 +229,10 @@ SkeletonFitter::SkeletonFitter(const SkeletonTopology& topology, const FitOption
     }
   }
   order_ = q;
+  ancestors_.resize(ix(J));
+  for (int j = 0; j < J; ++j) {
+    for (int p = parents_[ix(j)]; p >= 0; p = parents_[ix(p)]) ancestors_[ix(j)].push_back(p);
+  }
   for (int j = 0; j < J; ++j) {
     const int p = parents_[ix(j)];
     if (p >= 0) {
@@ -409,13 +413,6 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
     std::span<const JointObservation> observations, Eigen::Vector3d& r,
     std::vector<Eigen::Vector3d>& u) const {
   const int J = topology_->joint_count();
-  // Parameter block of each joint's bone: 0 = root, 1 + slot for bones.
-  std::vector<int> block(ix(J), -1);
-  int nb = 1;
-  for (int j : order_) {
-    if (parents_[ix(j)] >= 0) block[ix(j)] = nb++;
-  }
-  const int n = 3 * nb;
   const double a = options_.robust_loss_px;
   const double wt = state.has_previous ? options_.temporal_weight_px_per_m : 0.0;
   const auto& L = state.bone_length_m;
@@ -469,35 +466,35 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
     return c;
   };
 
-  // Stack storage up to kMaxFitJoints joints (no heap traffic per solve).
-  using Mat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3 * kMaxFitJoints,
-                            3 * kMaxFitJoints>;
-  using Vec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3 * kMaxFitJoints, 1>;
-  Mat H(n, n);
-  Mat A(n, n);
-  Vec g(n);
   // Gauss–Newton normal equations by the chain rule, aggregated per joint: an observation of
   // joint j depends on the parameters only through X_j, so its contribution is
-  // B_qᵀ (J_pᵀ J_p) B_k for every pair of blocks q, k on the path root -> j (B = ∂X_j/∂block:
-  // I for the root, −L[u]× for a bone). Summing J_pᵀ J_p and J_pᵀ res per joint (M_j, m_j),
-  // then over subtrees (S_k = Σ_{j in subtree(k)} M_j), gives H(q, k) = B_qᵀ S_k B_k for k in
-  // the subtree of q and g_q = B_qᵀ Σ_{subtree(q)} m_j: the same H and g as summing each
+  // P_qᵀ (J_pᵀ J_p) P_k for every pair of parameter blocks q, k on the path root -> j
+  // (P = ∂X_j/∂block: I for the root, −L[u]× for a bone). Summing J_pᵀ J_p and J_pᵀ res per
+  // joint, then over subtrees (S_k = Σ_{j in subtree(k)} M_j), gives H(q, k) = P_qᵀ S_k P_k for
+  // k in the subtree of q and g_q = P_qᵀ Σ_{subtree(q)} m_j: the same H and g as summing each
   // observation's path blocks, at a cost independent of the number of views.
+  //
+  // H has a block only between a joint and its ancestors, so it is kept as D[k] = H(k, k) and
+  // U[k][i] = H(anc_i(k), k) (anc_0 = parent), and solved by block elimination leaves first:
+  // eliminating k only updates blocks between its ancestors, which are already there (no
+  // fill-in), so the factorisation costs O(Σ depth²) 3x3 products instead of O((3J)³).
   std::array<Eigen::Matrix3d, kMaxFitJoints> S;
   std::array<Eigen::Vector3d, kMaxFitJoints> G;
-  std::array<Eigen::Matrix3d, kMaxFitJoints> B;
+  std::array<Eigen::Matrix3d, kMaxFitJoints> P;
+  std::array<Eigen::Matrix3d, kMaxFitJoints> D, Dd;
+  std::array<Eigen::Vector3d, kMaxFitJoints> gv, y, x;
+  std::array<std::array<Eigen::Matrix3d, kMaxFitJoints>, kMaxFitJoints> U, Ud;
+  std::array<Eigen::LLT<Eigen::Matrix3d>, kMaxFitJoints> Dllt;
   std::vector<Eigen::Vector3d> u2(ix(J));
   double lambda = 1e-3;
   double current = cost(r, u);
   int it = 0;
   for (; it < options_.max_iterations; ++it) {
     forward(r, u);
-    H.setZero();
-    g.setZero();
     for (int j = 0; j < J; ++j) {
       S[ix(j)].setZero();
       G[ix(j)].setZero();
-      B[ix(j)] = parents_[ix(j)] < 0 ? Eigen::Matrix3d::Identity()
+      P[ix(j)] = parents_[ix(j)] < 0 ? Eigen::Matrix3d::Identity()
                                      : Eigen::Matrix3d(-L[ix(j)] * skew(u[ix(j)]));
     }
     for (const JointObservation& o : observations) {
@@ -527,48 +524,95 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
       G[ix(p)] += G[ix(*it_j)];
     }
     for (int k = 0; k < J; ++k) {
-      const int bk = 3 * (parents_[ix(k)] < 0 ? 0 : block[ix(k)]);
-      const Eigen::Matrix3d SB = S[ix(k)] * B[ix(k)];
-      g.segment<3>(bk) += B[ix(k)].transpose() * G[ix(k)];
-      for (int q = k; q >= 0; q = parents_[ix(q)]) {
-        const int bq = 3 * (parents_[ix(q)] < 0 ? 0 : block[ix(q)]);
-        const Eigen::Matrix3d Hqk = B[ix(q)].transpose() * SB;
-        H.block<3, 3>(bq, bk) += Hqk;
-        if (q != k) H.block<3, 3>(bk, bq) += Hqk.transpose();
+      const Eigen::Matrix3d SP = S[ix(k)] * P[ix(k)];
+      gv[ix(k)] = P[ix(k)].transpose() * G[ix(k)];
+      D[ix(k)] = P[ix(k)].transpose() * SP;
+      const auto& anc = ancestors_[ix(k)];
+      for (std::size_t i = 0; i < anc.size(); ++i) {
+        U[ix(k)][i] = P[ix(anc[i])].transpose() * SP;
       }
     }
-    // Untouched parameters are fixed: identity rows.
-    for (int j = 0; j < J; ++j) {
-      const int b = parents_[ix(j)] < 0 ? 0 : block[ix(j)];
-      if (!touched[ix(j)] && wt == 0) {
-        H.block(3 * b, 0, 3, n).setZero();
-        H.block(0, 3 * b, n, 3).setZero();
-        H.block<3, 3>(3 * b, 3 * b).setIdentity();
-        g.segment<3>(3 * b).setZero();
+    if (wt > 0) {
+      const int root = order_.front();
+      D[ix(root)] += wt * wt * Eigen::Matrix3d::Identity();
+      gv[ix(root)] += wt * wt * (r - state.root_prev);
+      for (int j = 0; j < J; ++j) {
+        if (parents_[ix(j)] < 0) continue;
+        const Eigen::Matrix3d Jt = wt * L[ix(j)] * (-skew(u[ix(j)]));
+        const Eigen::Vector3d res = wt * L[ix(j)] * (u[ix(j)] - state.dir_prev[ix(j)]);
+        D[ix(j)] += Jt.transpose() * Jt;
+        gv[ix(j)] += Jt.transpose() * res;
+      }
+    } else {
+      // Untouched parameters (no observation below them, no temporal anchor) are fixed:
+      // identity rows. Their descendants are untouched too.
+      for (int j = 0; j < J; ++j) {
+        if (touched[ix(j)]) continue;
+        D[ix(j)].setIdentity();
+        gv[ix(j)].setZero();
+        for (std::size_t i = 0; i < ancestors_[ix(j)].size(); ++i) U[ix(j)][i].setZero();
       }
     }
     bool improved = false;
     for (int tries = 0; tries < 6 && !improved; ++tries) {
-      A = H;
-      for (int i = 0; i < n; ++i) A(i, i) += lambda * (H(i, i) + 1e-6);
-      // Cholesky in place, unblocked: at this size (3 x joints) the blocked LLT spends more in
-      // its GEMM dispatch than in arithmetic.
-      if (Eigen::internal::llt_inplace<double, Eigen::Lower>::unblocked(A) >= 0) {
+      // Levenberg–Marquardt damping on the diagonal, then block elimination leaves first.
+      for (int j = 0; j < J; ++j) {
+        Dd[ix(j)] = D[ix(j)];
+        for (int c = 0; c < 3; ++c) Dd[ix(j)](c, c) += lambda * (D[ix(j)](c, c) + 1e-6);
+        y[ix(j)] = -gv[ix(j)];
+        const std::size_t na = ancestors_[ix(j)].size();
+        for (std::size_t i = 0; i < na; ++i) Ud[ix(j)][i] = U[ix(j)][i];
+      }
+      bool ok = true;
+      for (auto it_k = order_.rbegin(); it_k != order_.rend() && ok; ++it_k) {
+        const int k = *it_k;
+        Eigen::LLT<Eigen::Matrix3d>& f = Dllt[ix(k)];
+        f.compute(Dd[ix(k)]);
+        if (f.info() != Eigen::Success) {
+          ok = false;
+          break;
+        }
+        const auto& anc = ancestors_[ix(k)];
+        const std::size_t na = anc.size();
+        // W_i = U_i D⁻¹ (row anc_i): Schur updates of the ancestors' blocks and right side.
+        std::array<Eigen::Matrix3d, kMaxFitJoints> W;
+        for (std::size_t i = 0; i < na; ++i) {
+          W[i] = f.solve(Ud[ix(k)][i].transpose()).transpose();
+          y[ix(anc[i])] -= W[i] * y[ix(k)];
+        }
+        for (std::size_t i = 0; i < na; ++i) {
+          const int p = anc[i];
+          Dd[ix(p)] -= W[i] * Ud[ix(k)][i].transpose();
+          // Ancestors of p are anc_{j}(k) for j > i, at index j - i - 1 in p's list.
+          for (std::size_t j = i + 1; j < na; ++j) {
+            Ud[ix(p)][j - i - 1] -= Ud[ix(k)][j] * W[i].transpose();
+          }
+        }
+      }
+      if (!ok) {
         lambda *= 10;
         continue;
       }
-      Vec delta = -g;
-      A.triangularView<Eigen::Lower>().solveInPlace(delta);
-      A.triangularView<Eigen::Lower>().adjoint().solveInPlace(delta);
-      if (!delta.allFinite()) {
+      // Back substitution, root first.
+      bool finite = true;
+      for (int k : order_) {
+        Eigen::Vector3d rhs = y[ix(k)];
+        const auto& anc = ancestors_[ix(k)];
+        for (std::size_t i = 0; i < anc.size(); ++i) {
+          rhs -= Ud[ix(k)][i].transpose() * x[ix(anc[i])];
+        }
+        x[ix(k)] = Dllt[ix(k)].solve(rhs);
+        finite = finite && x[ix(k)].allFinite();
+      }
+      if (!finite) {
         lambda *= 10;
         continue;
       }
-      Eigen::Vector3d r2 = r + delta.segment<3>(0);
+      Eigen::Vector3d r2 = r + x[ix(order_.front())];
       u2 = u;
       for (int j = 0; j < J; ++j) {
         if (parents_[ix(j)] < 0) continue;
-        const Eigen::Vector3d d = delta.segment<3>(3 * block[ix(j)]);
+        const Eigen::Vector3d d = x[ix(j)];
         const double angle = d.norm();
         if (angle > 1e-12)
           u2[ix(j)] = (Eigen::AngleAxisd(angle, d / angle) * u[ix(j)]).normalized();

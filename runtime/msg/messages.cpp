@@ -47,14 +47,15 @@ Error invalid(std::string message) {
 
 Status validate_view(const std::string& frame, const SkeletonTopology& topo,
                      const ViewDetections& view) {
-  const std::string where = frame + ", view " + std::to_string(view.view_id);
+  // Location strings are built only for the error message (this runs on every frame).
+  const auto at_view = [&] { return frame + ", view " + std::to_string(view.view_id); };
   if (static_cast<int>(view.candidates.size()) != topo.joint_count()) {
-    return invalid(where + ": " + std::to_string(view.candidates.size()) +
+    return invalid(at_view() + ": " + std::to_string(view.candidates.size()) +
                    " candidate lists, expected " + std::to_string(topo.joint_count()) +
                    " (one per joint of topology " + topo.name() + ")");
   }
   if (static_cast<int>(view.affinities.size()) != topo.limb_count()) {
-    return invalid(where + ": " + std::to_string(view.affinities.size()) +
+    return invalid(at_view() + ": " + std::to_string(view.affinities.size()) +
                    " affinity matrices, expected " + std::to_string(topo.limb_count()) +
                    " (one per limb of topology " + topo.name() + ")");
   }
@@ -62,43 +63,47 @@ Status validate_view(const std::string& frame, const SkeletonTopology& topo,
     const auto& list = view.candidates[static_cast<size_t>(j)];
     for (size_t c = 0; c < list.size(); ++c) {
       const JointCandidate& cand = list[c];
-      const std::string cw = where + ", joint " + std::to_string(j) + " (" + topo.joint_name(j) +
-                             "), candidate " + std::to_string(c);
+      const auto cw = [&] {
+        return at_view() + ", joint " + std::to_string(j) + " (" + topo.joint_name(j) +
+               "), candidate " + std::to_string(c);
+      };
       if (!std::isfinite(cand.x_px) || !std::isfinite(cand.y_px)) {
-        return invalid(cw + ": coordinates (" + num(cand.x_px) + ", " + num(cand.y_px) +
+        return invalid(cw() + ": coordinates (" + num(cand.x_px) + ", " + num(cand.y_px) +
                        ") are not finite");
       }
       if (!in_unit_range(cand.score)) {
-        return invalid(cw + ": score " + num(cand.score) + " is outside [0, 1]");
+        return invalid(cw() + ": score " + num(cand.score) + " is outside [0, 1]");
       }
     }
   }
   for (int l = 0; l < topo.limb_count(); ++l) {
     const Limb& limb = topo.limb(l);
-    const std::string lw = where + ", limb " + std::to_string(l) + " (" + topo.limb_name(l) + ")";
+    const auto lw = [&] {
+      return at_view() + ", limb " + std::to_string(l) + " (" + topo.limb_name(l) + ")";
+    };
     if (limb.joint_a < 0 || limb.joint_a >= topo.joint_count() || limb.joint_b < 0 ||
         limb.joint_b >= topo.joint_count()) {
-      return invalid(lw + ": topology " + topo.name() + " limb joins a joint index out of range");
+      return invalid(lw() + ": topology " + topo.name() + " limb joins a joint index out of range");
     }
     const AffinityMatrix& m = view.affinities[static_cast<size_t>(l)];
     const size_t rows = view.candidates[static_cast<size_t>(limb.joint_a)].size();
     const size_t cols = view.candidates[static_cast<size_t>(limb.joint_b)].size();
     if (m.rows < 0 || m.cols < 0 || static_cast<size_t>(m.rows) != rows ||
         static_cast<size_t>(m.cols) != cols) {
-      return invalid(lw + ": affinity matrix is " + std::to_string(m.rows) + "x" +
+      return invalid(lw() + ": affinity matrix is " + std::to_string(m.rows) + "x" +
                      std::to_string(m.cols) + ", expected " + std::to_string(rows) + "x" +
                      std::to_string(cols) + " from the candidate counts");
     }
     if (m.values.size() != rows * cols) {
-      return invalid(lw + ": affinity matrix " + std::to_string(rows) + "x" + std::to_string(cols) +
-                     " holds " + std::to_string(m.values.size()) + " values, expected " +
-                     std::to_string(rows * cols));
+      return invalid(lw() + ": affinity matrix " + std::to_string(rows) + "x" +
+                     std::to_string(cols) + " holds " + std::to_string(m.values.size()) +
+                     " values, expected " + std::to_string(rows * cols));
     }
     for (int r = 0; r < m.rows; ++r) {
       for (int c = 0; c < m.cols; ++c) {
         const float v = m.at(r, c);
         if (!in_unit_range(v)) {
-          return invalid(lw + ": affinity at (" + std::to_string(r) + ", " + std::to_string(c) +
+          return invalid(lw() + ": affinity at (" + std::to_string(r) + ", " + std::to_string(c) +
                          ") is " + num(v) + ", outside [0, 1]");
         }
       }
