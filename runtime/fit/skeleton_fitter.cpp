@@ -185,6 +185,9 @@ Status FitOptions::validate() const {
   if (bone_learning_frames < 1) return bad("fit.bone_learning_frames", "must be >= 1");
   if (confident_min_views < 2) return bad("fit.confident_min_views", "must be >= 2");
   if (max_iterations < 1) return bad("fit.max_iterations", "must be >= 1");
+  if (!(converged_relative_decrease >= 0 && converged_relative_decrease < 1)) {
+    return bad("fit.converged_relative_decrease", "must be in [0, 1)");
+  }
   if (!(bone_sample_tolerance > 0)) return bad("fit.bone_sample_tolerance", "must be > 0");
   if (!(up.norm() > 0.5) || !up.allFinite()) return bad("fit.up", "must be a non-zero direction");
   if (!(predicted_joint_confidence >= 0.f && predicted_joint_confidence <= 1.f)) {
@@ -625,7 +628,7 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
         current = c2;
         lambda = std::max(lambda * 0.3, 1e-7);
         improved = true;
-        if (rel < 1e-4) it = options_.max_iterations;  // converged
+        if (rel < options_.converged_relative_decrease) it = options_.max_iterations;  // converged
       } else {
         lambda *= 10;
       }

@@ -137,6 +137,11 @@ TEST(AssocOptions, TriangulationOptionsRejectOutOfRange) {
 TEST(AssocOptions, FitOptionsRejectOutOfRange) {
   const std::vector<BadCase> cases = {
       {"fit.reprojection_weight", [](auto& o) { o.fit.reprojection_weight = 0; }},
+      {"fit.converged_relative_decrease",
+       [](auto& o) { o.fit.converged_relative_decrease = -1e-3; }},
+      {"fit.converged_relative_decrease", [](auto& o) { o.fit.converged_relative_decrease = 1; }},
+      {"fit.converged_relative_decrease",
+       [](auto& o) { o.fit.converged_relative_decrease = kNaN; }},
       {"fit.robust_loss_px", [](auto& o) { o.fit.robust_loss_px = -1; }},
       {"fit.temporal_weight_px_per_m", [](auto& o) { o.fit.temporal_weight_px_per_m = -1; }},
       {"fit.temporal_weight_px_per_m", [](auto& o) { o.fit.temporal_weight_px_per_m = kNaN; }},
