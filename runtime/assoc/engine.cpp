@@ -44,11 +44,6 @@ Engine::Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
       options_(options),
       hierarchy_(limb_hierarchy_weights(topology)),
       parents_(topology.parents()) {
-  joint_limb_degree_.assign(static_cast<std::size_t>(topology.joint_count()), 0);
-  for (int l = 0; l < topology.limb_count(); ++l) {
-    ++joint_limb_degree_[static_cast<std::size_t>(topology.limb(l).joint_a)];
-    ++joint_limb_degree_[static_cast<std::size_t>(topology.limb(l).joint_b)];
-  }
   limb_template_m_.resize(static_cast<std::size_t>(topology.limb_count()));
   for (int l = 0; l < topology.limb_count(); ++l) {
     limb_template_m_[static_cast<std::size_t>(l)] =
@@ -128,13 +123,23 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
       track_first_bundles(graph_, topology_, l, hierarchy_[ix(l)], options_.clique, bundles_,
                           exclusions_[ix(l)], covered_, st.parsing);
     }
-    for (int j = 0; j < J; ++j) {
-      settled_[ix(j)].resize(covered_[ix(j)].size());
-      for (std::size_t k = 0; k < covered_[ix(j)].size(); ++k) {
-        settled_[ix(j)][k] = covered_[ix(j)][k] >= joint_limb_degree_[ix(j)] ? 1 : 0;
+    st.track_first_ms = ms_since(t0);
+    const auto tm = clock::now();
+    // The clique search reads matching edges only through the 2D limbs it still holds: a
+    // candidate in no live 2D limb of any limb type needs none.
+    for (int j = 0; j < J; ++j) settled_[ix(j)].assign(covered_[ix(j)].size(), 1);
+    for (int l = 0; l < Lc; ++l) {
+      const Limb& limb = topology_.limb(l);
+      const std::vector<char>& dead = exclusions_[ix(l)].edge_dead;
+      const auto edges = graph_.limb_edges(l);
+      for (std::size_t e = 0; e < edges.size(); ++e) {
+        if (!dead.empty() && dead[e]) continue;
+        settled_[ix(limb.joint_a)][ix(edges[e].ka)] = 0;
+        settled_[ix(limb.joint_b)][ix(edges[e].kb)] = 0;
       }
     }
     graph_.build_matching(settled_);
+    st.lazy_matching_ms = ms_since(tm);
   }
   for (int l = 0; l < Lc; ++l) {
     parse_limb_bundles(graph_, topology_, l, hierarchy_[ix(l)], options_.clique, bundles_,

@@ -41,7 +41,9 @@ struct FrameStats {
   int deaths = 0;
   int tracks = 0;  // live tracks after this frame
   double graph_ms = 0;
-  double parse_ms = 0;
+  double parse_ms = 0;          // limb-bundle parsing, of which:
+  double track_first_ms = 0;    //   track-first parsing
+  double lazy_matching_ms = 0;  //   matching edges computed after it
   double assemble_ms = 0;
   double reconstruct_ms = 0;  // triangulation, tracking and skeleton fitting
   double fit_ms = 0;          // of which skeleton fitting
@@ -106,7 +108,6 @@ class Engine {
   FrameGraph graph_;
   std::vector<TrackPose> track_poses_;
   std::vector<Bundle> bundles_;
-  std::vector<int> joint_limb_degree_;      // [joint] limb types touching the joint
   std::vector<LimbExclusions> exclusions_;  // [limb] taken by track-first parsing
   std::vector<std::vector<int>> covered_;   // [joint][k] limb types that took candidate k
   std::vector<std::vector<char>> settled_;  // [joint][k] taken by every limb type touching it

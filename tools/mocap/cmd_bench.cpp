@@ -78,7 +78,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   std::vector<double> assoc;
   std::vector<double> fit;
   std::vector<double> total;
-  std::vector<double> graph_ms, parse_ms, assemble_ms, fit_only_ms;
+  std::vector<double> graph_ms, parse_ms, assemble_ms, fit_only_ms, track_first_ms, matching_ms;
   int count_ok = 0;
   int candidates = 0;
   long track_first = 0, deferred = 0, cap_hits = 0, cliques = 0;
@@ -92,6 +92,8 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
     assoc.push_back(st.graph_ms + st.parse_ms + st.assemble_ms);
     graph_ms.push_back(st.graph_ms);
     parse_ms.push_back(st.parse_ms);
+    track_first_ms.push_back(st.track_first_ms);
+    matching_ms.push_back(st.lazy_matching_ms);
     assemble_ms.push_back(st.assemble_ms);
     fit.push_back(st.reconstruct_ms);
     fit_only_ms.push_back(st.fit_ms);
@@ -109,6 +111,8 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   print_row("association", percentiles(assoc));
   print_row("  graph", percentiles(graph_ms));
   print_row("  bundle parsing", percentiles(parse_ms));
+  print_row("    track-first", percentiles(track_first_ms));
+  print_row("    lazy matching", percentiles(matching_ms));
   print_row("  assembling", percentiles(assemble_ms));
   print_row("reconstruct+fit", percentiles(fit));
   print_row("  skeleton fit", percentiles(fit_only_ms));
