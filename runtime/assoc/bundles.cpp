@@ -409,9 +409,19 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   const auto edge_dead = [&](int e) {
     return exclusions && !exclusions->edge_dead.empty() && exclusions->edge_dead[ix(e)];
   };
+  // Per-thread scratch, reused across calls (no allocation per limb once warmed up).
+  struct Scratch {
+    std::vector<int> node_edge, edge_node;
+    CliqueGraph cg;
+    std::vector<std::vector<int>> by_ka, by_kb;
+    std::vector<char> dead, track_dead;
+  };
+  thread_local Scratch sc;
   // Clique-graph nodes: the live 2D limbs (node i is edge node_edge[i]), then the tracks.
-  std::vector<int> node_edge;
-  std::vector<int> edge_node(edges.size(), -1);
+  std::vector<int>& node_edge = sc.node_edge;
+  std::vector<int>& edge_node = sc.edge_node;
+  node_edge.clear();
+  edge_node.assign(edges.size(), -1);
   for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
     if (edge_dead(e)) continue;
     edge_node[ix(e)] = static_cast<int>(node_edge.size());
@@ -420,8 +430,9 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   const int n2d = static_cast<int>(node_edge.size());
   if (n2d == 0) return;
 
-  CliqueGraph cg;
+  CliqueGraph& cg = sc.cg;
   cg.n2d = n2d;
+  cg.track_of_node.clear();
   for (int t = 0; t < graph.track_count(); ++t) {
     if (exclusions && !exclusions->track_dead.empty() && exclusions->track_dead[ix(t)]) continue;
     if (graph.track_has_joint(t, L.joint_a) && graph.track_has_joint(t, L.joint_b)) {
@@ -429,12 +440,18 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     }
   }
   const int n = n2d + static_cast<int>(cg.track_of_node.size());
-  cg.adj.resize(ix(n));
-  for (auto& b : cg.adj) b.reset(n);
+  if (cg.adj.size() < ix(n)) cg.adj.resize(ix(n));
+  for (int i = 0; i < n; ++i) cg.adj[ix(i)].reset(n);
   // Live 2D limbs (edge indices) by candidate, so compatibility only visits matching neighbours
   // (sparse) and taking a bundle only visits the limbs sharing its candidates.
-  std::vector<std::vector<int>> by_ka(ix(graph.candidate_count(L.joint_a)));
-  std::vector<std::vector<int>> by_kb(ix(graph.candidate_count(L.joint_b)));
+  std::vector<std::vector<int>>& by_ka = sc.by_ka;
+  std::vector<std::vector<int>>& by_kb = sc.by_kb;
+  const auto reset_lists = [](std::vector<std::vector<int>>& lists, int count) {
+    if (lists.size() < ix(count)) lists.resize(ix(count));
+    for (int i = 0; i < count; ++i) lists[ix(i)].clear();
+  };
+  reset_lists(by_ka, graph.candidate_count(L.joint_a));
+  reset_lists(by_kb, graph.candidate_count(L.joint_b));
   for (int e : node_edge) {
     by_ka[ix(edges[ix(e)].ka)].push_back(e);
     by_kb[ix(edges[ix(e)].kb)].push_back(e);
@@ -542,25 +559,30 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     }
     return c;
   };
+  // Max-heap by score; candidates are moved out of it, not copied.
   auto cmp = [](const Cand& a, const Cand& b) { return a.score < b.score; };
-  std::priority_queue<Cand, std::vector<Cand>, decltype(cmp)> queue(cmp);
+  std::vector<Cand> queue;
   // Prunes and queues a candidate, and queues what pruning removed as candidates of their own.
   auto push_pruned = [&](Cand c) {
     while (!c.members.empty()) {
       std::vector<int> dropped;
       c.score = prune_clique(scorer, c.track, c.members, dropped);
-      queue.push(std::move(c));
+      queue.push_back(std::move(c));
+      std::push_heap(queue.begin(), queue.end(), cmp);
       c = Cand{0, -1, std::move(dropped)};
     }
   };
   for (auto& m : maximal) push_pruned(make(std::move(m)));
 
   // Take the best; removing its limbs kills every 2D limb sharing a candidate, and its track.
-  std::vector<char> dead(edges.size(), 0);
-  std::vector<char> track_dead(ix(graph.track_count()), 0);
+  std::vector<char>& dead = sc.dead;
+  std::vector<char>& track_dead = sc.track_dead;
+  dead.assign(edges.size(), 0);
+  track_dead.assign(ix(graph.track_count()), 0);
   while (!queue.empty()) {
-    Cand c = queue.top();
-    queue.pop();
+    std::pop_heap(queue.begin(), queue.end(), cmp);
+    Cand c = std::move(queue.back());
+    queue.pop_back();
     bool stale = c.track >= 0 && track_dead[ix(c.track)];
     for (int m : c.members) stale = stale || dead[ix(m)];
     if (stale) {
