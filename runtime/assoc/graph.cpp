@@ -120,8 +120,20 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
       track_valid_[idx(t * J + j)] = true;
       track_pos_[idx(t * J + j)] = tp.joints_m[idx(j)];
       const Eigen::Vector3d& X = tp.joints_m[idx(j)];
+      const double T2 = options.max_track_dist_m * options.max_track_dist_m;
       for (int k = 0; k < n; ++k) {
-        const double d = point_ray_distance_m(X, cj[idx(k)].ray);
+        // point_ray_distance_m, with the rejection (most pairs) decided on squared lengths.
+        const Ray& ray = cj[idx(k)].ray;
+        const Eigen::Vector3d v = X - ray.origin_m;
+        const double dd = ray.direction.squaredNorm();
+        double d = 0;
+        if (dd > 0.0) {
+          const double c2 = v.cross(ray.direction).squaredNorm();
+          if (c2 >= T2 * dd) continue;
+          d = std::sqrt(c2 / dd);
+        } else {
+          d = v.norm();  // degenerate ray: distance to its origin
+        }
         if (d >= options.max_track_dist_m) continue;
         tr[idx(t * n + k)] = static_cast<float>(1.0 - d / options.max_track_dist_m);
         ++deg[idx(k)];
