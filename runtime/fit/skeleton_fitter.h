@@ -140,6 +140,12 @@ class SkeletonFitter {
   std::vector<int> mirror_;                  // [joint] l_/r_ counterpart or -1
 };
 
+// The projection the fitter minimises (Camera::project without its behind-camera test: depth
+// is clamped to 1e-6 m) and its 2x3 Jacobian with respect to X, analytically (the fast
+// solver's hot loop: the derivatives a 3-wide Jet would carry, at a third of the work).
+void project_with_jacobian(const Camera& cam, const Eigen::Vector3d& X_m, Eigen::Vector2d& px,
+                           Eigen::Matrix<double, 2, 3>& J);
+
 // Template bone length (metres, adult ~1.75 m) and rest direction for a bone joint_a ->
 // joint_b by joint names; unknown names get 0.25 m pointing away from the root.
 double template_bone_length_m(std::string_view parent_name, std::string_view child_name);
