@@ -242,6 +242,21 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
                     std::vector<int>& dropped) {
   const int k = static_cast<int>(members.size());
   if (k == 0) return 0;
+  if (k == 1) {
+    // One 2D limb: no matching term and no length to check; only the track can go.
+    const LimbEdge& x = s.edges[ix(members[0])];
+    const double paf1 = static_cast<double>(x.p);
+    const double with =
+        s.combine(1, paf1, 0.0, track >= 0, track >= 0 ? s.track_match(track, x) : 0.0);
+    if (track >= 0) {
+      const double without = s.combine(1, paf1, 0.0, false, 0.0);
+      if (without > with) {
+        track = -1;
+        return without;
+      }
+    }
+    return with;
+  }
   const Limb& L = s.limb;
   // Per-thread scratch: no allocation per call once warmed up.
   thread_local std::vector<double> row;  // Σ_j pair(i, j)
