@@ -138,9 +138,10 @@ int bench_assoc(Args args) {
   int people = 3;
   cli::ArgParser p("mocap bench assoc",
                    "Single-thread per-frame time of association (graph, limb-bundle parsing,\n"
-                   "assembling) and of reconstruction+fitting (triangulation, tracking, Ceres\n"
-                   "skeleton fit), over the Shelf sequence or the simulator: median, p90, p99 and\n"
-                   "max in milliseconds. Ends with assoc_fit_median_ms=X.XXX.");
+                   "assembling) and of reconstruction+fitting (triangulation, tracking, skeleton\n"
+                   "fit), over the Shelf sequence or the simulator: median, p90, p99 and max in\n"
+                   "milliseconds; the simulator also splits out track-first parsing, the lazy\n"
+                   "matching edges and the fit. Ends with assoc_fit_median_ms=X.XXX.");
   p.option("--data", &data, "DIR", "Shelf folder (default: $MOCAP_DATA_DIR/shelf)");
   p.option("--repeat", &repeat, "N", "run the sequence N times (default 5)");
   p.flag("--synthetic", &synthetic, "use the scene simulator instead of Shelf");
