@@ -233,6 +233,20 @@ struct Scorer {
   }
 };
 
+// The scorer of one limb type (its 2D limbs, weights and template length).
+Scorer make_scorer(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
+                   double hierarchy_weight, const CliqueOptions& options) {
+  const Limb& L = topology.limb(limb);
+  return Scorer{graph,
+                L,
+                hierarchy_weight,
+                options,
+                graph.limb_edges(limb),
+                options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier,
+                fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
+                                                  topology.joint_name(L.joint_b))};
+}
+
 // Greedy pruning: drop the member whose removal raises the score most, while it does. Dropped
 // 2D members are appended to `dropped` (they remain pairwise compatible, so the caller can
 // offer them as a clique of their own: nothing is lost by pruning). Incremental: the clique's
@@ -401,18 +415,7 @@ std::vector<double> limb_hierarchy_weights(const SkeletonTopology& topology) {
 double score_bundle(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
                     double hierarchy_weight, const CliqueOptions& options, int track,
                     const std::vector<int>& edges) {
-  const double wsum =
-      options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
-  const Limb& L = topology.limb(limb);
-  Scorer s{graph,
-           L,
-           hierarchy_weight,
-           options,
-           graph.limb_edges(limb),
-           wsum,
-           fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
-                                             topology.joint_name(L.joint_b))};
-  return s.score(track, edges);
+  return make_scorer(graph, topology, limb, hierarchy_weight, options).score(track, edges);
 }
 
 void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
@@ -495,16 +498,7 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     }
   }
 
-  const double wsum =
-      options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
-  const Scorer scorer{graph,
-                      L,
-                      hierarchy_weight,
-                      options,
-                      edges,
-                      wsum,
-                      fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
-                                                        topology.joint_name(L.joint_b))};
+  const Scorer scorer = make_scorer(graph, topology, limb, hierarchy_weight, options);
 
   std::vector<std::vector<int>> maximal;
   thread_local BronKerboschScratch bk_scratch;
@@ -689,16 +683,7 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     if (e >= 0 && (owner_a[ix(edges[ix(e)].ka)] < 0 || owner_b[ix(edges[ix(e)].kb)] < 0)) e = -2;
   }
 
-  const double wsum =
-      options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier;
-  const Scorer scorer{graph,
-                      L,
-                      hierarchy_weight,
-                      options,
-                      edges,
-                      wsum,
-                      fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
-                                                        topology.joint_name(L.joint_b))};
+  const Scorer scorer = make_scorer(graph, topology, limb, hierarchy_weight, options);
   std::vector<int> members;
   std::vector<int> dropped;
   const std::size_t first = out.size();
