@@ -640,7 +640,7 @@ bool near_track(const FrameGraph& graph, const Limb& L, int t, std::span<const L
 void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, int limb,
                          double hierarchy_weight, const CliqueOptions& options,
                          std::vector<Bundle>& out, LimbExclusions& exclusions,
-                         std::vector<std::vector<int>>& covered, ParsingStats& stats) {
+                         ParsingStats& stats) {
   const Limb& L = topology.limb(limb);
   const std::span<const LimbEdge> edges = graph.limb_edges(limb);
   const int T = graph.track_count();
@@ -723,11 +723,6 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
       ++stats.track_first_deferred;
       continue;
     }
-    for (int m : members) {
-      const LimbEdge& x = edges[ix(m)];
-      ++covered[ix(L.joint_a)][ix(x.ka)];
-      ++covered[ix(L.joint_b)][ix(x.kb)];
-    }
     exclusions.track_dead[ix(t)] = 1;
     ++stats.track_first_bundles;
     out.push_back(Bundle{limb, t, members, score});
@@ -746,6 +741,26 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
   }
   for (std::size_t e = 0; e < edges.size(); ++e) {
     if (used_a[ix(edges[e].ka)] || used_b[ix(edges[e].kb)]) exclusions.edge_dead[e] = 1;
+  }
+}
+
+void unneeded_candidates(const FrameGraph& graph, const SkeletonTopology& topology,
+                         std::span<const LimbExclusions> exclusions,
+                         std::vector<std::vector<char>>& unneeded) {
+  unneeded.resize(ix(graph.joint_count()));
+  for (int j = 0; j < graph.joint_count(); ++j) {
+    unneeded[ix(j)].assign(ix(graph.candidate_count(j)), 1);
+  }
+  for (int l = 0; l < topology.limb_count(); ++l) {
+    const Limb& limb = topology.limb(l);
+    const std::vector<char>* dead =
+        ix(l) < exclusions.size() ? &exclusions[ix(l)].edge_dead : nullptr;
+    const auto edges = graph.limb_edges(l);
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      if (dead && !dead->empty() && (*dead)[e]) continue;
+      unneeded[ix(limb.joint_a)][ix(edges[e].ka)] = 0;
+      unneeded[ix(limb.joint_b)][ix(edges[e].kb)] = 0;
+    }
   }
 }
 

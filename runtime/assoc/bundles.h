@@ -15,6 +15,7 @@
 // re-scored and pushed back. Splitting strictly shrinks a bundle, so the loop terminates.
 #pragma once
 
+#include <span>
 #include <vector>
 
 #include "runtime/assoc/graph.h"
@@ -71,12 +72,17 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
 // (tracks with rival candidates or rival tracks in a view, new people) is left to
 // parse_limb_bundles, with the taken 2D limbs, the 2D limbs sharing their candidates and the
 // taken tracks recorded in `exclusions`. Matching edges between the selected 2D limbs are
-// computed here on demand (FrameGraph::ensure_match); `covered[joint][k]` counts, per
-// candidate, the limb types whose track-first bundle used it.
+// computed here on demand (FrameGraph::ensure_match).
 void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, int limb,
                          double hierarchy_weight, const CliqueOptions& options,
-                         std::vector<Bundle>& out, LimbExclusions& exclusions,
-                         std::vector<std::vector<int>>& covered, ParsingStats& stats);
+                         std::vector<Bundle>& out, LimbExclusions& exclusions, ParsingStats& stats);
+
+// After track-first parsing of every limb type (exclusions[limb]): the candidates the clique
+// search never reads matching edges for, those in no live 2D limb of any limb type
+// (unneeded[joint][k] = 1); the argument FrameGraph::build_matching() takes.
+void unneeded_candidates(const FrameGraph& graph, const SkeletonTopology& topology,
+                         std::span<const LimbExclusions> exclusions,
+                         std::vector<std::vector<char>>& unneeded);
 
 // One person's 2D assignments after assembling.
 struct PersonAssignment {

@@ -116,29 +116,15 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
     // Clear-cut tracked limbs first; then matching edges only between candidates some limb
     // type still needs, and the clique search over what is left.
     exclusions_.resize(ix(Lc));
-    covered_.resize(ix(J));
-    settled_.resize(ix(J));
-    for (int j = 0; j < J; ++j) covered_[ix(j)].assign(ix(graph_.candidate_count(j)), 0);
     for (int l = 0; l < Lc; ++l) {
       track_first_bundles(graph_, topology_, l, hierarchy_[ix(l)], options_.clique, bundles_,
-                          exclusions_[ix(l)], covered_, st.parsing);
+                          exclusions_[ix(l)], st.parsing);
     }
     st.track_first_ms = ms_since(t0);
     const auto tm = clock::now();
-    // The clique search reads matching edges only through the 2D limbs it still holds: a
-    // candidate in no live 2D limb of any limb type needs none.
-    for (int j = 0; j < J; ++j) settled_[ix(j)].assign(covered_[ix(j)].size(), 1);
-    for (int l = 0; l < Lc; ++l) {
-      const Limb& limb = topology_.limb(l);
-      const std::vector<char>& dead = exclusions_[ix(l)].edge_dead;
-      const auto edges = graph_.limb_edges(l);
-      for (std::size_t e = 0; e < edges.size(); ++e) {
-        if (!dead.empty() && dead[e]) continue;
-        settled_[ix(limb.joint_a)][ix(edges[e].ka)] = 0;
-        settled_[ix(limb.joint_b)][ix(edges[e].kb)] = 0;
-      }
-    }
-    graph_.build_matching(settled_);
+    // The clique search reads matching edges only through the 2D limbs it still holds.
+    unneeded_candidates(graph_, topology_, exclusions_, unneeded_);
+    graph_.build_matching(unneeded_);
     st.lazy_matching_ms = ms_since(tm);
   }
   for (int l = 0; l < Lc; ++l) {

@@ -108,9 +108,8 @@ class Engine {
   FrameGraph graph_;
   std::vector<TrackPose> track_poses_;
   std::vector<Bundle> bundles_;
-  std::vector<LimbExclusions> exclusions_;  // [limb] taken by track-first parsing
-  std::vector<std::vector<int>> covered_;   // [joint][k] limb types that took candidate k
-  std::vector<std::vector<char>> settled_;  // [joint][k] taken by every limb type touching it
+  std::vector<LimbExclusions> exclusions_;   // [limb] taken by track-first parsing
+  std::vector<std::vector<char>> unneeded_;  // [joint][k] in no live 2D limb (unneeded_candidates)
   std::vector<PersonAssignment> persons_;
   std::vector<std::vector<TriangulatedPoint>> person_pts_;
   std::vector<std::vector<float>> person_conf_;

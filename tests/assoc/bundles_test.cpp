@@ -400,14 +400,13 @@ TEST_F(BundleTest, TrackFirstTakesWhatTheSearchWouldTake) {
 
   FrameGraph& g = s_.graph_;
   ASSERT_TRUE(g.build(s_.det_, s_.cams_, tracks, GraphOptions{}, /*matching=*/false).ok());
-  std::vector<std::vector<int>> covered(3);
-  for (int j = 0; j < 3; ++j) covered[static_cast<std::size_t>(j)].assign(2 * kViews, 0);
   ParsingStats st;
+  std::vector<LimbExclusions> exclusions(2);
   for (int limb = 0; limb < 2; ++limb) {
     std::vector<Bundle> out;
-    LimbExclusions ex;
+    LimbExclusions& ex = exclusions[static_cast<std::size_t>(limb)];
     track_first_bundles(g, s_.topo_, limb, hier_[static_cast<std::size_t>(limb)], opt_, out, ex,
-                        covered, st);
+                        st);
     ASSERT_EQ(out.size(), 2u) << "limb " << limb;
     std::vector<std::pair<int, std::vector<int>>> taken;
     for (const Bundle& b : out) {
@@ -431,9 +430,12 @@ TEST_F(BundleTest, TrackFirstTakesWhatTheSearchWouldTake) {
   }
   EXPECT_EQ(st.track_first_bundles, 4);
   EXPECT_EQ(st.track_first_deferred, 0);
-  // Joint b belongs to both limb types, a and c to one: every candidate was used by each.
-  EXPECT_EQ(covered[1], std::vector<int>(2 * kViews, 2));
-  EXPECT_EQ(covered[0], std::vector<int>(2 * kViews, 1));
+  // Every candidate of every joint was taken by each limb type touching it: the search needs
+  // no matching edge at all.
+  std::vector<std::vector<char>> unneeded;
+  unneeded_candidates(g, s_.topo_, exclusions, unneeded);
+  ASSERT_EQ(unneeded.size(), 3u);
+  for (const auto& u : unneeded) EXPECT_EQ(u, std::vector<char>(2 * kViews, 1));
 }
 
 // Person 0 has a second joint-b candidate 3 px from the first in view 2, with full affinity to
@@ -455,15 +457,12 @@ TEST_F(BundleTest, TrackFirstLeavesAnAmbiguousViewToTheSearch) {
   const std::vector<TrackPose> tracks = {s_.track_of(0, 5), s_.track_of(1, 6)};
   FrameGraph& g = s_.graph_;
   ASSERT_TRUE(g.build(s_.det_, s_.cams_, tracks, GraphOptions{}, /*matching=*/false).ok());
-  std::vector<std::vector<int>> covered(3);
-  for (int j = 0; j < 3; ++j) {
-    covered[static_cast<std::size_t>(j)].assign(static_cast<std::size_t>(g.candidate_count(j)), 0);
-  }
   ParsingStats st;
   std::vector<Bundle> out;
-  LimbExclusions ex;
+  std::vector<LimbExclusions> exclusions(2);  // limb 1 is not parsed here: nothing excluded
+  LimbExclusions& ex = exclusions[0];
   const int limb = 0;
-  track_first_bundles(g, s_.topo_, limb, hier_[0], opt_, out, ex, covered, st);
+  track_first_bundles(g, s_.topo_, limb, hier_[0], opt_, out, ex, st);
   ASSERT_EQ(out.size(), 2u);
   const std::span<const LimbEdge> edges = g.limb_edges(limb);
   int view2_live = 0;
@@ -479,13 +478,13 @@ TEST_F(BundleTest, TrackFirstLeavesAnAmbiguousViewToTheSearch) {
     if (edges[e].view == 2 && !ex.edge_dead[e]) ++view2_live;
   }
   EXPECT_EQ(view2_live, 2) << "both of person 0's view-2 limbs go to the search";
-  std::vector<std::vector<char>> settled(3);
-  for (int j = 0; j < 3; ++j) {
-    for (int c : covered[static_cast<std::size_t>(j)]) {
-      settled[static_cast<std::size_t>(j)].push_back(c >= (j == 1 ? 2 : 1) ? 1 : 0);
-    }
-  }
-  g.build_matching(settled);
+  std::vector<std::vector<char>> unneeded;
+  unneeded_candidates(g, s_.topo_, exclusions, unneeded);
+  EXPECT_EQ(unneeded[0][static_cast<std::size_t>(s_.k_of(0, 2, 0))], 0)
+      << "person 0's view-2 joint a is in both live view-2 limbs";
+  EXPECT_EQ(unneeded[0][static_cast<std::size_t>(s_.k_of(0, 0, 0))], 1)
+      << "person 0's view-0 joint a was taken by track 0";
+  g.build_matching(unneeded);
   std::vector<Bundle> rest;
   parse_limb_bundles(g, s_.topo_, limb, hier_[0], opt_, rest, st, &ex);
   ASSERT_EQ(rest.size(), 1u) << "the two view-2 limbs share joint a: one is taken";
