@@ -145,6 +145,8 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
   // so raw scores below that skip the pow; the test after the pow still decides.
   const float raw_min =
       static_cast<float>(0.999 * std::pow(options.min_affinity, 1.0 / options.affinity_exponent));
+  // Single precision: the result is stored as a float, and powf is several times cheaper.
+  const float exponent = static_cast<float>(options.affinity_exponent);
   for (int l = 0; l < topo.limb_count(); ++l) {
     const Limb& limb = topo.limb(l);
     auto& edges = limb_edges_[idx(l)];
@@ -164,8 +166,7 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
         for (std::size_t ib = b0; ib < b1; ++ib) {
           const float raw = aff.at(ca[ia].index, cb[ib].index);
           if (!(raw > 0.f) || raw < raw_min) continue;
-          const float p =
-              static_cast<float>(std::pow(static_cast<double>(raw), options.affinity_exponent));
+          const float p = std::pow(raw, exponent);
           if (static_cast<double>(p) < options.min_affinity) continue;
           edges.push_back(LimbEdge{v->view_id, static_cast<int>(ia), static_cast<int>(ib), p});
         }

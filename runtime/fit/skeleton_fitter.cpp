@@ -265,10 +265,6 @@ SkeletonFitter::SkeletonFitter(const SkeletonTopology& topology, const FitOption
     }
   }
   order_ = q;
-  ancestors_.resize(ix(J));
-  for (int j = 0; j < J; ++j) {
-    for (int p = parents_[ix(j)]; p >= 0; p = parents_[ix(p)]) ancestors_[ix(j)].push_back(p);
-  }
   for (int j = 0; j < J; ++j) {
     const int p = parents_[ix(j)];
     if (p >= 0) {
@@ -476,20 +472,49 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
     }
   };
   auto huber = [&](double e2) { return e2 <= a * a ? e2 : 2.0 * a * std::sqrt(e2) - a * a; };
-  auto cost = [&](const Eigen::Vector3d& rr, const std::vector<Eigen::Vector3d>& uu) {
+  // The energy at (rr, uu) and, in the same pass over the observations, what the normal
+  // equations need there: per joint M_j = Σ w²J_pᵀJ_p and m_j = Σ w²J_pᵀres (J_p the projection
+  // Jacobian at X_j, w the IRLS weight of the Huber loss). A trial step that is accepted has
+  // thus already been linearised, so each iteration projects every observation once.
+  using JointMats = std::array<Eigen::Matrix3d, kMaxFitJoints>;
+  using JointVecs = std::array<Eigen::Vector3d, kMaxFitJoints>;
+  auto evaluate = [&](const Eigen::Vector3d& rr, const std::vector<Eigen::Vector3d>& uu,
+                      JointMats& M, JointVecs& m) {
     forward(rr, uu);
+    for (int j = 0; j < J; ++j) {
+      M[ix(j)].setZero();
+      m[ix(j)].setZero();
+    }
     double c = 0;
     for (const JointObservation& o : observations) {
       if (o.joint < 0 || o.joint >= J || o.view < 0 || o.view >= static_cast<int>(cameras.size())) {
         continue;
       }
-      double px[2];
-      project_generic(cameras[ix(o.view)], X[ix(o.joint)].data(), px);
-      const double w = options_.reprojection_weight * o.score;
-      const double e2 =
-          w * w *
-          ((px[0] - o.px.x()) * (px[0] - o.px.x()) + (px[1] - o.px.y()) * (px[1] - o.px.y()));
+      Eigen::Vector2d proj;
+      Eigen::Matrix<double, 2, 3> Jp;
+      project_with_jacobian(cameras[ix(o.view)], X[ix(o.joint)], proj, Jp);
+      const double rx = proj.x() - o.px.x();
+      const double ry = proj.y() - o.px.y();
+      double w = options_.reprojection_weight * o.score;
+      const double e2 = w * w * (rx * rx + ry * ry);
       c += 0.5 * huber(e2);
+      if (e2 > a * a) w *= std::sqrt(a / std::sqrt(e2));  // IRLS weight of the Huber loss
+      const double w2 = w * w;
+      // M += w²JᵀJ (symmetric) and m += w²Jᵀres, written out for the 2x3 Jacobian.
+      Eigen::Matrix3d& Mj = M[ix(o.joint)];
+      Eigen::Vector3d& mj = m[ix(o.joint)];
+      for (int q = 0; q < 3; ++q) {
+        const double a0 = w2 * Jp(0, q);
+        const double a1 = w2 * Jp(1, q);
+        for (int k = q; k < 3; ++k) Mj(q, k) += a0 * Jp(0, k) + a1 * Jp(1, k);
+        mj(q) += a0 * rx + a1 * ry;
+      }
+    }
+    for (int j = 0; j < J; ++j) {
+      Eigen::Matrix3d& Mj = M[ix(j)];
+      Mj(1, 0) = Mj(0, 1);
+      Mj(2, 0) = Mj(0, 2);
+      Mj(2, 1) = Mj(1, 2);
     }
     if (wt > 0) {
       c += 0.5 * wt * wt * (rr - state.root_prev).squaredNorm();
@@ -502,138 +527,106 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
     return c;
   };
 
-  // Gauss–Newton normal equations by the chain rule, aggregated per joint: an observation of
-  // joint j depends on the parameters only through X_j, so its contribution is
-  // P_qᵀ (J_pᵀ J_p) P_k for every pair of parameter blocks q, k on the path root -> j
-  // (P = ∂X_j/∂block: I for the root, −L[u]× for a bone). Summing J_pᵀ J_p and J_pᵀ res per
-  // joint, then over subtrees (S_k = Σ_{j in subtree(k)} M_j), gives H(q, k) = P_qᵀ S_k P_k for
-  // k in the subtree of q and g_q = P_qᵀ Σ_{subtree(q)} m_j: the same H and g as summing each
-  // observation's path blocks, at a cost independent of the number of views.
-  //
-  // H has a block only between a joint and its ancestors, so it is kept as D[k] = H(k, k) and
-  // U[k][i] = H(anc_i(k), k) (anc_0 = parent), and solved by block elimination leaves first:
-  // eliminating k only updates blocks between its ancestors, which are already there (no
-  // fill-in), so the factorisation costs O(Σ depth²) 3x3 products instead of O((3J)³).
-  std::array<Eigen::Matrix3d, kMaxFitJoints> S;
-  std::array<Eigen::Vector3d, kMaxFitJoints> G;
-  std::array<Eigen::Matrix3d, kMaxFitJoints> P;
-  std::array<Eigen::Matrix3d, kMaxFitJoints> D, Dd;
-  std::array<Eigen::Vector3d, kMaxFitJoints> gv, y, x;
-  std::array<std::array<Eigen::Matrix3d, kMaxFitJoints>, kMaxFitJoints> U, Ud;
-  std::array<Eigen::LLT<Eigen::Matrix3d>, kMaxFitJoints> Dllt;
+  // Gauss–Newton step by dynamic programming on the skeleton tree. With per-joint sums
+  // M_j = Σ w²J_pᵀJ_p and m_j = Σ w²J_pᵀres (from evaluate), a step δ (root translation, one
+  // rotation vector per bone) moves joint j by z_j = z_parent + P_j δ_j (P = I for the root,
+  // −L[u]× for a bone), and the model energy is
+  //   Σ_j ½ z_jᵀ M_j z_j + m_jᵀ z_j + Σ_b ½ δ_bᵀ T_b δ_b + h_bᵀ δ_b
+  // (T, h: the temporal term and the Levenberg–Marquardt damping). Its minimiser is the
+  // Gauss–Newton/LM step of the chain-rule normal equations (H(q, k) = P_qᵀ S_k P_k for k in the
+  // subtree of q, S_k the subtree sum of M), found leaves first: a joint's energy-to-go is a
+  // quadratic ½zᵀA z + bᵀz in its displacement; minimising over the bone to the parent gives the
+  // parent's share, A − (AP)K⁻¹(AP)ᵀ and b − (AP)K⁻¹c with K = T + PᵀAP and c = h + Pᵀb. Then
+  // δ_j = −K⁻¹(c + (AP)ᵀ z_parent) root first. One 3x3 factorisation per joint: O(J).
+  // The damping scales with the diagonal blocks H(b, b) = P_bᵀ S_b P_b + T_b^temporal, as in
+  // Levenberg–Marquardt on the full system.
+  JointMats S_buf[2];  // M at the current point, and at the trial point
+  JointVecs G_buf[2];  // m likewise
+  int cur = 0;
+  JointMats P, Sub, Hd, Tt, A, AP;
+  JointVecs ht, b, c, z, x;
+  std::array<Eigen::LLT<Eigen::Matrix3d>, kMaxFitJoints> Kllt;
   std::vector<Eigen::Vector3d> u2(ix(J));
+  const int root = order_.front();
   double lambda = 1e-3;
-  double current = cost(r, u);
+  double current = evaluate(r, u, S_buf[cur], G_buf[cur]);
   int it = 0;
   for (; it < options_.max_iterations; ++it) {
-    forward(r, u);
+    const JointMats& S = S_buf[cur];
+    const JointVecs& G = G_buf[cur];
     for (int j = 0; j < J; ++j) {
-      S[ix(j)].setZero();
-      G[ix(j)].setZero();
       P[ix(j)] = parents_[ix(j)] < 0 ? Eigen::Matrix3d::Identity()
                                      : Eigen::Matrix3d(-L[ix(j)] * skew(u[ix(j)]));
+      Sub[ix(j)] = S[ix(j)];
+      Tt[ix(j)].setZero();
+      ht[ix(j)].setZero();
     }
-    for (const JointObservation& o : observations) {
-      if (o.joint < 0 || o.joint >= J || o.view < 0 || o.view >= static_cast<int>(cameras.size())) {
-        continue;
-      }
-      Eigen::Vector2d proj;
-      Eigen::Matrix<double, 2, 3> Jp;
-      project_with_jacobian(cameras[ix(o.view)], X[ix(o.joint)], proj, Jp);
-      const Eigen::Vector2d res = proj - o.px;
-      double w = options_.reprojection_weight * o.score;
-      const double e = w * res.norm();
-      if (e > a) w *= std::sqrt(a / e);  // IRLS weight of the Huber loss
-      const double w2 = w * w;
-      S[ix(o.joint)].noalias() += w2 * (Jp.transpose() * Jp);
-      G[ix(o.joint)].noalias() += w2 * (Jp.transpose() * res);
-    }
-    // Subtree sums, children before parents (reverse BFS order).
+    // Subtree sums (children before parents), for the diagonal blocks the damping scales with.
     for (auto it_j = order_.rbegin(); it_j != order_.rend(); ++it_j) {
       const int p = parents_[ix(*it_j)];
-      if (p < 0) continue;
-      S[ix(p)] += S[ix(*it_j)];
-      G[ix(p)] += G[ix(*it_j)];
-    }
-    for (int k = 0; k < J; ++k) {
-      const Eigen::Matrix3d SP = S[ix(k)] * P[ix(k)];
-      gv[ix(k)] = P[ix(k)].transpose() * G[ix(k)];
-      D[ix(k)] = P[ix(k)].transpose() * SP;
-      const auto& anc = ancestors_[ix(k)];
-      for (std::size_t i = 0; i < anc.size(); ++i) {
-        U[ix(k)][i] = P[ix(anc[i])].transpose() * SP;
-      }
+      if (p >= 0) Sub[ix(p)] += Sub[ix(*it_j)];
     }
     if (wt > 0) {
-      const int root = order_.front();
-      D[ix(root)] += wt * wt * Eigen::Matrix3d::Identity();
-      gv[ix(root)] += wt * wt * (r - state.root_prev);
+      Tt[ix(root)] = wt * wt * Eigen::Matrix3d::Identity();
+      ht[ix(root)] = wt * wt * (r - state.root_prev);
       for (int j = 0; j < J; ++j) {
         if (parents_[ix(j)] < 0) continue;
         const Eigen::Matrix3d Jt = wt * L[ix(j)] * (-skew(u[ix(j)]));
         const Eigen::Vector3d res = wt * L[ix(j)] * (u[ix(j)] - state.dir_prev[ix(j)]);
-        D[ix(j)] += Jt.transpose() * Jt;
-        gv[ix(j)] += Jt.transpose() * res;
+        Tt[ix(j)] = Jt.transpose() * Jt;
+        ht[ix(j)] = Jt.transpose() * res;
       }
     } else {
-      // Untouched parameters (no observation below them, no temporal anchor) are fixed:
-      // identity rows. Their descendants are untouched too.
+      // Untouched parameters (no observation below them, no temporal anchor) are fixed: an
+      // identity block with no gradient and nothing below them, so their step is zero.
       for (int j = 0; j < J; ++j) {
-        if (touched[ix(j)]) continue;
-        D[ix(j)].setIdentity();
-        gv[ix(j)].setZero();
-        for (std::size_t i = 0; i < ancestors_[ix(j)].size(); ++i) U[ix(j)][i].setZero();
+        if (!touched[ix(j)]) Tt[ix(j)].setIdentity();
       }
+    }
+    for (int j = 0; j < J; ++j) {
+      Hd[ix(j)] = P[ix(j)].transpose() * Sub[ix(j)] * P[ix(j)] + Tt[ix(j)];
     }
     bool improved = false;
     for (int tries = 0; tries < 6 && !improved; ++tries) {
-      // Levenberg–Marquardt damping on the diagonal, then block elimination leaves first.
       for (int j = 0; j < J; ++j) {
-        Dd[ix(j)] = D[ix(j)];
-        for (int c = 0; c < 3; ++c) Dd[ix(j)](c, c) += lambda * (D[ix(j)](c, c) + 1e-6);
-        y[ix(j)] = -gv[ix(j)];
-        const std::size_t na = ancestors_[ix(j)].size();
-        for (std::size_t i = 0; i < na; ++i) Ud[ix(j)][i] = U[ix(j)][i];
+        A[ix(j)] = S[ix(j)];
+        b[ix(j)] = G[ix(j)];
       }
       bool ok = true;
-      for (auto it_k = order_.rbegin(); it_k != order_.rend() && ok; ++it_k) {
+      for (auto it_k = order_.rbegin(); it_k != order_.rend(); ++it_k) {
         const int k = *it_k;
-        Eigen::LLT<Eigen::Matrix3d>& f = Dllt[ix(k)];
-        f.compute(Dd[ix(k)]);
+        Eigen::Matrix3d K = Tt[ix(k)];
+        for (int q = 0; q < 3; ++q) K(q, q) += lambda * (Hd[ix(k)](q, q) + 1e-6);
+        AP[ix(k)].noalias() = A[ix(k)] * P[ix(k)];
+        K.noalias() += P[ix(k)].transpose() * AP[ix(k)];
+        c[ix(k)] = ht[ix(k)];
+        c[ix(k)].noalias() += P[ix(k)].transpose() * b[ix(k)];
+        Eigen::LLT<Eigen::Matrix3d>& f = Kllt[ix(k)];
+        f.compute(K);
         if (f.info() != Eigen::Success) {
           ok = false;
           break;
         }
-        const auto& anc = ancestors_[ix(k)];
-        const std::size_t na = anc.size();
-        // W_i = U_i D⁻¹ (row anc_i): Schur updates of the ancestors' blocks and right side.
-        std::array<Eigen::Matrix3d, kMaxFitJoints> W;
-        for (std::size_t i = 0; i < na; ++i) {
-          W[i] = f.solve(Ud[ix(k)][i].transpose()).transpose();
-          y[ix(anc[i])] -= W[i] * y[ix(k)];
-        }
-        for (std::size_t i = 0; i < na; ++i) {
-          const int p = anc[i];
-          Dd[ix(p)] -= W[i] * Ud[ix(k)][i].transpose();
-          // Ancestors of p are anc_{j}(k) for j > i, at index j - i - 1 in p's list.
-          for (std::size_t j = i + 1; j < na; ++j) {
-            Ud[ix(p)][j - i - 1] -= Ud[ix(k)][j] * W[i].transpose();
-          }
-        }
+        const int p = parents_[ix(k)];
+        if (p < 0) continue;
+        const Eigen::Matrix3d KiAPt = f.solve(AP[ix(k)].transpose());  // K⁻¹(AP)ᵀ
+        A[ix(p)] += A[ix(k)];
+        A[ix(p)].noalias() -= AP[ix(k)] * KiAPt;
+        b[ix(p)] += b[ix(k)];
+        b[ix(p)].noalias() -= KiAPt.transpose() * c[ix(k)];
       }
       if (!ok) {
         lambda *= 10;
         continue;
       }
-      // Back substitution, root first.
+      // Steps, root first.
       bool finite = true;
       for (int k : order_) {
-        Eigen::Vector3d rhs = y[ix(k)];
-        const auto& anc = ancestors_[ix(k)];
-        for (std::size_t i = 0; i < anc.size(); ++i) {
-          rhs -= Ud[ix(k)][i].transpose() * x[ix(anc[i])];
-        }
-        x[ix(k)] = Dllt[ix(k)].solve(rhs);
+        const int p = parents_[ix(k)];
+        Eigen::Vector3d rhs = c[ix(k)];
+        if (p >= 0) rhs.noalias() += AP[ix(k)].transpose() * z[ix(p)];
+        x[ix(k)] = -Kllt[ix(k)].solve(rhs);
+        z[ix(k)] = p >= 0 ? Eigen::Vector3d(z[ix(p)] + P[ix(k)] * x[ix(k)]) : x[ix(k)];
         finite = finite && x[ix(k)].allFinite();
       }
       if (!finite) {
@@ -649,8 +642,9 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
         if (angle > 1e-12)
           u2[ix(j)] = (Eigen::AngleAxisd(angle, d / angle) * u[ix(j)]).normalized();
       }
-      const double c2 = cost(r2, u2);
+      const double c2 = evaluate(r2, u2, S_buf[1 - cur], G_buf[1 - cur]);
       if (c2 < current) {
+        cur = 1 - cur;
         const double rel = (current - c2) / std::max(current, 1e-12);
         r = r2;
         std::swap(u, u2);

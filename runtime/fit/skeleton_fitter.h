@@ -133,11 +133,10 @@ class SkeletonFitter {
   const SkeletonTopology* topology_;
   FitOptions options_;
   std::vector<int> parents_;
-  std::vector<int> order_;                   // joints in BFS order (parents first)
-  std::vector<std::vector<int>> ancestors_;  // [joint] parent, grandparent, ..., root
-  std::vector<double> template_length_m_;    // [joint]
-  std::vector<Eigen::Vector3d> rest_dir_;    // [joint] T-pose bone direction (z up, x = left)
-  std::vector<int> mirror_;                  // [joint] l_/r_ counterpart or -1
+  std::vector<int> order_;                 // joints in BFS order (parents first)
+  std::vector<double> template_length_m_;  // [joint]
+  std::vector<Eigen::Vector3d> rest_dir_;  // [joint] T-pose bone direction (z up, x = left)
+  std::vector<int> mirror_;                // [joint] l_/r_ counterpart or -1
 };
 
 // The projection the fitter minimises (Camera::project without its behind-camera test: depth
