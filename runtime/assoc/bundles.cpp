@@ -655,9 +655,10 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
   // 2D limbs went to it, or a candidate of its 2D limb is also in another track's 2D limb).
   thread_local std::vector<int> pick;
   thread_local std::vector<int> owner_a, owner_b;  // [k] track whose picked limb uses k; -2 two
-  pick.assign(ix(T * V), -1);
-  owner_a.assign(ix(graph.candidate_count(L.joint_a)), -1);
-  owner_b.assign(ix(graph.candidate_count(L.joint_b)), -1);
+  thread_local std::vector<int> assigned;          // [e] the track the 2D limb went to, or -1
+  thread_local std::vector<char> removed;          // [e] left out by the consistency test
+  assigned.assign(edges.size(), -1);
+  removed.assign(edges.size(), 0);
   for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
     const LimbEdge& x = edges[ix(e)];
     if (graph.tracks_of_candidate(L.joint_a, x.ka) == 0 ||
@@ -673,19 +674,94 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
         best = t;
       }
     }
-    if (best < 0) continue;
-    int& slot = pick[ix(best * V + x.view)];
-    slot = slot == -1 ? e : -2;
-    for (int* o : {&owner_a[ix(x.ka)], &owner_b[ix(x.kb)]})
-      *o = (*o == -1 || *o == best) ? best : -2;
+    assigned[ix(e)] = best;
   }
-  for (int& e : pick) {
-    if (e >= 0 && (owner_a[ix(edges[ix(e)].ka)] < 0 || owner_b[ix(edges[ix(e)].kb)] < 0)) e = -2;
+  // Per track and view the one 2D limb assigned to it, with the ambiguities marked (-2).
+  thread_local std::vector<double> merit;  // [e] clique-score share of a consistent 2D limb
+  merit.assign(edges.size(), 0.0);
+  const auto make_picks = [&] {
+    pick.assign(ix(T * V), -1);
+    owner_a.assign(ix(graph.candidate_count(L.joint_a)), -1);
+    owner_b.assign(ix(graph.candidate_count(L.joint_b)), -1);
+    for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+      const int best = assigned[ix(e)];
+      if (best < 0 || removed[ix(e)]) continue;
+      const LimbEdge& x = edges[ix(e)];
+      int& slot = pick[ix(best * V + x.view)];
+      if (slot == -1) {
+        slot = e;
+      } else if (slot >= 0 && merit[ix(e)] > 0.0 && merit[ix(slot)] > 0.0 &&
+                 merit[ix(e)] != merit[ix(slot)]) {
+        // Two 2D limbs of one view both fit the track's clique: the one the clique score
+        // prefers (the same other views, so only its own terms differ).
+        if (merit[ix(e)] > merit[ix(slot)]) slot = e;
+      } else {
+        slot = -2;
+      }
+      for (int* o : {&owner_a[ix(x.ka)], &owner_b[ix(x.kb)]})
+        *o = (*o == -1 || *o == best) ? best : -2;
+    }
+    bool any_ambiguous = false;
+    for (int& e : pick) {
+      if (e >= 0 && (owner_a[ix(edges[ix(e)].ka)] < 0 || owner_b[ix(edges[ix(e)].kb)] < 0)) e = -2;
+      any_ambiguous = any_ambiguous || e == -2;
+    }
+    return any_ambiguous;
+  };
+  if (make_picks()) {
+    // Most ambiguities come from a spurious 2D limb joining two people (a stray affinity between
+    // candidates whose rays both pass near one track): it lands in a view of a track next to
+    // that track's own 2D limb, or shares a candidate with another track's. A 2D limb in an
+    // ambiguous view that is not joined by matching edges at both ends to every unambiguous 2D
+    // limb of its track (at least 2 of them) cannot be in a limb clique with them, so it is left
+    // out of its track's choice (it stays in the graph for the clique search); the picks are
+    // then made again without it. 2D limbs that pass stay ambiguous if two of them remain.
+    thread_local std::vector<int> core;  // [t * V + v] unambiguous picks of the first pass
+    core = pick;
+    for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+      const int t = assigned[ix(e)];
+      if (t < 0) continue;
+      const LimbEdge& x = edges[ix(e)];
+      if (core[ix(t * V + x.view)] != -2) {
+        // Its view is unambiguous, unless a candidate is shared with another track's limb.
+        if (owner_a[ix(x.ka)] >= 0 && owner_b[ix(x.kb)] >= 0) continue;
+      }
+      int core_size = 0;
+      bool consistent = true;
+      double match_sum = 0;
+      for (int v = 0; v < V && consistent; ++v) {
+        const int c = core[ix(t * V + v)];
+        if (c < 0 || v == x.view) continue;
+        ++core_size;
+        const LimbEdge& y = edges[ix(c)];
+        const float wa = graph.ensure_match(L.joint_a, x.ka, y.ka);
+        const float wb = wa > 0.f ? graph.ensure_match(L.joint_b, x.kb, y.kb) : 0.f;
+        consistent = wa > 0.f && wb > 0.f;
+        match_sum += 0.5 * static_cast<double>(wa + wb);
+      }
+      if (!consistent || core_size < 2) {
+        removed[ix(e)] = 1;
+        continue;
+      }
+      // Its terms in the clique score of the core plus it (n 2D limbs): pairwise matching over
+      // the n(n-1)/2 pairs, tracking and parsing over n.
+      const double n = core_size + 1;
+      merit[ix(e)] =
+          options.w_match * match_sum / (0.5 * n * (n - 1)) +
+          (options.w_track * static_cast<double>(std::min(graph.track(L.joint_a, t, x.ka),
+                                                          graph.track(L.joint_b, t, x.kb))) +
+           options.w_paf * static_cast<double>(x.p)) /
+              n;
+    }
+    make_picks();
   }
 
   const Scorer scorer = make_scorer(graph, topology, limb, hierarchy_weight, options);
   std::vector<int> members;
   std::vector<int> dropped;
+  thread_local std::vector<char> fail;        // [i * m + j] members i, j not joined
+  thread_local std::vector<int> fails;        // [i] missing edges of member i; -1 dropped
+  thread_local std::vector<double> evidence;  // [i] summed matching edges of member i
   const std::size_t first = out.size();
   for (int t = 0; t < T; ++t) {
     if (!graph.track_has_joint(t, L.joint_a) || !graph.track_has_joint(t, L.joint_b)) continue;
@@ -698,14 +774,57 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
       if (e >= 0) members.push_back(e);
     }
     if (members.empty()) continue;
-    // A limb clique: every two of its 2D limbs are joined by matching edges at both ends.
-    for (std::size_t i = 0; i < members.size() && !ambiguous; ++i) {
-      const LimbEdge& x = edges[ix(members[i])];
-      for (std::size_t j = i + 1; j < members.size() && !ambiguous; ++j) {
-        const LimbEdge& y = edges[ix(members[j])];
-        ambiguous = graph.ensure_match(L.joint_a, x.ka, y.ka) <= 0.f ||
-                    graph.ensure_match(L.joint_b, x.kb, y.kb) <= 0.f;
+    // A limb clique: every two of its 2D limbs are joined by matching edges at both ends. A 2D
+    // limb that is not (an occluded or displaced detection, a stray limb) is dropped, the one
+    // with most missing edges first (ties: the least matching evidence), until the rest is a
+    // clique: the largest maximal clique of these limbs and the track, which is what the clique
+    // search would score. Dropped 2D limbs stay in the graph for the search.
+    {
+      const std::size_t m = members.size();
+      fail.assign(m * m, 0);
+      fails.assign(m, 0);
+      evidence.assign(m, 0.0);
+      int total = 0;
+      for (std::size_t i = 0; i < m; ++i) {
+        const LimbEdge& x = edges[ix(members[i])];
+        for (std::size_t j = i + 1; j < m; ++j) {
+          const LimbEdge& y = edges[ix(members[j])];
+          const float wa = graph.ensure_match(L.joint_a, x.ka, y.ka);
+          const float wb = wa > 0.f ? graph.ensure_match(L.joint_b, x.kb, y.kb) : 0.f;
+          if (wa > 0.f && wb > 0.f) {
+            evidence[i] += static_cast<double>(wa + wb);
+            evidence[j] += static_cast<double>(wa + wb);
+          } else {
+            fail[i * m + j] = fail[j * m + i] = 1;
+            ++fails[i];
+            ++fails[j];
+            ++total;
+          }
+        }
       }
+      while (total > 0) {
+        std::size_t worst = m;
+        for (std::size_t i = 0; i < m; ++i) {
+          if (fails[i] <= 0) continue;
+          if (worst == m || fails[i] > fails[worst] ||
+              (fails[i] == fails[worst] && evidence[i] < evidence[worst])) {
+            worst = i;
+          }
+        }
+        for (std::size_t j = 0; j < m; ++j) {
+          if (fail[worst * m + j]) {
+            fail[worst * m + j] = fail[j * m + worst] = 0;
+            --fails[j];
+            --total;
+          }
+        }
+        fails[worst] = -1;  // dropped
+      }
+      std::size_t kept = 0;
+      for (std::size_t i = 0; i < m; ++i) {
+        if (fails[i] >= 0) members[kept++] = members[i];
+      }
+      members.resize(kept);
     }
     int track = t;
     dropped.clear();

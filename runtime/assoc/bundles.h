@@ -64,15 +64,20 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
                         std::vector<Bundle>& out, ParsingStats& stats,
                         const LimbExclusions* exclusions = nullptr);
 
-// Track-first parsing of one limb type (CliqueOptions::track_first): a previous 3D limb whose
-// tracking edges select, in each view, exactly one 2D limb whose candidates have a tracking
-// edge to that track only, and whose selected 2D limbs are pairwise joined by matching edges
-// at both ends, is a limb clique the clique search would find as it is; it is scored and pruned
-// like any clique (prune_clique) and taken when the track survives pruning. Everything else
-// (tracks with rival candidates or rival tracks in a view, new people) is left to
-// parse_limb_bundles, with the taken 2D limbs, the 2D limbs sharing their candidates and the
-// taken tracks recorded in `exclusions`. Matching edges between the selected 2D limbs are
-// computed here on demand (FrameGraph::ensure_match).
+// Track-first parsing of one limb type (CliqueOptions::track_first). Each 2D limb goes to the
+// track nearest both its ends; per track and view the one 2D limb that went to it is picked.
+// A view is ambiguous when two 2D limbs went to the track or a candidate is shared with another
+// track's pick; there, 2D limbs not joined by matching edges at both ends to every unambiguous
+// pick of their track (at least 2) are set aside, and of two that both are, the one with the
+// larger share of the clique score (matching to those picks, tracking, parsing) is picked.
+// The picks of a track, less those breaking the clique condition (every two joined by matching
+// edges at both ends; most missing edges dropped first), are a limb clique with the previous 3D
+// limb: it is scored and pruned like any clique (prune_clique) and taken when the track survives
+// pruning, it has >= 2 views and triangulates near the track. Everything else (views still
+// ambiguous, 2D limbs set aside or dropped, new people) is left to parse_limb_bundles, with the
+// taken 2D limbs, the 2D limbs sharing their candidates and the taken tracks recorded in
+// `exclusions`. Matching edges between the 2D limbs compared are computed here on demand
+// (FrameGraph::ensure_match).
 void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, int limb,
                          double hierarchy_weight, const CliqueOptions& options,
                          std::vector<Bundle>& out, LimbExclusions& exclusions, ParsingStats& stats);

@@ -441,11 +441,13 @@ TEST_F(BundleTest, TrackFirstTakesWhatTheSearchWouldTake) {
 // Person 0 has a second joint-b candidate 3 px from the first in view 2, with full affinity to
 // its joint a: two 2D limbs of track 0 in that view. View 2 stays out of track 0's bundle and
 // both of its 2D limbs are left to the clique search, which takes one of them.
+// Person 0's view-2 joint b detected twice, both joined to its joint a: two 2D limbs of track 0
+// in view 2, sharing joint a. Identical duplicates tie on the clique score, so the view stays
+// ambiguous and goes to the search.
 TEST_F(BundleTest, TrackFirstLeavesAnAmbiguousViewToTheSearch) {
   ViewDetections& v2 = s_.det_.views[2];
   const int b0 = s_.det_index(2, 0);
   JointCandidate dup = v2.candidates[1][static_cast<std::size_t>(b0)];
-  dup.x_px += 3.f;
   v2.candidates[1].push_back(dup);
   AffinityMatrix ab(2, 3, 0.f);
   for (int r = 0; r < 2; ++r) ab.at(r, r) = 1.f;
@@ -491,6 +493,94 @@ TEST_F(BundleTest, TrackFirstLeavesAnAmbiguousViewToTheSearch) {
   EXPECT_EQ(rest[0].track, -1);
   ASSERT_EQ(rest[0].edges.size(), 1u);
   EXPECT_EQ(edges[static_cast<std::size_t>(rest[0].edges[0])].view, 2);
+}
+
+// The same with the duplicate 3 px off: both 2D limbs fit track 0's clique, and the one the
+// clique score prefers (the true detection, better matched to the other views) is taken with it.
+// The other shares joint a with it and is gone.
+TEST_F(BundleTest, TrackFirstPicksTheBetterOfTwoFittingLimbsInAView) {
+  ViewDetections& v2 = s_.det_.views[2];
+  const int b0 = s_.det_index(2, 0);
+  JointCandidate dup = v2.candidates[1][static_cast<std::size_t>(b0)];
+  dup.x_px += 3.f;
+  v2.candidates[1].push_back(dup);
+  AffinityMatrix ab(2, 3, 0.f);
+  for (int r = 0; r < 2; ++r) ab.at(r, r) = 1.f;
+  ab.at(s_.det_index(2, 0), 2) = 1.f;
+  v2.affinities[0] = ab;
+  AffinityMatrix bc(3, 2, 0.f);
+  for (int r = 0; r < 2; ++r) bc.at(r, r) = 1.f;
+  v2.affinities[1] = bc;
+  const std::vector<TrackPose> tracks = {s_.track_of(0, 5), s_.track_of(1, 6)};
+  FrameGraph& g = s_.graph_;
+  ASSERT_TRUE(g.build(s_.det_, s_.cams_, tracks, GraphOptions{}, /*matching=*/false).ok());
+  ParsingStats st;
+  std::vector<Bundle> out;
+  LimbExclusions ex;
+  const int limb = 0;
+  track_first_bundles(g, s_.topo_, limb, hier_[0], opt_, out, ex, st);
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(st.track_first_deferred, 0);
+  const std::span<const LimbEdge> edges = g.limb_edges(limb);
+  for (const Bundle& b : out) {
+    EXPECT_EQ(b.edges.size(), static_cast<std::size_t>(kViews)) << "track " << b.track;
+    if (b.track != 0) continue;
+    for (int m : b.edges) {
+      const LimbEdge& x = edges[static_cast<std::size_t>(m)];
+      if (x.view != 2) continue;
+      EXPECT_EQ(x.kb, s_.k_of(1, 2, 0)) << "the true joint b, not its duplicate";
+    }
+  }
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    EXPECT_TRUE(ex.edge_dead[e]) << "every 2D limb is taken or shares a candidate with one";
+  }
+}
+
+// Person 0's view-2 joint a detected off target: its ray still passes near track 0's joint (a
+// tracking edge) but not near the other views' rays (no matching edge). The view breaks the
+// clique condition, so it is dropped from track 0's bundle, which is still taken from the other
+// two views; the displaced 2D limb stays in the graph for the search.
+TEST_F(BundleTest, TrackFirstDropsAViewThatBreaksTheClique) {
+  const int limb = 0;
+  const int ja = s_.topo_.limb(limb).joint_a;
+  const std::vector<TrackPose> tracks = {s_.track_of(0, 5), s_.track_of(1, 6)};
+  FrameGraph& g = s_.graph_;
+  // A shift (direction in 15 degree steps, length in 2 px steps) that loses both matching edges
+  // but keeps the tracking edge: a ray 0.15-0.2 m off the joint, across both other views' rays.
+  bool found = false;
+  for (int dir = 0; dir < 24 && !found; ++dir) {
+    const double a = kPi * dir / 12.0;
+    for (int step = 1; step <= 100 && !found; ++step) {
+      const double len_px = 2.0 * step;
+      s_.shift_pixel(2, ja, 0, len_px * std::cos(a), len_px * std::sin(a));
+      ASSERT_TRUE(g.build(s_.det_, s_.cams_, tracks, GraphOptions{}, /*matching=*/false).ok());
+      const int k2 = s_.k_of(ja, 2, 0);
+      found = g.track(ja, 0, k2) > 0.f && g.ensure_match(ja, k2, s_.k_of(ja, 0, 0)) <= 0.f &&
+              g.ensure_match(ja, k2, s_.k_of(ja, 1, 0)) <= 0.f;
+      if (!found) s_.shift_pixel(2, ja, 0, -len_px * std::cos(a), -len_px * std::sin(a));
+    }
+  }
+  ASSERT_TRUE(found) << "no shift gives a tracking edge without matching edges";
+  ASSERT_TRUE(g.build(s_.det_, s_.cams_, tracks, GraphOptions{}, /*matching=*/false).ok());
+  ParsingStats st;
+  std::vector<Bundle> out;
+  LimbExclusions ex;
+  track_first_bundles(g, s_.topo_, limb, hier_[0], opt_, out, ex, st);
+  ASSERT_EQ(out.size(), 2u);
+  const std::span<const LimbEdge> edges = g.limb_edges(limb);
+  for (const Bundle& b : out) {
+    if (b.track != 0) {
+      EXPECT_EQ(b.edges.size(), static_cast<std::size_t>(kViews));
+      continue;
+    }
+    ASSERT_EQ(b.edges.size(), 2u);
+    for (int m : b.edges) EXPECT_NE(edges[static_cast<std::size_t>(m)].view, 2);
+  }
+  int view2_live = 0;
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (edges[e].view == 2 && !ex.edge_dead[e]) ++view2_live;
+  }
+  EXPECT_EQ(view2_live, 1) << "the displaced 2D limb is left to the search";
 }
 
 // ---------------------------------------------------------------------------- assembling
