@@ -537,7 +537,7 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
   // subtree of q, S_k the subtree sum of M), found leaves first: a joint's energy-to-go is a
   // quadratic ½zᵀA z + bᵀz in its displacement; minimising over the bone to the parent gives the
   // parent's share, A − (AP)K⁻¹(AP)ᵀ and b − (AP)K⁻¹c with K = T + PᵀAP and c = h + Pᵀb. Then
-  // δ_j = −K⁻¹(c + (AP)ᵀ z_parent) root first. One 3x3 factorisation per joint: O(J).
+  // δ_j = −K⁻¹(c + (AP)ᵀ z_parent) root first. One 3x3 inverse per joint: O(J).
   // The damping scales with the diagonal blocks H(b, b) = P_bᵀ S_b P_b + T_b^temporal, as in
   // Levenberg–Marquardt on the full system.
   JointMats S_buf[2];  // M at the current point, and at the trial point
@@ -545,7 +545,7 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
   int cur = 0;
   JointMats P, Sub, Hd, Tt, A, AP;
   JointVecs ht, b, c, z, x;
-  std::array<Eigen::LLT<Eigen::Matrix3d>, kMaxFitJoints> Kllt;
+  JointMats Kinv;
   std::vector<Eigen::Vector3d> u2(ix(J));
   const int root = order_.front();
   double lambda = 1e-3;
@@ -601,15 +601,19 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
         K.noalias() += P[ix(k)].transpose() * AP[ix(k)];
         c[ix(k)] = ht[ix(k)];
         c[ix(k)].noalias() += P[ix(k)].transpose() * b[ix(k)];
-        Eigen::LLT<Eigen::Matrix3d>& f = Kllt[ix(k)];
-        f.compute(K);
-        if (f.info() != Eigen::Success) {
+        // K is symmetric positive definite when its leading minors are positive (Sylvester);
+        // then its closed-form inverse (inlined, unlike a 3x3 factorisation with matrix
+        // right-hand sides) serves both solves below.
+        const double m1 = K(0, 0) * K(1, 1) - K(0, 1) * K(0, 1);
+        const double det = K.determinant();
+        if (!(K(0, 0) > 0.0) || !(m1 > 0.0) || !(det > 0.0)) {
           ok = false;
           break;
         }
+        Kinv[ix(k)] = K.inverse();
         const int p = parents_[ix(k)];
         if (p < 0) continue;
-        const Eigen::Matrix3d KiAPt = f.solve(AP[ix(k)].transpose());  // K⁻¹(AP)ᵀ
+        const Eigen::Matrix3d KiAPt = Kinv[ix(k)] * AP[ix(k)].transpose();  // K⁻¹(AP)ᵀ
         A[ix(p)] += A[ix(k)];
         A[ix(p)].noalias() -= AP[ix(k)] * KiAPt;
         b[ix(p)] += b[ix(k)];
@@ -625,7 +629,7 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
         const int p = parents_[ix(k)];
         Eigen::Vector3d rhs = c[ix(k)];
         if (p >= 0) rhs.noalias() += AP[ix(k)].transpose() * z[ix(p)];
-        x[ix(k)] = -Kllt[ix(k)].solve(rhs);
+        x[ix(k)] = -(Kinv[ix(k)] * rhs);
         z[ix(k)] = p >= 0 ? Eigen::Vector3d(z[ix(p)] + P[ix(k)] * x[ix(k)]) : x[ix(k)];
         finite = finite && x[ix(k)].allFinite();
       }
