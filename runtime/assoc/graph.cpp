@@ -121,19 +121,23 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
       track_pos_[idx(t * J + j)] = tp.joints_m[idx(j)];
       const Eigen::Vector3d& X = tp.joints_m[idx(j)];
       const double T2 = options.max_track_dist_m * options.max_track_dist_m;
+      // point_ray_distance_m for unit directions (backproject normalises them):
+      // d² = |v|² − (v·d)² with v = X − origin. Candidates come grouped by view, whose rays
+      // share the camera centre as origin, so v and |v|² are computed once per view.
+      int v_view = -1;
+      Eigen::Vector3d v = Eigen::Vector3d::Zero();
+      double vv = 0;
       for (int k = 0; k < n; ++k) {
-        // point_ray_distance_m, with the rejection (most pairs) decided on squared lengths.
-        const Ray& ray = cj[idx(k)].ray;
-        const Eigen::Vector3d v = X - ray.origin_m;
-        const double dd = ray.direction.squaredNorm();
-        double d = 0;
-        if (dd > 0.0) {
-          const double c2 = v.cross(ray.direction).squaredNorm();
-          if (c2 >= T2 * dd) continue;
-          d = std::sqrt(c2 / dd);
-        } else {
-          d = v.norm();  // degenerate ray: distance to its origin
+        const GraphCandidate& gc = cj[idx(k)];
+        if (gc.view != v_view) {
+          v_view = gc.view;
+          v = X - gc.ray.origin_m;
+          vv = v.squaredNorm();
         }
+        const double vd = v.dot(gc.ray.direction);
+        const double d2 = std::max(0.0, vv - vd * vd);
+        if (d2 >= T2) continue;
+        const double d = std::sqrt(d2);
         if (d >= options.max_track_dist_m) continue;
         tr[idx(t * n + k)] = static_cast<float>(1.0 - d / options.max_track_dist_m);
         ++deg[idx(k)];
