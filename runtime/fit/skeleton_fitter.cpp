@@ -637,6 +637,23 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
         lambda *= 10;
         continue;
       }
+      // Decrease the quadratic model predicts for this step: −(gᵀδ + ½δᵀHδ), with
+      // gᵀδ = Σ m_jᵀz_j + Σ h_bᵀδ_b and δᵀHδ = Σ z_jᵀM_j z_j + Σ δ_bᵀT_bδ_b (undamped). A step
+      // predicted to gain less than the convergence fraction is not worth pricing: stop here.
+      if (it > 0) {
+        double gd = 0;
+        double dHd = 0;
+        for (int j = 0; j < J; ++j) {
+          gd += G[ix(j)].dot(z[ix(j)]) + ht[ix(j)].dot(x[ix(j)]);
+          dHd += z[ix(j)].dot(S[ix(j)] * z[ix(j)]);
+          if (touched[ix(j)] || wt > 0) dHd += x[ix(j)].dot(Tt[ix(j)] * x[ix(j)]);
+        }
+        const double predicted = -(gd + 0.5 * dHd);
+        if (predicted < options_.converged_relative_decrease * current) {
+          it = options_.max_iterations;  // converged
+          break;
+        }
+      }
       Eigen::Vector3d r2 = r + x[ix(order_.front())];
       u2 = u;
       for (int j = 0; j < J; ++j) {
