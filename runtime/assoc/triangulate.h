@@ -27,11 +27,22 @@ struct TriangulatedPoint {
 
 // Adds weight·(I − ddᵀ) and weight·(I − ddᵀ)·o of ray (o, d) to the normal equations A X = b
 // whose solution is the point minimising the weighted squared distances to the rays added.
+// Written out for a unit direction d (Camera::backproject normalises): (I − ddᵀ)o = o − d(d·o).
 inline void add_ray_normal_equations(const Ray& ray, double weight, Eigen::Matrix3d& A,
                                      Eigen::Vector3d& b) {
-  const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - ray.direction * ray.direction.transpose();
-  A += weight * P;
-  b += weight * (P * ray.origin_m);
+  const Eigen::Vector3d& d = ray.direction;
+  const Eigen::Vector3d& o = ray.origin_m;
+  const Eigen::Vector3d wd = weight * d;
+  const double do_ = d.dot(o);
+  for (int r = 0; r < 3; ++r) {
+    A(r, r) += weight - wd(r) * d(r);
+    for (int c = r + 1; c < 3; ++c) {
+      const double v = wd(r) * d(c);
+      A(r, c) -= v;
+      A(c, r) -= v;
+    }
+    b(r) += weight * o(r) - wd(r) * do_;
+  }
 }
 
 // Robust triangulation. When the weighted least-squares point of all views (over rays,
