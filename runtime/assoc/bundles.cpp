@@ -252,8 +252,10 @@ Scorer make_scorer(const FrameGraph& graph, const SkeletonTopology& topology, in
 // offer them as a clique of their own: nothing is lost by pruning). Incremental: the clique's
 // sums (parsing, pairwise matching per member, tracking, ray normal equations) are kept, so
 // each candidate removal is scored in O(1) and each step costs O(k) for k members.
+// `pair` (optional, k x k row-major in member order) holds Scorer::pair_match of every two
+// members when the caller already has them.
 double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
-                    std::vector<int>& dropped) {
+                    std::vector<int>& dropped, std::span<const double> pair = {}) {
   const int k = static_cast<int>(members.size());
   if (k == 0) return 0;
   if (k == 1) {
@@ -293,7 +295,8 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
     const LimbEdge& x = s.edges[ix(members[ix(i)])];
     paf += static_cast<double>(x.p);
     for (int j = i + 1; j < k; ++j) {
-      const double w = s.pair_match(x, s.edges[ix(members[ix(j)])]);
+      const double w =
+          pair.empty() ? s.pair_match(x, s.edges[ix(members[ix(j)])]) : pair[ix(i * k + j)];
       row[ix(i)] += w;
       row[ix(j)] += w;
       match += w;
@@ -371,7 +374,9 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
         bb -= qb[ix(drop)];
       }
       for (int j = 0; j < k; ++j) {
-        if (alive[ix(j)]) row[ix(j)] -= s.pair_match(x, s.edges[ix(members[ix(j)])]);
+        if (!alive[ix(j)]) continue;
+        row[ix(j)] -=
+            pair.empty() ? s.pair_match(x, s.edges[ix(members[ix(j)])]) : pair[ix(drop * k + j)];
       }
       dropped.push_back(members[ix(drop)]);
     }
@@ -762,6 +767,7 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
   thread_local std::vector<char> fail;        // [i * m + j] members i, j not joined
   thread_local std::vector<int> fails;        // [i] missing edges of member i; -1 dropped
   thread_local std::vector<double> evidence;  // [i] summed matching edges of member i
+  thread_local std::vector<double> pair_w;    // [i * m + j] pair_match of members i, j
   const std::size_t first = out.size();
   for (int t = 0; t < T; ++t) {
     if (!graph.track_has_joint(t, L.joint_a) || !graph.track_has_joint(t, L.joint_b)) continue;
@@ -782,6 +788,7 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     {
       const std::size_t m = members.size();
       fail.assign(m * m, 0);
+      pair_w.assign(m * m, 0.0);
       fails.assign(m, 0);
       evidence.assign(m, 0.0);
       int total = 0;
@@ -794,6 +801,9 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
           if (wa > 0.f && wb > 0.f) {
             evidence[i] += static_cast<double>(wa + wb);
             evidence[j] += static_cast<double>(wa + wb);
+            // Scorer::pair_match, for prune_clique below.
+            pair_w[i * m + j] = pair_w[j * m + i] =
+                0.5 * (static_cast<double>(wa) + static_cast<double>(wb));
           } else {
             fail[i * m + j] = fail[j * m + i] = 1;
             ++fails[i];
@@ -822,13 +832,22 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
       }
       std::size_t kept = 0;
       for (std::size_t i = 0; i < m; ++i) {
-        if (fails[i] >= 0) members[kept++] = members[i];
+        if (fails[i] < 0) continue;
+        members[kept] = members[i];
+        fails[kept++] = static_cast<int>(i);  // old index of the kept member
       }
       members.resize(kept);
+      // The kept members' pair weights, compacted in place (row-major, new order).
+      for (std::size_t i = 0; i < kept; ++i) {
+        for (std::size_t j = 0; j < kept; ++j) {
+          pair_w[i * kept + j] = pair_w[ix(fails[i]) * m + ix(fails[j])];
+        }
+      }
+      pair_w.resize(kept * kept);
     }
     int track = t;
     dropped.clear();
-    const double score = ambiguous ? 0.0 : prune_clique(scorer, track, members, dropped);
+    const double score = ambiguous ? 0.0 : prune_clique(scorer, track, members, dropped, pair_w);
     // Pruning that gives up the track says the clique is not clear-cut, and so does a clique
     // whose 2D limbs, triangulated, are not where the track was (rays of a person who moved
     // far can pass near the old joints in the views looking along the motion), or that has a
