@@ -534,6 +534,10 @@ TEST_F(BundleTest, TrackFirstPicksTheBetterOfTwoFittingLimbsInAView) {
   for (std::size_t e = 0; e < edges.size(); ++e) {
     EXPECT_TRUE(ex.edge_dead[e]) << "every 2D limb is taken or shares a candidate with one";
   }
+  for (const Bundle& b : out) {
+    EXPECT_NEAR(b.score, score_bundle(g, s_.topo_, limb, hier_[0], opt_, b.track, b.edges), 1e-12)
+        << "track " << b.track;
+  }
 }
 
 // Person 0's view-2 joint a detected off target: its ray still passes near track 0's joint (a
@@ -581,6 +585,10 @@ TEST_F(BundleTest, TrackFirstDropsAViewThatBreaksTheClique) {
     if (edges[e].view == 2 && !ex.edge_dead[e]) ++view2_live;
   }
   EXPECT_EQ(view2_live, 1) << "the displaced 2D limb is left to the search";
+  for (const Bundle& b : out) {
+    EXPECT_NEAR(b.score, score_bundle(g, s_.topo_, limb, hier_[0], opt_, b.track, b.edges), 1e-12)
+        << "track " << b.track << ": the score of what was taken, recomputed from scratch";
+  }
 }
 
 // ---------------------------------------------------------------------------- assembling
