@@ -143,8 +143,38 @@ class SkeletonFitter {
 // The projection the fitter minimises (Camera::project without its behind-camera test: depth
 // is clamped to 1e-6 m) and its 2x3 Jacobian with respect to X, analytically (the fast
 // solver's hot loop: the derivatives a 3-wide Jet would carry, at a third of the work).
-void project_with_jacobian(const Camera& cam, const Eigen::Vector3d& X_m, Eigen::Vector2d& px,
-                           Eigen::Matrix<double, 2, 3>& J);
+inline void project_with_jacobian(const Camera& cam, const Eigen::Vector3d& X, Eigen::Vector2d& px,
+                                  Eigen::Matrix<double, 2, 3>& J) {
+  const Eigen::Vector3d xc = cam.R() * X + cam.t_m();
+  double z = xc.z();
+  const bool clamped = z < 1e-6;
+  if (clamped) z = 1e-6;  // behind the camera: clamped as in project_generic (z constant)
+  const double iz = 1.0 / z;
+  const double x = xc.x() * iz;
+  const double y = xc.y() * iz;
+  // d(x, y) / d(xc).
+  Eigen::Matrix<double, 2, 3> P;
+  P << iz, 0.0, clamped ? 0.0 : -x * iz, 0.0, iz, clamped ? 0.0 : -y * iz;
+  double xd = x;
+  double yd = y;
+  Eigen::Matrix2d Dd = Eigen::Matrix2d::Identity();
+  if (cam.has_distortion()) {
+    const Distortion& d = cam.distortion();
+    const double r2 = x * x + y * y;
+    const double radial = 1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3));
+    const double dradial = d.k1 + r2 * (2.0 * d.k2 + 3.0 * r2 * d.k3);  // d radial / d r2
+    xd = x * radial + 2.0 * d.p1 * x * y + d.p2 * (r2 + 2.0 * x * x);
+    yd = y * radial + d.p1 * (r2 + 2.0 * y * y) + 2.0 * d.p2 * x * y;
+    Dd(0, 0) = radial + 2.0 * x * x * dradial + 2.0 * d.p1 * y + 6.0 * d.p2 * x;
+    Dd(0, 1) = 2.0 * x * y * dradial + 2.0 * d.p1 * x + 2.0 * d.p2 * y;
+    Dd(1, 0) = 2.0 * x * y * dradial + 2.0 * d.p1 * x + 2.0 * d.p2 * y;
+    Dd(1, 1) = radial + 2.0 * y * y * dradial + 6.0 * d.p1 * y + 2.0 * d.p2 * x;
+  }
+  px = Eigen::Vector2d(cam.fx() * xd + cam.skew() * yd + cam.cx(), cam.fy() * yd + cam.cy());
+  Eigen::Matrix2d Kp;
+  Kp << cam.fx(), cam.skew(), 0.0, cam.fy();
+  J.noalias() = (Kp * Dd) * P * cam.R();
+}
 
 // Template bone length (metres, adult ~1.75 m) and rest direction for a bone joint_a ->
 // joint_b by joint names; unknown names get 0.25 m pointing away from the root.
