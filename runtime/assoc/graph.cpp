@@ -46,7 +46,6 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
   candidates_dropped_ = 0;
   cands_.resize(idx(J));
   match_.resize(idx(J));
-  match_done_.resize(idx(J));
   nbr_.resize(idx(J));
   track_.resize(idx(J));
   track_deg_.resize(idx(J));
@@ -104,8 +103,7 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
     }
     const int n = static_cast<int>(cj.size());
     // Matching edges (below, or by the caller through build_matching / ensure_match).
-    match_[idx(j)].assign(idx(n * n), 0.f);
-    match_done_[idx(j)].assign(idx(n * n), 0);
+    match_[idx(j)].assign(idx(n * n), kNotComputed);
     auto& nb = nbr_[idx(j)];
     if (nb.size() < idx(n)) nb.resize(idx(n));
     for (int k = 0; k < n; ++k) nb[idx(k)].clear();  // keeps the rows' storage
@@ -186,15 +184,17 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
 void FrameGraph::matching_pair(int joint, int k1, int k2, bool link) {
   const auto& cj = cands_[idx(joint)];
   const int n = static_cast<int>(cj.size());
-  char& done = match_done_[idx(joint)][idx(k1 * n + k2)];
-  if (done) {  // computed by ensure_match(): only the neighbour lists are missing
-    if (link && match_[idx(joint)][idx(k1 * n + k2)] > 0.f) {
+  auto& m = match_[idx(joint)];
+  float& m12 = m[idx(k1 * n + k2)];
+  if (m12 != kNotComputed) {  // computed by ensure_match(): only the neighbour lists are missing
+    if (link && m12 > 0.f) {
       nbr_[idx(joint)][idx(k1)].push_back(k2);
       nbr_[idx(joint)][idx(k2)].push_back(k1);
     }
     return;
   }
-  done = 1;
+  float& m21 = m[idx(k2 * n + k1)];
+  m12 = m21 = 0.f;
   const GraphCandidate& a = cj[idx(k1)];
   const GraphCandidate& b = cj[idx(k2)];
   if (a.view == b.view) return;
@@ -202,10 +202,7 @@ void FrameGraph::matching_pair(int joint, int k1, int k2, bool link) {
   if (!ray_pair_distance(a.ray, b.ray, options_.min_depth_m, options_.max_epipolar_dist_m, &d)) {
     return;
   }
-  const float p = static_cast<float>(1.0 - d / options_.max_epipolar_dist_m);
-  auto& m = match_[idx(joint)];
-  m[idx(k1 * n + k2)] = p;
-  m[idx(k2 * n + k1)] = p;
+  m12 = m21 = static_cast<float>(1.0 - d / options_.max_epipolar_dist_m);
   if (link) {
     nbr_[idx(joint)][idx(k1)].push_back(k2);
     nbr_[idx(joint)][idx(k2)].push_back(k1);

@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <span>
 #include <vector>
 
@@ -57,13 +58,14 @@ class FrameGraph {
   int candidate_count(int joint) const { return static_cast<int>(cands_[idx(joint)].size()); }
   // Matching probability between candidates k1, k2 of `joint` (0 when same view / no edge).
   float match(int joint, int k1, int k2) const {
-    return match_[idx(joint)][idx(k1 * candidate_count(joint) + k2)];
+    return std::max(0.f, match_[idx(joint)][idx(k1 * candidate_count(joint) + k2)]);
   }
   // Tracking probability between track t's 3D joint and candidate k of `joint`.
   float track(int joint, int t, int k) const {
     return track_[idx(joint)][idx(t * candidate_count(joint) + k)];
   }
-  // Row k1 of the matching table of `joint`: match(joint, k1, k2) = match_row(joint, k1)[k2].
+  // Row k1 of the matching table of `joint`: match(joint, k1, k2) = max(0, match_row(...)[k2]);
+  // an entry <= 0 is no edge (negative: a pair never computed).
   std::span<const float> match_row(int joint, int k1) const {
     const int n = candidate_count(joint);
     return std::span<const float>(match_[idx(joint)]).subspan(idx(k1 * n), idx(n));
@@ -105,6 +107,7 @@ class FrameGraph {
 
  private:
   static std::size_t idx(int i) { return static_cast<std::size_t>(i); }
+  static constexpr float kNotComputed = -1.f;
 
   void matching_pair(int joint, int k1, int k2, bool link);
 
@@ -114,10 +117,9 @@ class FrameGraph {
   int candidates_dropped_ = 0;
   std::vector<int> order_scratch_;
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
-  std::vector<std::vector<float>> match_;           // [joint][k1 * n + k2]
-  std::vector<std::vector<char>> match_done_;       // [joint][k1 * n + k2], k1 < k2: computed
-  std::vector<std::vector<float>> track_;           // [joint][t * n + k]
-  std::vector<std::vector<int>> track_deg_;         // [joint][k] tracks with an edge to k
+  std::vector<std::vector<float>> match_;    // [joint][k1 * n + k2]; kNotComputed until computed
+  std::vector<std::vector<float>> track_;    // [joint][t * n + k]
+  std::vector<std::vector<int>> track_deg_;  // [joint][k] tracks with an edge to k
   std::vector<std::vector<std::vector<int>>> nbr_;  // [joint][k] matching neighbours
   std::vector<bool> track_valid_;                   // [t * joints + joint]
   std::vector<Eigen::Vector3d> track_pos_;          // [t * joints + joint]
