@@ -2,9 +2,10 @@
 
 #include <cmath>
 #include <cstddef>
+#include <limits>
+#include <span>
 #include <sstream>
 #include <string>
-#include <unordered_map>
 
 #include "runtime/skeleton/topology.h"
 
@@ -35,6 +36,26 @@ bool in_unit_range(float v) {
   return std::isfinite(v) && v >= -kUnitTolerance && v <= 1.f + kUnitTolerance;
 }
 
+// Whether every value is in_unit_range, without a branch per value (NaN fails both
+// comparisons, an infinity one of them), so that the compiler vectorises the scan; the
+// per-value loop that names the culprit runs only when this fails.
+bool all_in_unit_range(std::span<const float> values) {
+  bool ok = true;
+  for (const float v : values) ok &= (v >= -kUnitTolerance) & (v <= 1.f + kUnitTolerance);
+  return ok;
+}
+
+// Whether every candidate has finite coordinates and a score in range (same idea).
+bool all_candidates_valid(std::span<const JointCandidate> list) {
+  constexpr float kMax = std::numeric_limits<float>::max();
+  bool ok = true;
+  for (const JointCandidate& c : list) {
+    ok &= (std::abs(c.x_px) <= kMax) & (std::abs(c.y_px) <= kMax) & (c.score >= -kUnitTolerance) &
+          (c.score <= 1.f + kUnitTolerance);
+  }
+  return ok;
+}
+
 std::string num(float v) {
   std::ostringstream s;
   s << v;
@@ -61,6 +82,7 @@ Status validate_view(const std::string& frame, const SkeletonTopology& topo,
   }
   for (int j = 0; j < topo.joint_count(); ++j) {
     const auto& list = view.candidates[static_cast<size_t>(j)];
+    if (all_candidates_valid(list)) continue;
     for (size_t c = 0; c < list.size(); ++c) {
       const JointCandidate& cand = list[c];
       const auto cw = [&] {
@@ -99,6 +121,7 @@ Status validate_view(const std::string& frame, const SkeletonTopology& topo,
                      std::to_string(cols) + " holds " + std::to_string(m.values.size()) +
                      " values, expected " + std::to_string(rows * cols));
     }
+    if (all_in_unit_range(m.values)) continue;
     for (int r = 0; r < m.rows; ++r) {
       for (int c = 0; c < m.cols; ++c) {
         const float v = m.at(r, c);
@@ -118,13 +141,14 @@ Status DetectionSet::validate() const {
   std::string frame = "frame ";
   frame += std::to_string(frame_id);
   if (topology == nullptr) return invalid(frame + ": detection set has no topology");
-  std::unordered_map<int, size_t> seen;
+  // Duplicate view ids: a pairwise scan (a rig has a handful of views; this runs every frame).
   for (size_t i = 0; i < views.size(); ++i) {
-    auto [it, inserted] = seen.emplace(views[i].view_id, i);
-    if (!inserted) {
-      return invalid(frame + ", view " + std::to_string(views[i].view_id) +
-                     ": view id appears twice (entries " + std::to_string(it->second) + " and " +
-                     std::to_string(i) + ")");
+    for (size_t k = 0; k < i; ++k) {
+      if (views[k].view_id == views[i].view_id) {
+        return invalid(frame + ", view " + std::to_string(views[i].view_id) +
+                       ": view id appears twice (entries " + std::to_string(k) + " and " +
+                       std::to_string(i) + ")");
+      }
     }
   }
   for (const ViewDetections& view : views) {
