@@ -1,13 +1,18 @@
 #include "runtime/assoc/graph.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::assoc {
 namespace {
+
+static_assert(sizeof(float) == 4 && std::bit_cast<float>(0xBFBFBFBFu) < 0.f,
+              "FrameGraph::kNotComputedByte must make a negative float");
 
 // Shortest distance between two rays when it is below max_dist_m and the closest points lie
 // in front of both cameras (depth along each ray >= min_depth_m). Parallel rays never match.
@@ -103,7 +108,9 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
     }
     const int n = static_cast<int>(cj.size());
     // Matching edges (below, or by the caller through build_matching / ensure_match).
-    match_[idx(j)].assign(idx(n * n), kNotComputed);
+    auto& mj = match_[idx(j)];
+    mj.resize(idx(n * n));
+    std::memset(mj.data(), kNotComputedByte, mj.size() * sizeof(float));
     auto& nb = nbr_[idx(j)];
     if (nb.size() < idx(n)) nb.resize(idx(n));
     for (int k = 0; k < n; ++k) nb[idx(k)].clear();  // keeps the rows' storage
@@ -186,7 +193,7 @@ void FrameGraph::matching_pair(int joint, int k1, int k2, bool link) {
   const int n = static_cast<int>(cj.size());
   auto& m = match_[idx(joint)];
   float& m12 = m[idx(k1 * n + k2)];
-  if (m12 != kNotComputed) {  // computed by ensure_match(): only the neighbour lists are missing
+  if (m12 >= 0.f) {  // computed by ensure_match(): only the neighbour lists are missing
     if (link && m12 > 0.f) {
       nbr_[idx(joint)][idx(k1)].push_back(k2);
       nbr_[idx(joint)][idx(k2)].push_back(k1);
@@ -223,11 +230,6 @@ void FrameGraph::build_matching(std::span<const std::vector<char>> settled) {
       }
     }
   }
-}
-
-float FrameGraph::ensure_match(int joint, int k1, int k2) {
-  if (k1 != k2) matching_pair(joint, std::min(k1, k2), std::max(k1, k2), false);
-  return match(joint, k1, k2);
 }
 
 }  // namespace mocap::assoc

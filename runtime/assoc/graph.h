@@ -100,14 +100,23 @@ class FrameGraph {
   // Computes (once per pair is enough; recomputing gives the same value) and stores the
   // matching edge between candidates k1, k2 of `joint`; returns its probability. Does not add
   // the pair to match_neighbors().
-  float ensure_match(int joint, int k1, int k2);
+  float ensure_match(int joint, int k1, int k2) {
+    if (k1 == k2) return 0.f;
+    const float m = match_[idx(joint)][idx(k1 * candidate_count(joint) + k2)];
+    if (m >= 0.f) return m;  // computed: the common case, inline
+    matching_pair(joint, std::min(k1, k2), std::max(k1, k2), false);
+    return match(joint, k1, k2);
+  }
 
   // How many tracks have a tracking edge to candidate k of `joint`.
   int tracks_of_candidate(int joint, int k) const { return track_deg_[idx(joint)][idx(k)]; }
 
  private:
   static std::size_t idx(int i) { return static_cast<std::size_t>(i); }
-  static constexpr float kNotComputed = -1.f;
+  // Every byte of a "not computed" entry is kNotComputedByte, which makes the float negative
+  // (about -1.496): the tables are reset with memset, which is several times cheaper than a
+  // float fill. Computed entries are >= 0.
+  static constexpr unsigned char kNotComputedByte = 0xBF;
 
   void matching_pair(int joint, int k1, int k2, bool link);
 
