@@ -163,6 +163,9 @@ struct Scorer {
   std::span<const LimbEdge> edges;
   double weight_sum;
   double template_length_m = 0;  // 0 = no plausibility check
+  // view_energy(n) for n = 0..view_count (a clique has at most one 2D limb per view), filled
+  // by make_scorer: the score is evaluated for every candidate removal while pruning.
+  std::vector<double> view_term = {};
 
   // Limb length from the least-squares 3D points of both endpoints' rays (normal equations
   // accumulated by the caller: A = Σ I − ddᵀ, b = Σ (I − ddᵀ) o).
@@ -215,6 +218,15 @@ struct Scorer {
     return combine(n, paf, match, track >= 0, trk);
   }
 
+  // E_view, the Welsch view-count term, for a clique of n 2D limbs.
+  double view_energy(int n) const {
+    const double c = opt.view_welsch_c > 0
+                         ? opt.view_welsch_c
+                         : 0.5 * std::max(1.0, static_cast<double>(graph.view_count() - 1));
+    const double r = n / c;
+    return 1.0 - std::exp(-0.5 * r * r);
+  }
+
   // The documented score from the clique's sums (n 2D limbs, Σ parsing, Σ pairwise matching,
   // Σ tracking).
   double combine(int n, double paf, double match, bool has_track, double trk) const {
@@ -222,11 +234,7 @@ struct Scorer {
     const double e_paf = paf / n;
     const double e_match = n > 1 ? match / (0.5 * n * (n - 1)) : 0.0;
     const double e_track = has_track ? trk / n : 0.0;
-    const double c = opt.view_welsch_c > 0
-                         ? opt.view_welsch_c
-                         : 0.5 * std::max(1.0, static_cast<double>(graph.view_count() - 1));
-    const double r = n / c;
-    const double e_view = 1.0 - std::exp(-0.5 * r * r);
+    const double e_view = ix(n) < view_term.size() ? view_term[ix(n)] : view_energy(n);
     return (opt.w_match * e_match + opt.w_track * e_track + opt.w_paf * e_paf +
             opt.w_view * e_view + opt.w_hier * hier) /
            weight_sum;
@@ -234,18 +242,32 @@ struct Scorer {
 };
 
 // The scorer of one limb type (its 2D limbs, weights and template length).
+// `view_table`: fill Scorer::view_term (worth it when many cliques are scored).
 Scorer make_scorer(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
-                   double hierarchy_weight, const CliqueOptions& options) {
+                   double hierarchy_weight, const CliqueOptions& options, bool view_table = true) {
   const Limb& L = topology.limb(limb);
-  return Scorer{graph,
-                L,
-                hierarchy_weight,
-                options,
-                graph.limb_edges(limb),
-                options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier,
-                fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
-                                                  topology.joint_name(L.joint_b))};
+  Scorer s{graph,
+           L,
+           hierarchy_weight,
+           options,
+           graph.limb_edges(limb),
+           options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier,
+           fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
+                                             topology.joint_name(L.joint_b))};
+  if (view_table) {
+    s.view_term.resize(ix(graph.view_count() + 1));
+    for (int n = 0; n <= graph.view_count(); ++n) s.view_term[ix(n)] = s.view_energy(n);
+  }
+  return s;
 }
+
+// The ray normal equations of a clique's 2D limbs at the limb's two ends (A = Σ I − ddᵀ,
+// b = Σ (I − ddᵀ) o over the members' rays), in member order.
+struct RayNormalSums {
+  bool valid = false;
+  Eigen::Matrix3d Aa, Ab;
+  Eigen::Vector3d ba, bb;
+};
 
 // Greedy pruning: drop the member whose removal raises the score most, while it does. Dropped
 // 2D members are appended to `dropped` (they remain pairwise compatible, so the caller can
@@ -253,9 +275,13 @@ Scorer make_scorer(const FrameGraph& graph, const SkeletonTopology& topology, in
 // sums (parsing, pairwise matching per member, tracking, ray normal equations) are kept, so
 // each candidate removal is scored in O(1) and each step costs O(k) for k members.
 // `pair` (optional, k x k row-major in member order) holds Scorer::pair_match of every two
-// members when the caller already has them.
+// members when the caller already has them. `sums` (optional) receives the ray normal
+// equations of the members when the length check computed them and nothing was dropped
+// (exactly what summing the members' rays in order gives); otherwise it is marked invalid.
 double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
-                    std::vector<int>& dropped, std::span<const double> pair = {}) {
+                    std::vector<int>& dropped, std::span<const double> pair = {},
+                    RayNormalSums* sums = nullptr) {
+  if (sums) sums->valid = false;
   const int k = static_cast<int>(members.size());
   if (k == 0) return 0;
   if (k == 1) {
@@ -277,20 +303,20 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
   // Per-thread scratch: no allocation per call once warmed up.
   thread_local std::vector<double> row;  // Σ_j pair(i, j)
   thread_local std::vector<double> trk;
-  thread_local std::vector<Eigen::Matrix3d> Pa, Pb;
-  thread_local std::vector<Eigen::Vector3d> qa, qb;
   thread_local std::vector<char> alive;
   row.assign(ix(k), 0.0);
   trk.assign(ix(k), 0.0);
-  Pa.resize(ix(k));
-  Pb.resize(ix(k));
-  qa.resize(ix(k));
-  qb.resize(ix(k));
   alive.assign(ix(k), 1);
   double paf = 0, match = 0, tsum = 0;
   Eigen::Matrix3d Aa = Eigen::Matrix3d::Zero(), Ab = Eigen::Matrix3d::Zero();
   Eigen::Vector3d ba = Eigen::Vector3d::Zero(), bb = Eigen::Vector3d::Zero();
   const bool check_length = s.template_length_m > 0;
+  const auto ray_a = [&](int i) -> const Ray& {
+    return s.graph.candidates(L.joint_a)[ix(s.edges[ix(members[ix(i)])].ka)].ray;
+  };
+  const auto ray_b = [&](int i) -> const Ray& {
+    return s.graph.candidates(L.joint_b)[ix(s.edges[ix(members[ix(i)])].kb)].ray;
+  };
   for (int i = 0; i < k; ++i) {
     const LimbEdge& x = s.edges[ix(members[ix(i)])];
     paf += static_cast<double>(x.p);
@@ -306,20 +332,22 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
       tsum += trk[ix(i)];
     }
     if (check_length) {
-      Pa[ix(i)].setZero();
-      Pb[ix(i)].setZero();
-      qa[ix(i)].setZero();
-      qb[ix(i)].setZero();
-      add_ray_normal_equations(s.graph.candidates(L.joint_a)[ix(x.ka)].ray, 1.0, Pa[ix(i)],
-                               qa[ix(i)]);
-      add_ray_normal_equations(s.graph.candidates(L.joint_b)[ix(x.kb)].ray, 1.0, Pb[ix(i)],
-                               qb[ix(i)]);
-      Aa += Pa[ix(i)];
-      Ab += Pb[ix(i)];
-      ba += qa[ix(i)];
-      bb += qb[ix(i)];
+      add_ray_normal_equations(ray_a(i), 1.0, Aa, ba);
+      add_ray_normal_equations(ray_b(i), 1.0, Ab, bb);
     }
   }
+  // Member i's share of the normal equations, rebuilt when needed (a removal that would win,
+  // a removal made): adding a ray's terms to zero gives exactly what was added to the sums.
+  Eigen::Matrix3d Pa, Pb;
+  Eigen::Vector3d qa, qb;
+  const auto member_terms = [&](int i) {
+    Pa.setZero();
+    Pb.setZero();
+    qa.setZero();
+    qb.setZero();
+    add_ray_normal_equations(ray_a(i), 1.0, Pa, qa);
+    add_ray_normal_equations(ray_b(i), 1.0, Pb, qb);
+  };
   int n = k;
   auto eval = [&](int n2, double paf2, double match2, bool has_track, double t2,
                   const Eigen::Matrix3d& A2a, const Eigen::Vector3d& b2a,
@@ -346,9 +374,9 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
         double sc = s.combine(n - 1, paf - static_cast<double>(x.p), match - row[ix(i)], track >= 0,
                               tsum - trk[ix(i)]);
         if (sc <= cand_best) continue;
-        if (check_length && n - 1 >= 2 &&
-            !s.plausible_length(Aa - Pa[ix(i)], ba - qa[ix(i)], Ab - Pb[ix(i)], bb - qb[ix(i)])) {
-          sc = -1.0;
+        if (check_length && n - 1 >= 2) {
+          member_terms(i);
+          if (!s.plausible_length(Aa - Pa, ba - qa, Ab - Pb, bb - qb)) sc = -1.0;
         }
         if (sc > cand_best) {
           cand_best = sc;
@@ -368,10 +396,11 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
       match -= row[ix(drop)];
       tsum -= trk[ix(drop)];
       if (check_length) {
-        Aa -= Pa[ix(drop)];
-        ba -= qa[ix(drop)];
-        Ab -= Pb[ix(drop)];
-        bb -= qb[ix(drop)];
+        member_terms(drop);
+        Aa -= Pa;
+        ba -= qa;
+        Ab -= Pb;
+        bb -= qb;
       }
       for (int j = 0; j < k; ++j) {
         if (!alive[ix(j)]) continue;
@@ -381,6 +410,14 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
       dropped.push_back(members[ix(drop)]);
     }
     best = cand_best;
+  }
+  if (sums && check_length && n == k) {
+    // Nothing was dropped: the sums are those of the members as they stand.
+    sums->valid = true;
+    sums->Aa = Aa;
+    sums->ba = ba;
+    sums->Ab = Ab;
+    sums->bb = bb;
   }
   std::vector<int> kept;
   kept.reserve(ix(n));
@@ -420,7 +457,7 @@ std::vector<double> limb_hierarchy_weights(const SkeletonTopology& topology) {
 double score_bundle(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
                     double hierarchy_weight, const CliqueOptions& options, int track,
                     const std::vector<int>& edges) {
-  return make_scorer(graph, topology, limb, hierarchy_weight, options).score(track, edges);
+  return make_scorer(graph, topology, limb, hierarchy_weight, options, false).score(track, edges);
 }
 
 void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
@@ -620,16 +657,23 @@ namespace {
 
 // Do the least-squares points of the members' rays lie within max_track_dist_m of track t's
 // joints, at both ends of the limb?
+// `sums`: the members' normal equations when prune_clique had them.
 bool near_track(const FrameGraph& graph, const Limb& L, int t, std::span<const LimbEdge> edges,
-                const std::vector<int>& members) {
+                const std::vector<int>& members, const RayNormalSums& sums) {
   const double max_m = graph.options().max_track_dist_m;
   for (int end = 0; end < 2; ++end) {
     const int joint = end == 0 ? L.joint_a : L.joint_b;
     Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
     Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    for (int m : members) {
-      const LimbEdge& x = edges[ix(m)];
-      add_ray_normal_equations(graph.candidates(joint)[ix(end == 0 ? x.ka : x.kb)].ray, 1.0, A, b);
+    if (sums.valid) {
+      A = end == 0 ? sums.Aa : sums.Ab;
+      b = end == 0 ? sums.ba : sums.bb;
+    } else {
+      for (int m : members) {
+        const LimbEdge& x = edges[ix(m)];
+        add_ray_normal_equations(graph.candidates(joint)[ix(end == 0 ? x.ka : x.kb)].ray, 1.0, A,
+                                 b);
+      }
     }
     Eigen::Matrix3d inv;
     bool ok = false;
@@ -847,7 +891,9 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     }
     int track = t;
     dropped.clear();
-    const double score = ambiguous ? 0.0 : prune_clique(scorer, track, members, dropped, pair_w);
+    RayNormalSums sums;
+    const double score =
+        ambiguous ? 0.0 : prune_clique(scorer, track, members, dropped, pair_w, &sums);
     // Pruning that gives up the track says the clique is not clear-cut, and so does a clique
     // whose 2D limbs, triangulated, are not where the track was (rays of a person who moved
     // far can pass near the old joints in the views looking along the motion), or that has a
@@ -855,7 +901,7 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     // pruned away stay in the graph for the search (they share no candidate with the kept
     // ones: one per view).
     if (!ambiguous && track >= 0) {
-      ambiguous = members.size() < 2 || !near_track(graph, L, t, edges, members);
+      ambiguous = members.size() < 2 || !near_track(graph, L, t, edges, members, sums);
     }
     if (ambiguous || track < 0 || score < options.min_bundle_score) {
       ++stats.track_first_deferred;
