@@ -710,8 +710,13 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
   removed.assign(edges.size(), 0);
   for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
     const LimbEdge& x = edges[ix(e)];
-    if (graph.tracks_of_candidate(L.joint_a, x.ka) == 0 ||
-        graph.tracks_of_candidate(L.joint_b, x.kb) == 0) {
+    const int deg_a = graph.tracks_of_candidate(L.joint_a, x.ka);
+    const int deg_b = graph.tracks_of_candidate(L.joint_b, x.kb);
+    if (deg_a == 0 || deg_b == 0) continue;
+    if (deg_a == 1 && deg_b == 1) {
+      // One track near each end (the common case): it is the choice if it is the same one.
+      const int ta = graph.sole_track_of_candidate(L.joint_a, x.ka);
+      if (ta == graph.sole_track_of_candidate(L.joint_b, x.kb)) assigned[ix(e)] = ta;
       continue;
     }
     int best = -1;

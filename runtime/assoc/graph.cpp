@@ -54,6 +54,7 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
   nbr_.resize(idx(J));
   track_.resize(idx(J));
   track_deg_.resize(idx(J));
+  track_last_.resize(idx(J));
   limb_edges_.resize(idx(topo.limb_count()));
   track_valid_.assign(idx(track_count_ * J), false);
   track_pos_.assign(idx(track_count_ * J), Eigen::Vector3d::Zero());
@@ -119,6 +120,8 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
     tr.assign(idx(track_count_ * n), 0.f);
     auto& deg = track_deg_[idx(j)];
     deg.assign(idx(n), 0);
+    auto& last = track_last_[idx(j)];
+    last.assign(idx(n), -1);
     for (int t = 0; t < track_count_; ++t) {
       const TrackPose& tp = tracks[idx(t)];
       if (!tp.valid[idx(j)]) continue;
@@ -146,6 +149,7 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
         if (d >= options.max_track_dist_m) continue;
         tr[idx(t * n + k)] = static_cast<float>(1.0 - d / options.max_track_dist_m);
         ++deg[idx(k)];
+        last[idx(k)] = t;
       }
     }
   }

@@ -110,6 +110,11 @@ class FrameGraph {
 
   // How many tracks have a tracking edge to candidate k of `joint`.
   int tracks_of_candidate(int joint, int k) const { return track_deg_[idx(joint)][idx(k)]; }
+  // The track with a tracking edge to candidate k of `joint` when there is exactly one
+  // (tracks_of_candidate == 1); otherwise the last of them, or -1.
+  int sole_track_of_candidate(int joint, int k) const {
+    return track_last_[idx(joint)][idx(k)];
+  }
 
  private:
   static std::size_t idx(int i) { return static_cast<std::size_t>(i); }
@@ -128,7 +133,8 @@ class FrameGraph {
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
   std::vector<std::vector<float>> match_;    // [joint][k1 * n + k2]; kNotComputed until computed
   std::vector<std::vector<float>> track_;    // [joint][t * n + k]
-  std::vector<std::vector<int>> track_deg_;  // [joint][k] tracks with an edge to k
+  std::vector<std::vector<int>> track_deg_;   // [joint][k] tracks with an edge to k
+  std::vector<std::vector<int>> track_last_;  // [joint][k] last such track, -1 none
   std::vector<std::vector<std::vector<int>>> nbr_;  // [joint][k] matching neighbours
   std::vector<bool> track_valid_;                   // [t * joints + joint]
   std::vector<Eigen::Vector3d> track_pos_;          // [t * joints + joint]
