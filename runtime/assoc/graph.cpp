@@ -1,9 +1,7 @@
 #include "runtime/assoc/graph.h"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
-#include <cstring>
 #include <string>
 
 #include "runtime/skeleton/topology.h"
@@ -11,16 +9,14 @@
 namespace mocap::assoc {
 namespace {
 
-static_assert(sizeof(float) == 4 && std::bit_cast<float>(0xBFBFBFBFu) < 0.f,
-              "FrameGraph::kNotComputedByte must make a negative float");
-
 // Shortest distance between two rays when it is below max_dist_m and the closest points lie
 // in front of both cameras (depth along each ray >= min_depth_m). Parallel rays never match.
 // This is closest_points() written for the hot loop: with n = da × db and w = ob − oa, the
 // distance is |w·n| / |n| (most pairs are rejected on it before anything else), and the
 // depths are s_a = ((w × db)·n) / |n|², s_b = ((w × da)·n) / |n|².
-bool ray_pair_distance(const Ray& a, const Ray& b, double min_depth_m, double max_dist_m,
-                       double* dist_m) {
+inline __attribute__((always_inline)) bool ray_pair_distance(const Ray& a, const Ray& b,
+                                                             double min_depth_m, double max_dist_m,
+                                                             double* dist_m) {
   const Eigen::Vector3d& da = a.direction;
   const Eigen::Vector3d& db = b.direction;
   const Eigen::Vector3d n = da.cross(db);
@@ -51,6 +47,7 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
   candidates_dropped_ = 0;
   cands_.resize(idx(J));
   match_.resize(idx(J));
+  match_written_.resize(idx(J));
   nbr_.resize(idx(J));
   track_.resize(idx(J));
   track_deg_.resize(idx(J));
@@ -110,8 +107,10 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
     const int n = static_cast<int>(cj.size());
     // Matching edges (below, or by the caller through build_matching / ensure_match).
     auto& mj = match_[idx(j)];
-    mj.resize(idx(n * n));
-    std::memset(mj.data(), kNotComputedByte, mj.size() * sizeof(float));
+    auto& written = match_written_[idx(j)];
+    for (const int e : written) mj[idx(e)] = kNotComputed;
+    written.clear();
+    if (mj.size() < idx(n * n)) mj.resize(idx(n * n), kNotComputed);
     auto& nb = nbr_[idx(j)];
     if (nb.size() < idx(n)) nb.resize(idx(n));
     for (int k = 0; k < n; ++k) nb[idx(k)].clear();  // keeps the rows' storage
@@ -206,6 +205,8 @@ void FrameGraph::matching_pair(int joint, int k1, int k2, bool link) {
   }
   float& m21 = m[idx(k2 * n + k1)];
   m12 = m21 = 0.f;
+  match_written_[idx(joint)].push_back(k1 * n + k2);
+  match_written_[idx(joint)].push_back(k2 * n + k1);
   const GraphCandidate& a = cj[idx(k1)];
   const GraphCandidate& b = cj[idx(k2)];
   if (a.view == b.view) return;

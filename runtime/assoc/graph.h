@@ -112,16 +112,11 @@ class FrameGraph {
   int tracks_of_candidate(int joint, int k) const { return track_deg_[idx(joint)][idx(k)]; }
   // The track with a tracking edge to candidate k of `joint` when there is exactly one
   // (tracks_of_candidate == 1); otherwise the last of them, or -1.
-  int sole_track_of_candidate(int joint, int k) const {
-    return track_last_[idx(joint)][idx(k)];
-  }
+  int sole_track_of_candidate(int joint, int k) const { return track_last_[idx(joint)][idx(k)]; }
 
  private:
   static std::size_t idx(int i) { return static_cast<std::size_t>(i); }
-  // Every byte of a "not computed" entry is kNotComputedByte, which makes the float negative
-  // (about -1.496): the tables are reset with memset, which is several times cheaper than a
-  // float fill. Computed entries are >= 0.
-  static constexpr unsigned char kNotComputedByte = 0xBF;
+  static constexpr float kNotComputed = -1.f;  // any negative entry: not computed
 
   void matching_pair(int joint, int k1, int k2, bool link);
 
@@ -131,10 +126,14 @@ class FrameGraph {
   int candidates_dropped_ = 0;
   std::vector<int> order_scratch_;
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
-  std::vector<std::vector<float>> match_;    // [joint][k1 * n + k2]; kNotComputed until computed
-  std::vector<std::vector<float>> track_;    // [joint][t * n + k]
-  std::vector<std::vector<int>> track_deg_;   // [joint][k] tracks with an edge to k
-  std::vector<std::vector<int>> track_last_;  // [joint][k] last such track, -1 none
+  // [joint][k1 * n + k2], negative until computed. Between frames every entry is negative:
+  // only the entries written (listed in match_written_) are reset, since a frame computes a
+  // small part of the n x n table (a dense reset cost more than all the matching).
+  std::vector<std::vector<float>> match_;
+  std::vector<std::vector<int>> match_written_;     // [joint] flat indices written this frame
+  std::vector<std::vector<float>> track_;           // [joint][t * n + k]
+  std::vector<std::vector<int>> track_deg_;         // [joint][k] tracks with an edge to k
+  std::vector<std::vector<int>> track_last_;        // [joint][k] last such track, -1 none
   std::vector<std::vector<std::vector<int>>> nbr_;  // [joint][k] matching neighbours
   std::vector<bool> track_valid_;                   // [t * joints + joint]
   std::vector<Eigen::Vector3d> track_pos_;          // [t * joints + joint]
