@@ -886,13 +886,16 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
         fails[kept++] = static_cast<int>(i);  // old index of the kept member
       }
       members.resize(kept);
-      // The kept members' pair weights, compacted in place (row-major, new order).
-      for (std::size_t i = 0; i < kept; ++i) {
-        for (std::size_t j = 0; j < kept; ++j) {
-          pair_w[i * kept + j] = pair_w[ix(fails[i]) * m + ix(fails[j])];
+      // The kept members' pair weights, compacted in place (row-major, new order); nothing to
+      // move when every member was kept.
+      if (kept < m) {
+        for (std::size_t i = 0; i < kept; ++i) {
+          for (std::size_t j = 0; j < kept; ++j) {
+            pair_w[i * kept + j] = pair_w[ix(fails[i]) * m + ix(fails[j])];
+          }
         }
+        pair_w.resize(kept * kept);
       }
-      pair_w.resize(kept * kept);
     }
     int track = t;
     dropped.clear();
