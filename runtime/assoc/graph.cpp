@@ -121,28 +121,48 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
     deg.assign(idx(n), 0);
     auto& last = track_last_[idx(j)];
     last.assign(idx(n), -1);
+    // point_ray_distance_m for unit directions (backproject normalises them):
+    // d² = |v|² − (v·d)² with v = X − origin. Candidates come grouped by view, whose rays share
+    // the camera centre as origin, so v and |v|² are computed once per view, and the directions
+    // are laid out by component so that the squared distances of a view's candidates are
+    // computed in one vectorisable loop; the few below the threshold are then taken.
+    dir_x_.resize(idx(n));
+    dir_y_.resize(idx(n));
+    dir_z_.resize(idx(n));
+    dist2_.resize(idx(n));
+    view_starts_.clear();
+    for (int k = 0; k < n; ++k) {
+      const Eigen::Vector3d& d = cj[idx(k)].ray.direction;
+      dir_x_[idx(k)] = d.x();
+      dir_y_[idx(k)] = d.y();
+      dir_z_[idx(k)] = d.z();
+      if (k == 0 || cj[idx(k)].view != cj[idx(k - 1)].view) view_starts_.push_back(k);
+    }
+    view_starts_.push_back(n);
+    const double T2 = options.max_track_dist_m * options.max_track_dist_m;
     for (int t = 0; t < track_count_; ++t) {
       const TrackPose& tp = tracks[idx(t)];
       if (!tp.valid[idx(j)]) continue;
       track_valid_[idx(t * J + j)] = true;
       track_pos_[idx(t * J + j)] = tp.joints_m[idx(j)];
       const Eigen::Vector3d& X = tp.joints_m[idx(j)];
-      const double T2 = options.max_track_dist_m * options.max_track_dist_m;
-      // point_ray_distance_m for unit directions (backproject normalises them):
-      // d² = |v|² − (v·d)² with v = X − origin. Candidates come grouped by view, whose rays
-      // share the camera centre as origin, so v and |v|² are computed once per view.
-      int v_view = -1;
-      Eigen::Vector3d v = Eigen::Vector3d::Zero();
-      double vv = 0;
-      for (int k = 0; k < n; ++k) {
-        const GraphCandidate& gc = cj[idx(k)];
-        if (gc.view != v_view) {
-          v_view = gc.view;
-          v = X - gc.ray.origin_m;
-          vv = v.squaredNorm();
+      for (std::size_t s = 0; s + 1 < view_starts_.size(); ++s) {
+        const int k0 = view_starts_[s];
+        const int k1 = view_starts_[s + 1];
+        const Eigen::Vector3d v = X - cj[idx(k0)].ray.origin_m;
+        const double vx = v.x(), vy = v.y(), vz = v.z();
+        const double vv = v.squaredNorm();
+        const double* dx = dir_x_.data();
+        const double* dy = dir_y_.data();
+        const double* dz = dir_z_.data();
+        double* d2 = dist2_.data();
+        for (int k = k0; k < k1; ++k) {
+          const double vd = vx * dx[k] + vy * dy[k] + vz * dz[k];
+          d2[k] = vv - vd * vd;
         }
-        const double vd = v.dot(gc.ray.direction);
-        const double d2 = std::max(0.0, vv - vd * vd);
+      }
+      for (int k = 0; k < n; ++k) {
+        const double d2 = std::max(0.0, dist2_[idx(k)]);
         if (d2 >= T2) continue;
         const double d = std::sqrt(d2);
         if (d >= options.max_track_dist_m) continue;

@@ -125,6 +125,10 @@ class FrameGraph {
   int track_count_ = 0;
   int candidates_dropped_ = 0;
   std::vector<int> order_scratch_;
+  // Tracking-edge scratch of one joint: candidate directions by component, squared distances
+  // to one track's joint, and where each view's candidates start (then n).
+  std::vector<double> dir_x_, dir_y_, dir_z_, dist2_;
+  std::vector<int> view_starts_;
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
   // [joint][k1 * n + k2], negative until computed. Between frames every entry is negative:
   // only the entries written (listed in match_written_) are reset, since a frame computes a
