@@ -246,13 +246,16 @@ void FrameGraph::build_matching(std::span<const std::vector<char>> settled) {
     const int n = candidate_count(j);
     const std::vector<char>* sj =
         idx(j) < settled.size() && !settled[idx(j)].empty() ? &settled[idx(j)] : nullptr;
+    // The unsettled candidates (after track-first parsing, a few of the n), ascending.
+    auto& open = order_scratch_;
+    open.clear();
+    for (int k = 0; k < n; ++k) {
+      if (!sj || !(*sj)[idx(k)]) open.push_back(k);
+    }
     // Pairs (k1 < k2) in ascending k1 then k2: every neighbour list comes out ascending.
-    for (int k1 = 0; k1 < n; ++k1) {
-      if (sj && (*sj)[idx(k1)]) continue;
-      for (int k2 = k1 + 1; k2 < n; ++k2) {
-        if (sj && (*sj)[idx(k2)]) continue;
-        matching_pair(j, k1, k2, true);
-      }
+    for (std::size_t i1 = 0; i1 < open.size(); ++i1) {
+      for (std::size_t i2 = i1 + 1; i2 < open.size(); ++i2)
+        matching_pair(j, open[i1], open[i2], true);
     }
   }
 }
