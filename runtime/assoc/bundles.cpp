@@ -419,12 +419,13 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
     sums->Ab = Ab;
     sums->bb = bb;
   }
-  std::vector<int> kept;
-  kept.reserve(ix(n));
-  for (int i = 0; i < k; ++i) {
-    if (alive[ix(i)]) kept.push_back(members[ix(i)]);
+  if (n < k) {  // compact in place (no allocation), keeping the members' order
+    int kept = 0;
+    for (int i = 0; i < k; ++i) {
+      if (alive[ix(i)]) members[ix(kept++)] = members[ix(i)];
+    }
+    members.resize(ix(kept));
   }
-  members = std::move(kept);
   return best;
 }
 
