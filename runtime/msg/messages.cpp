@@ -37,23 +37,26 @@ bool in_unit_range(float v) {
 }
 
 // Whether every value is in_unit_range, without a branch per value (NaN fails both
-// comparisons, an infinity one of them), so that the compiler vectorises the scan; the
-// per-value loop that names the culprit runs only when this fails.
+// comparisons, an infinity one of them); the per-value loop that names the culprit runs only
+// when this fails. The comparisons are combined as integers (no short circuit).
 bool all_in_unit_range(std::span<const float> values) {
-  bool ok = true;
-  for (const float v : values) ok &= (v >= -kUnitTolerance) & (v <= 1.f + kUnitTolerance);
-  return ok;
+  int ok = 1;
+  for (const float v : values) {
+    ok &= static_cast<int>(v >= -kUnitTolerance) & static_cast<int>(v <= 1.f + kUnitTolerance);
+  }
+  return ok != 0;
 }
 
 // Whether every candidate has finite coordinates and a score in range (same idea).
 bool all_candidates_valid(std::span<const JointCandidate> list) {
   constexpr float kMax = std::numeric_limits<float>::max();
-  bool ok = true;
+  int ok = 1;
   for (const JointCandidate& c : list) {
-    ok &= (std::abs(c.x_px) <= kMax) & (std::abs(c.y_px) <= kMax) & (c.score >= -kUnitTolerance) &
-          (c.score <= 1.f + kUnitTolerance);
+    ok &= static_cast<int>(std::abs(c.x_px) <= kMax) & static_cast<int>(std::abs(c.y_px) <= kMax) &
+          static_cast<int>(c.score >= -kUnitTolerance) &
+          static_cast<int>(c.score <= 1.f + kUnitTolerance);
   }
-  return ok;
+  return ok != 0;
 }
 
 std::string num(float v) {
