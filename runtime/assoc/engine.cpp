@@ -19,6 +19,19 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// Number of cameras whose image the point projects into.
+int cameras_seeing(const std::vector<Camera>& cameras, const Eigen::Vector3d& X_m) {
+  int n = 0;
+  for (const Camera& cam : cameras) {
+    const auto px = cam.project(X_m);
+    if (px && px->x() >= 0 && px->y() >= 0 && px->x() < cam.width_px() &&
+        px->y() < cam.height_px()) {
+      ++n;
+    }
+  }
+  return n;
+}
+
 }  // namespace
 
 Result<std::unique_ptr<Engine>> Engine::create(const SkeletonTopology& topology,
@@ -310,6 +323,23 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
     }
     if (ti == old_tracks) {
       if (valid < topt.min_joints_new_track) continue;
+      if (topt.min_birth_view_support > 0) {
+        int seen = 0;
+        int could_see = 0;
+        for (int j = 0; j < J; ++j) {
+          if (!pts[ix(j)].valid) continue;
+          seen += pts[ix(j)].views_used;
+          could_see += cameras_seeing(cameras_, pts[ix(j)].X_m);
+        }
+        if (static_cast<double>(seen) <
+            topt.min_birth_view_support * static_cast<double>(could_see)) {
+          MOCAP_LOG(Assoc, Debug) << where << ": no new track for a person seen " << seen
+                                  << " times in " << could_see
+                                  << " (joint, camera) pairs that could see it";
+          ++st.births_rejected;
+          continue;
+        }
+      }
       Track nt;
       nt.id = next_track_id_++;
       nt.joints_m.assign(ix(J), Eigen::Vector3d::Zero());

@@ -38,6 +38,7 @@ struct FrameStats {
   int fragment_observations = 0;  // persons with < min_joints_observed joints (track ages)
   int persons = 0;                // persons output this frame
   int births = 0;
+  int births_rejected = 0;  // would-be new tracks below TrackingOptions::min_birth_view_support
   int deaths = 0;
   int tracks = 0;  // live tracks after this frame
   double graph_ms = 0;

@@ -50,6 +50,8 @@ Status TrackingOptions::validate() const {
               "must be >= 1");
   MOCAP_CHECK(min_joints_observed >= 1, "tracking.min_joints_observed", "must be >= 1");
   MOCAP_CHECK(min_joints_new_track >= 1, "tracking.min_joints_new_track", "must be >= 1");
+  MOCAP_CHECK(min_birth_view_support >= 0 && min_birth_view_support <= 1,
+              "tracking.min_birth_view_support", "must be in [0, 1]");
   MOCAP_CHECK(max_missed_frames >= 0, "tracking.max_missed_frames", "must be >= 0");
   MOCAP_CHECK(reattach_max_mean_dist_m >= 0, "tracking.reattach_max_mean_dist_m", "must be >= 0");
   MOCAP_CHECK(fragment_merge_min_limb_ratio > 0 &&
