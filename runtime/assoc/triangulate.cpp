@@ -12,13 +12,22 @@ namespace mocap::assoc {
 
 namespace {
 
+// One observation's weighted ray normal equations, added to zero. Summing these in ascending
+// observation order gives exactly (bit for bit) what add_ray_normal_equations accumulates, so
+// each of the up to 32 rays is expanded once per triangulation instead of once per proposal.
+struct RayTerms {
+  Eigen::Matrix3d A;
+  Eigen::Vector3d b;
+};
+
 // Weighted least-squares point of the rays selected by `used`; false when degenerate.
-bool solve_rays(std::span<const Observation> obs, unsigned used, Eigen::Vector3d* X) {
+bool solve_rays(std::span<const RayTerms> terms, unsigned used, Eigen::Vector3d* X) {
   Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < obs.size(); ++i) {
-    if (!(used & (1u << i))) continue;
-    add_ray_normal_equations(obs[i].ray, obs[i].weight, A, b);
+  for (unsigned rest = used; rest != 0; rest &= rest - 1) {
+    const RayTerms& t = terms[static_cast<std::size_t>(std::countr_zero(rest))];
+    A += t.A;
+    b += t.b;
   }
   // Closed-form 3x3 inverse; degenerate (near-parallel rays) when the reciprocal L1 condition
   // number 1 / (|A|_1 |A^-1|_1) is below 1e-9.
@@ -50,6 +59,15 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
   if (n < options.min_views || n > 32) return out;
   const double thr = options.max_reprojection_error_px;
   const unsigned all = n == 32 ? ~0u : (1u << n) - 1u;
+  thread_local std::array<RayTerms, 32> terms;  // scratch: only [0, n) is written and read
+  for (int i = 0; i < n; ++i) {
+    RayTerms& t = terms[static_cast<std::size_t>(i)];
+    t.A.setZero();
+    t.b.setZero();
+    const Observation& o = obs[static_cast<std::size_t>(i)];
+    add_ray_normal_equations(o.ray, o.weight, t.A, t.b);
+  }
+  const std::span<const RayTerms> rays(terms.data(), static_cast<std::size_t>(n));
 
   // Accepts X solved from `used` as the result.
   auto accept = [&](const Eigen::Vector3d& X, unsigned used, double worst) {
@@ -68,7 +86,7 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
   // reprojects well within thr in every view, which is where the refinement below would end.
   if (const double fast = options.all_views_accept_error_px; fast > 0) {
     Eigen::Vector3d X;
-    if (solve_rays(obs, all, &X)) {
+    if (solve_rays(rays, all, &X)) {
       double worst = 0;
       for (int i = 0; i < n && worst <= fast; ++i) {
         worst = std::max(worst, reprojection_error(obs[static_cast<std::size_t>(i)], cameras, X));
@@ -90,15 +108,27 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
     return obs[static_cast<std::size_t>(x)].weight > obs[static_cast<std::size_t>(y)].weight;
   });
   const int K = std::min(n, options.proposal_views);
+  // weight_after[i]: the weight of views i.. , the most they can still add to a score. A
+  // proposal stops being scored once even that cannot lift it above the best so far (each
+  // view adds at most its weight, so this never changes the winner; the margin covers the
+  // rounding of the two sums).
+  std::array<double, 33> weight_after{};
+  for (int i = n - 1; i >= 0; --i) {
+    weight_after[static_cast<std::size_t>(i)] =
+        weight_after[static_cast<std::size_t>(i + 1)] + obs[static_cast<std::size_t>(i)].weight;
+  }
   for (int ia = 0; ia < K; ++ia) {
     for (int ib = ia + 1; ib < K; ++ib) {
       const int a = by_weight[static_cast<std::size_t>(ia)];
       const int b = by_weight[static_cast<std::size_t>(ib)];
       Eigen::Vector3d X;
-      if (!solve_rays(obs, (1u << a) | (1u << b), &X)) continue;
+      if (!solve_rays(rays, (1u << a) | (1u << b), &X)) continue;
       unsigned set = 0;
       double score = 0;
       for (int i = 0; i < n; ++i) {
+        if ((score + weight_after[static_cast<std::size_t>(i)]) * (1.0 + 1e-9) < best_score) {
+          break;
+        }
         const double e = reprojection_error(obs[static_cast<std::size_t>(i)], cameras, X);
         if (e < thr) {
           set |= 1u << i;
@@ -117,7 +147,7 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
   unsigned used = best_set;
   while (std::popcount(used) >= options.min_views) {
     Eigen::Vector3d X;
-    if (!solve_rays(obs, used, &X)) return out;
+    if (!solve_rays(rays, used, &X)) return out;
     double worst = -1;
     int worst_i = -1;
     for (int i = 0; i < n; ++i) {
