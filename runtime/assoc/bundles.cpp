@@ -837,6 +837,13 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     // search would score. Dropped 2D limbs stay in the graph for the search.
     {
       const std::size_t m = members.size();
+      // Every matching edge among the members' candidates, at both ends, in one batch each.
+      thread_local std::vector<int> ends;
+      for (int end = 0; end < 2; ++end) {
+        ends.clear();
+        for (const int e : members) ends.push_back(end == 0 ? edges[ix(e)].ka : edges[ix(e)].kb);
+        graph.ensure_matches(end == 0 ? L.joint_a : L.joint_b, ends);
+      }
       fail.assign(m * m, 0);
       pair_w.assign(m * m, 0.0);
       fails.assign(m, 0);

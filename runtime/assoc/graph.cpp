@@ -34,6 +34,45 @@ inline __attribute__((always_inline)) bool ray_pair_distance(const Ray& a, const
   return *dist_m < max_dist_m;
 }
 
+// ray_pair_distance() of ray i against rays j = i+1 .. m-1 (rays by component), written
+// branch-free with the same operations in the same order so that it vectorises: row[j] is the
+// matching probability 1 - d / max_dist, or 0 when the pair has no edge. The restrict
+// parameters, and graph.cpp's -fno-math-errno (for the sqrt), let GCC vectorise it.
+void pair_row(const double* __restrict ox, const double* __restrict oy, const double* __restrict oz,
+              const double* __restrict dx, const double* __restrict dy, const double* __restrict dz,
+              std::size_t i, std::size_t m, double max_dist, double par2, double min_depth,
+              double* __restrict row) {
+  const double max_dist2 = max_dist * max_dist;
+  const double ax = ox[i], ay = oy[i], az = oz[i];
+  const double ux = dx[i], uy = dy[i], uz = dz[i];
+  const double uu = ux * ux + uy * uy + uz * uz;
+  for (std::size_t j = i + 1; j < m; ++j) {
+    const double vx = dx[j], vy = dy[j], vz = dz[j];
+    const double nx = uy * vz - uz * vy;
+    const double ny = uz * vx - ux * vz;
+    const double nz = ux * vy - uy * vx;
+    const double wx = ox[j] - ax, wy = oy[j] - ay, wz = oz[j] - az;
+    const double wn = wx * nx + wy * ny + wz * nz;
+    const double nn = nx * nx + ny * ny + nz * nz;
+    const double vv = vx * vx + vy * vy + vz * vz;
+    const double par = par2 * uu * vv;
+    const double nn_safe = nn > par ? nn : 1.0;
+    // s_a = ((w x v) . n) / nn, s_b = ((w x u) . n) / nn.
+    const double sa =
+        ((wy * vz - wz * vy) * nx + (wz * vx - wx * vz) * ny + (wx * vy - wy * vx) * nz) / nn_safe;
+    const double sb =
+        ((wy * uz - wz * uy) * nx + (wz * ux - wx * uz) * ny + (wx * uy - wy * ux) * nz) / nn_safe;
+    // Near enough, not parallel, in front of both cameras (selects, no branches).
+    const double d = std::abs(wn) / std::sqrt(nn_safe);
+    const double p = 1.0 - d / max_dist;
+    double keep = d < max_dist ? p : 0.0;
+    keep = sb >= min_depth ? keep : 0.0;
+    keep = sa >= min_depth ? keep : 0.0;
+    keep = nn > par ? keep : 0.0;
+    row[j] = wn * wn < max_dist2 * nn ? keep : 0.0;
+  }
+}
+
 }  // namespace
 
 Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera> cameras,
@@ -238,6 +277,58 @@ void FrameGraph::matching_pair(int joint, int k1, int k2, bool link) {
   if (link) {
     nbr_[idx(joint)][idx(k1)].push_back(k2);
     nbr_[idx(joint)][idx(k2)].push_back(k1);
+  }
+}
+
+void FrameGraph::ensure_matches(int joint, std::span<const int> ks) {
+  const std::size_t m = ks.size();
+  if (m < 2) return;
+  const auto& cj = cands_[idx(joint)];
+  const int n = static_cast<int>(cj.size());
+  auto& mt = match_[idx(joint)];
+  batch_ox_.resize(m);
+  batch_oy_.resize(m);
+  batch_oz_.resize(m);
+  batch_dx_.resize(m);
+  batch_dy_.resize(m);
+  batch_dz_.resize(m);
+  batch_row_.resize(m);
+  batch_view_.resize(m);
+  for (std::size_t i = 0; i < m; ++i) {
+    const GraphCandidate& c = cj[idx(ks[i])];
+    batch_ox_[i] = c.ray.origin_m.x();
+    batch_oy_[i] = c.ray.origin_m.y();
+    batch_oz_[i] = c.ray.origin_m.z();
+    batch_dx_[i] = c.ray.direction.x();
+    batch_dy_[i] = c.ray.direction.y();
+    batch_dz_[i] = c.ray.direction.z();
+    batch_view_[i] = c.view;
+  }
+  const double min_depth = options_.min_depth_m;
+  const double max_dist = options_.max_epipolar_dist_m;
+  const double par2 = kParallelAngle_rad * kParallelAngle_rad;
+  const double* ox = batch_ox_.data();
+  const double* oy = batch_oy_.data();
+  const double* oz = batch_oz_.data();
+  const double* dx = batch_dx_.data();
+  const double* dy = batch_dy_.data();
+  const double* dz = batch_dz_.data();
+  double* row = batch_row_.data();
+  for (std::size_t i = 0; i + 1 < m; ++i) {
+    const int ki = ks[i];
+    bool any = false;
+    for (std::size_t j = i + 1; j < m; ++j) any = any || mt[idx(ki * n + ks[j])] < 0.f;
+    if (!any) continue;
+    pair_row(ox, oy, oz, dx, dy, dz, i, m, max_dist, par2, min_depth, row);
+    for (std::size_t j = i + 1; j < m; ++j) {
+      const int kj = ks[j];
+      float& m12 = mt[idx(ki * n + kj)];
+      if (m12 >= 0.f) continue;
+      float& m21 = mt[idx(kj * n + ki)];
+      m12 = m21 = batch_view_[i] == batch_view_[j] ? 0.f : static_cast<float>(row[j]);
+      match_written_[idx(joint)].push_back(ki * n + kj);
+      match_written_[idx(joint)].push_back(kj * n + ki);
+    }
   }
 }
 

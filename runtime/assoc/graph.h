@@ -108,6 +108,11 @@ class FrameGraph {
     return match(joint, k1, k2);
   }
 
+  // ensure_match() for every pair of the candidates `ks` of `joint` (distinct indices), in one
+  // pass over their rays laid out by component that the compiler vectorises (bit-identical to
+  // the pairwise computation). Rows whose pairs are all computed already are skipped.
+  void ensure_matches(int joint, std::span<const int> ks);
+
   // How many tracks have a tracking edge to candidate k of `joint`.
   int tracks_of_candidate(int joint, int k) const { return track_deg_[idx(joint)][idx(k)]; }
   // The track with a tracking edge to candidate k of `joint` when there is exactly one
@@ -129,6 +134,10 @@ class FrameGraph {
   // to one track's joint, and where each view's candidates start (then n).
   std::vector<double> dir_x_, dir_y_, dir_z_, dist2_;
   std::vector<int> view_starts_;
+  // ensure_matches() scratch: the batch's rays by component, views, and one row of results.
+  std::vector<double> batch_ox_, batch_oy_, batch_oz_, batch_dx_, batch_dy_, batch_dz_;
+  std::vector<double> batch_row_;
+  std::vector<int> batch_view_;
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
   // [joint][k1 * n + k2], negative until computed. Between frames every entry is negative:
   // only the entries written (listed in match_written_) are reset, since a frame computes a

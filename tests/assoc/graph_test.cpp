@@ -428,6 +428,68 @@ TEST(GraphSimTest, LazyMatchingEdgesEqualTheEagerOnes) {
   EXPECT_GT(compared, 100);
 }
 
+// ensure_matches() (the vectorised batch track-first parsing uses) gives bit for bit the values
+// of the pairwise computation for every pair of the batch, same-view pairs included (0), leaves
+// every other pair uncomputed, and keeps values computed before it; a rebuild forgets them.
+TEST(GraphSimTest, BatchedMatchingEdgesEqualThePairwiseOnes) {
+  sim::SceneOptions scene;
+  scene.people = 6;
+  sim::RigOptions rig;
+  rig.views = 8;
+  Result<sim::Simulator> s =
+      sim::Simulator::create(rig, scene, sim::DetectionNoiseOptions{}, body19_topology());
+  ASSERT_TRUE(s.ok()) << s.error().message();
+  Result<sim::RenderedFrame> f = s->next();
+  ASSERT_TRUE(f.ok()) << f.error().message();
+  FrameGraph eager;
+  ASSERT_TRUE(eager.build(f->detections, s->rig().cameras, {}, GraphOptions{}).ok());
+  FrameGraph batch;
+  ASSERT_TRUE(
+      batch.build(f->detections, s->rig().cameras, {}, GraphOptions{}, /*matching=*/false).ok());
+  long edges = 0;
+  for (int j = 0; j < batch.joint_count(); ++j) {
+    const int n = batch.candidate_count(j);
+    // Every other candidate (several per view), one pair computed beforehand.
+    std::vector<int> ks;
+    std::vector<char> in(static_cast<std::size_t>(n), 0);
+    for (int k = n - 1; k >= 0; k -= 2) {
+      ks.push_back(k);
+      in[static_cast<std::size_t>(k)] = 1;
+    }
+    if (ks.size() >= 2) batch.ensure_match(j, ks[0], ks[1]);
+    batch.ensure_matches(j, ks);
+    for (int k1 = 0; k1 < n; ++k1) {
+      for (int k2 = 0; k2 < n; ++k2) {
+        const bool both =
+            k1 != k2 && in[static_cast<std::size_t>(k1)] && in[static_cast<std::size_t>(k2)];
+        const float want = both ? eager.match(j, k1, k2) : 0.f;
+        EXPECT_EQ(batch.match(j, k1, k2), want) << "joint " << j << " " << k1 << "-" << k2;
+        if (both) {
+          EXPECT_GE(batch.match_row(j, k1)[static_cast<std::size_t>(k2)], 0.f)
+              << "computed: joint " << j << " " << k1 << "-" << k2;
+        } else if (k1 != k2) {
+          EXPECT_LT(batch.match_row(j, k1)[static_cast<std::size_t>(k2)], 0.f)
+              << "not computed: joint " << j << " " << k1 << "-" << k2;
+        }
+        edges += both && want > 0.f ? 1 : 0;
+      }
+    }
+  }
+  EXPECT_GT(edges, 100);
+  ASSERT_TRUE(
+      batch.build(f->detections, s->rig().cameras, {}, GraphOptions{}, /*matching=*/false).ok());
+  for (int j = 0; j < batch.joint_count(); ++j) {
+    const int n = batch.candidate_count(j);
+    for (int k1 = 0; k1 < n; ++k1) {
+      for (int k2 = 0; k2 < n; ++k2) {
+        if (k1 != k2) {
+          EXPECT_LT(batch.match_row(j, k1)[static_cast<std::size_t>(k2)], 0.f);
+        }
+      }
+    }
+  }
+}
+
 TEST(GraphSimTest, MatchingEdgesEqualBruteForceAndAreOrdered) {
   sim::SceneOptions scene;
   scene.people = 10;
