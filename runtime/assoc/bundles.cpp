@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <queue>
 
 #include "runtime/assoc/triangulate.h"
 #include "runtime/core/log.h"
@@ -980,17 +979,23 @@ class Assembler {
   }
 
   void run(std::vector<Bundle> bundles) {
+    // A max-heap on score, the operations std::priority_queue does (so the same order), with
+    // the top moved out instead of copied.
     auto cmp = [](const Bundle& a, const Bundle& b) { return a.score < b.score; };
-    std::priority_queue<Bundle, std::vector<Bundle>, decltype(cmp)> q(cmp, std::move(bundles));
+    std::vector<Bundle>& q = bundles;
+    std::make_heap(q.begin(), q.end(), cmp);
+    std::vector<Bundle> parts;
     while (!q.empty()) {
-      Bundle b = q.top();
-      q.pop();
+      std::pop_heap(q.begin(), q.end(), cmp);
+      Bundle b = std::move(q.back());
+      q.pop_back();
       ++stats_.bundles_popped;
-      std::vector<Bundle> parts;
+      parts.clear();
       place(std::move(b), parts);
       for (Bundle& p : parts) {
         p.score = score_bundle(g_, topo_, p.limb, hier_[ix(p.limb)], opt_, p.track, p.edges);
-        q.push(std::move(p));
+        q.push_back(std::move(p));
+        std::push_heap(q.begin(), q.end(), cmp);
       }
     }
   }
@@ -1079,7 +1084,8 @@ class Assembler {
     const Limb& L = topo_.limb(b.limb);
     const auto edges = g_.limb_edges(b.limb);
     const int track_owner = b.track >= 0 ? track_owner_[ix(b.track)] : -1;
-    std::vector<int> owners;
+    std::vector<int>& owners = owners_;  // scratch: place() is not reentrant
+    owners.clear();
     auto note = [&](int o) {
       if (o >= 0 && std::find(owners.begin(), owners.end(), o) == owners.end()) owners.push_back(o);
     };
@@ -1108,6 +1114,11 @@ class Assembler {
 
     if (owners.size() == 1) {
       const int p = owners[0];
+      if (std::none_of(b.edges.begin(), b.edges.end(),
+                       [&](int m) { return contradicts(p, L, edges[ix(m)]); })) {
+        add_bundle_to(p, b);
+        return;
+      }
       Bundle ok{b.limb, b.track, {}, 0};
       std::vector<int> bad;
       for (int m : b.edges) {
@@ -1209,6 +1220,7 @@ class Assembler {
   std::vector<std::vector<int>> owner_;  // [joint][k] -> person
   std::vector<int> track_owner_;         // [track] -> person
   std::vector<char> alive_;
+  std::vector<int> owners_;  // place()'s scratch
 };
 
 }  // namespace
