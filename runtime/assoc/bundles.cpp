@@ -599,15 +599,19 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     int track;
     std::vector<int> members;
   };
+  // The clique's node list becomes the members list in place (no new storage).
   auto make = [&](std::vector<int> nodes) {
-    Cand c{0, -1, {}};
-    for (int v : nodes) {
+    Cand c{0, -1, std::move(nodes)};
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < c.members.size(); ++i) {
+      const int v = c.members[i];
       if (v < n2d) {
-        c.members.push_back(node_edge[ix(v)]);
+        c.members[kept++] = node_edge[ix(v)];
       } else {
         c.track = cg.track_of_node[ix(v - n2d)];
       }
     }
+    c.members.resize(kept);
     return c;
   };
   // Max-heap by score; candidates are moved out of it, not copied.
@@ -811,8 +815,8 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
   }
 
   const Scorer scorer = make_scorer(graph, topology, limb, hierarchy_weight, options);
-  std::vector<int> members;
-  std::vector<int> dropped;
+  thread_local std::vector<int> members;
+  thread_local std::vector<int> dropped;
   thread_local std::vector<char> fail;        // [i * m + j] members i, j not joined
   thread_local std::vector<int> fails;        // [i] missing edges of member i; -1 dropped
   thread_local std::vector<double> evidence;  // [i] summed matching edges of member i

@@ -156,8 +156,9 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
   // Reconstruction and tracking.
   t0 = clock::now();
   const std::size_t old_tracks = tracks_.size();
-  std::vector<char> claimed(old_tracks, 0);
-  std::vector<Observation> obs;
+  std::vector<char>& claimed = claimed_;
+  claimed.assign(old_tracks, 0);
+  std::vector<Observation>& obs = obs_;
   struct Output {
     std::size_t track;
     std::vector<int> candidate;
@@ -165,10 +166,13 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
     std::vector<float> confidence;
     std::vector<Eigen::Quaterniond> rotations;
   };
-  std::vector<Eigen::Vector3d> tri_X(ix(J));
-  std::vector<bool> tri_valid(ix(J));
-  std::vector<int> tri_views(ix(J));
-  std::vector<fit::JointObservation> fit_obs;
+  std::vector<Eigen::Vector3d>& tri_X = tri_X_;
+  std::vector<bool>& tri_valid = tri_valid_;
+  std::vector<int>& tri_views = tri_views_;
+  tri_X.resize(ix(J));
+  tri_valid.resize(ix(J));
+  tri_views.resize(ix(J));
+  std::vector<fit::JointObservation>& fit_obs = fit_obs_;
   std::vector<Output> outputs;
 
   // Persons with more evidence first, so fragments do not steal tracks.
@@ -215,7 +219,8 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
   const std::size_t P = persons_.size();
   person_pts_.resize(P);
   person_conf_.resize(P);
-  std::vector<int> person_valid(P);
+  std::vector<int>& person_valid = person_valid_;
+  person_valid.resize(P);
   for (std::size_t i = 0; i < P; ++i) {
     person_valid[i] = triangulate_person(persons_[i], person_pts_[i], person_conf_[i]);
   }
@@ -225,7 +230,8 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
   // body in two views only) is assembled on its own. Merge persons whose 2D assignments do not
   // contradict and that are one body in 3D: either >= 3 common joints coincide, or the few
   // common joints coincide and every limb joining one part to the other has a plausible length.
-  std::vector<char> merged_away(P, 0);
+  std::vector<char>& merged_away = merged_away_;
+  merged_away.assign(P, 0);
   const auto merge_ok = [&](std::size_t a, std::size_t b) {
     const PersonAssignment& pa = persons_[a];
     const PersonAssignment& pb = persons_[b];
@@ -444,7 +450,7 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
     PersonSkeleton ps;
     ps.person_id = tr.id;
     ps.joints_m = tr.joints_m;
-    ps.confidence = o.confidence;
+    ps.confidence = std::move(o.confidence);
     for (int j = 0; j < J; ++j) {
       if (tr.joint_age[ix(j)] >= 0 || parents_.empty()) continue;
       int a = parents_[ix(j)];

@@ -114,6 +114,14 @@ class Engine {
   std::vector<PersonAssignment> persons_;
   std::vector<std::vector<TriangulatedPoint>> person_pts_;
   std::vector<std::vector<float>> person_conf_;
+  std::vector<char> claimed_;     // [track] observed this frame
+  std::vector<Observation> obs_;  // one joint's views, for triangulation
+  std::vector<Eigen::Vector3d> tri_X_;
+  std::vector<bool> tri_valid_;
+  std::vector<int> tri_views_;
+  std::vector<fit::JointObservation> fit_obs_;
+  std::vector<int> person_valid_;  // [person] triangulated joints
+  std::vector<char> merged_away_;  // [person] merged into another
 };
 
 }  // namespace mocap::assoc
