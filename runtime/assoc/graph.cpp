@@ -38,6 +38,14 @@ inline __attribute__((always_inline)) bool ray_pair_distance(const Ray& a, const
 // branch-free with the same operations in the same order so that it vectorises: row[j] is the
 // matching probability 1 - d / max_dist, or 0 when the pair has no edge. The restrict
 // parameters, and graph.cpp's -fno-math-errno (for the sqrt), let GCC vectorise it.
+// On x86-64, GCC also builds an AVX2 version, picked at load time on CPUs that have it (no FMA:
+// the same operations, so the same values as the baseline SSE2 version).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define MOCAP_PAIR_ROW_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define MOCAP_PAIR_ROW_CLONES
+#endif
+MOCAP_PAIR_ROW_CLONES
 void pair_row(const double* __restrict ox, const double* __restrict oy, const double* __restrict oz,
               const double* __restrict dx, const double* __restrict dy, const double* __restrict dz,
               std::size_t i, std::size_t m, double max_dist, double par2, double min_depth,
