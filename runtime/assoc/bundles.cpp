@@ -522,10 +522,9 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   for (int x = 0; x < n2d; ++x) {
     const LimbEdge& ex = edges[ix(node_edge[ix(x)])];
     const std::span<const int> nbrs = graph.match_neighbors(L.joint_a, ex.ka);
-    const std::span<const float> match_b = graph.match_row(L.joint_b, ex.kb);
     for (auto it = std::upper_bound(nbrs.begin(), nbrs.end(), ex.ka); it != nbrs.end(); ++it) {
       for (int ye : by_ka[ix(*it)]) {
-        if (match_b[ix(edges[ix(ye)].kb)] <= 0.f) continue;
+        if (graph.match(L.joint_b, ex.kb, edges[ix(ye)].kb) <= 0.f) continue;
         const int y = edge_node[ix(ye)];
         cg.adj[ix(x)].set(y);
         cg.adj[ix(y)].set(x);

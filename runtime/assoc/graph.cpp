@@ -262,7 +262,7 @@ void FrameGraph::matching_pair(int joint, int k1, int k2, bool link) {
   const auto& cj = cands_[idx(joint)];
   const int n = static_cast<int>(cj.size());
   auto& m = match_[idx(joint)];
-  float& m12 = m[idx(k1 * n + k2)];
+  float& m12 = m[idx(k1 * n + k2)];  // k1 < k2: the pair's entry
   if (m12 >= 0.f) {  // computed by ensure_match(): only the neighbour lists are missing
     if (link && m12 > 0.f) {
       nbr_[idx(joint)][idx(k1)].push_back(k2);
@@ -270,10 +270,8 @@ void FrameGraph::matching_pair(int joint, int k1, int k2, bool link) {
     }
     return;
   }
-  float& m21 = m[idx(k2 * n + k1)];
-  m12 = m21 = 0.f;
+  m12 = 0.f;
   match_written_[idx(joint)].push_back(k1 * n + k2);
-  match_written_[idx(joint)].push_back(k2 * n + k1);
   const GraphCandidate& a = cj[idx(k1)];
   const GraphCandidate& b = cj[idx(k2)];
   if (a.view == b.view) return;
@@ -281,7 +279,7 @@ void FrameGraph::matching_pair(int joint, int k1, int k2, bool link) {
   if (!ray_pair_distance(a.ray, b.ray, options_.min_depth_m, options_.max_epipolar_dist_m, &d)) {
     return;
   }
-  m12 = m21 = static_cast<float>(1.0 - d / options_.max_epipolar_dist_m);
+  m12 = static_cast<float>(1.0 - d / options_.max_epipolar_dist_m);
   if (link) {
     nbr_[idx(joint)][idx(k1)].push_back(k2);
     nbr_[idx(joint)][idx(k2)].push_back(k1);
@@ -292,7 +290,6 @@ void FrameGraph::ensure_matches(int joint, std::span<const int> ks) {
   const std::size_t m = ks.size();
   if (m < 2) return;
   const auto& cj = cands_[idx(joint)];
-  const int n = static_cast<int>(cj.size());
   auto& mt = match_[idx(joint)];
   batch_ox_.resize(m);
   batch_oy_.resize(m);
@@ -325,17 +322,16 @@ void FrameGraph::ensure_matches(int joint, std::span<const int> ks) {
   for (std::size_t i = 0; i + 1 < m; ++i) {
     const int ki = ks[i];
     bool any = false;
-    for (std::size_t j = i + 1; j < m; ++j) any = any || mt[idx(ki * n + ks[j])] < 0.f;
+    for (std::size_t j = i + 1; j < m; ++j) any = any || mt[pair_index(joint, ki, ks[j])] < 0.f;
     if (!any) continue;
     pair_row(ox, oy, oz, dx, dy, dz, i, m, max_dist, par2, min_depth, row);
     for (std::size_t j = i + 1; j < m; ++j) {
       const int kj = ks[j];
-      float& m12 = mt[idx(ki * n + kj)];
+      const std::size_t e = pair_index(joint, ki, kj);
+      float& m12 = mt[e];
       if (m12 >= 0.f) continue;
-      float& m21 = mt[idx(kj * n + ki)];
-      m12 = m21 = batch_view_[i] == batch_view_[j] ? 0.f : static_cast<float>(row[j]);
-      match_written_[idx(joint)].push_back(ki * n + kj);
-      match_written_[idx(joint)].push_back(kj * n + ki);
+      m12 = batch_view_[i] == batch_view_[j] ? 0.f : static_cast<float>(row[j]);
+      match_written_[idx(joint)].push_back(static_cast<int>(e));
     }
   }
 }

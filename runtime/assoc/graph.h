@@ -58,17 +58,15 @@ class FrameGraph {
   int candidate_count(int joint) const { return static_cast<int>(cands_[idx(joint)].size()); }
   // Matching probability between candidates k1, k2 of `joint` (0 when same view / no edge).
   float match(int joint, int k1, int k2) const {
-    return std::max(0.f, match_[idx(joint)][idx(k1 * candidate_count(joint) + k2)]);
+    return std::max(0.f, match_[idx(joint)][pair_index(joint, k1, k2)]);
+  }
+  // Whether the matching edge between candidates k1 != k2 of `joint` has been computed.
+  bool match_computed(int joint, int k1, int k2) const {
+    return match_[idx(joint)][pair_index(joint, k1, k2)] >= 0.f;
   }
   // Tracking probability between track t's 3D joint and candidate k of `joint`.
   float track(int joint, int t, int k) const {
     return track_[idx(joint)][idx(t * candidate_count(joint) + k)];
-  }
-  // Row k1 of the matching table of `joint`: match(joint, k1, k2) = max(0, match_row(...)[k2]);
-  // an entry <= 0 is no edge (negative: a pair never computed).
-  std::span<const float> match_row(int joint, int k1) const {
-    const int n = candidate_count(joint);
-    return std::span<const float>(match_[idx(joint)]).subspan(idx(k1 * n), idx(n));
   }
   // Candidates of `joint` joined to candidate k by a matching edge (sparse view of match()),
   // in ascending order; they are all in other views than k's.
@@ -102,7 +100,7 @@ class FrameGraph {
   // the pair to match_neighbors().
   float ensure_match(int joint, int k1, int k2) {
     if (k1 == k2) return 0.f;
-    const float m = match_[idx(joint)][idx(k1 * candidate_count(joint) + k2)];
+    const float m = match_[idx(joint)][pair_index(joint, k1, k2)];
     if (m >= 0.f) return m;  // computed: the common case, inline
     matching_pair(joint, std::min(k1, k2), std::max(k1, k2), false);
     return match(joint, k1, k2);
@@ -121,6 +119,11 @@ class FrameGraph {
 
  private:
   static std::size_t idx(int i) { return static_cast<std::size_t>(i); }
+  // A pair's entry in the matching table of `joint`: row min(k1, k2), column max(k1, k2). Only
+  // that entry is stored (half the writes and cache lines of a symmetric table).
+  std::size_t pair_index(int joint, int k1, int k2) const {
+    return idx(std::min(k1, k2) * candidate_count(joint) + std::max(k1, k2));
+  }
   static constexpr float kNotComputed = -1.f;  // any negative entry: not computed
 
   void matching_pair(int joint, int k1, int k2, bool link);
@@ -139,7 +142,8 @@ class FrameGraph {
   std::vector<double> batch_row_;
   std::vector<int> batch_view_;
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
-  // [joint][k1 * n + k2], negative until computed. Between frames every entry is negative:
+  // [joint][k1 * n + k2] for k1 < k2 (pair_index), negative until computed. Between frames
+  // every entry is negative:
   // only the entries written (listed in match_written_) are reset, since a frame computes a
   // small part of the n x n table (a dense reset cost more than all the matching).
   std::vector<std::vector<float>> match_;
