@@ -9,35 +9,44 @@
 namespace mocap::assoc {
 namespace {
 
-// Shortest distance between two rays when it is below max_dist_m and the closest points lie
-// in front of both cameras (depth along each ray >= min_depth_m). Parallel rays never match.
-// This is closest_points() written for the hot loop: with n = da × db and w = ob − oa, the
-// distance is |w·n| / |n| (most pairs are rejected on it before anything else), and the
-// depths are s_a = ((w × db)·n) / |n|², s_b = ((w × da)·n) / |n|².
-inline __attribute__((always_inline)) bool ray_pair_distance(const Ray& a, const Ray& b,
-                                                             double min_depth_m, double max_dist_m,
-                                                             double* dist_m) {
-  const Eigen::Vector3d& da = a.direction;
-  const Eigen::Vector3d& db = b.direction;
-  const Eigen::Vector3d n = da.cross(db);
-  const Eigen::Vector3d w = b.origin_m - a.origin_m;
-  const double wn = w.dot(n);
-  const double nn = n.squaredNorm();
-  if (wn * wn >= max_dist_m * max_dist_m * nn) return false;
-  if (nn <= kParallelAngle_rad * kParallelAngle_rad * da.squaredNorm() * db.squaredNorm()) {
-    return false;
-  }
-  const double s_a = w.cross(db).dot(n) / nn;
-  const double s_b = w.cross(da).dot(n) / nn;
-  if (s_a < min_depth_m || s_b < min_depth_m) return false;
-  *dist_m = std::abs(wn) / std::sqrt(nn);
-  return *dist_m < max_dist_m;
+// Matching probability 1 - d / max_dist of the rays (a + s u) and (b + t v), where d is their
+// shortest distance, or 0 when d >= max_dist, the rays are parallel or their closest points lie
+// less than min_depth along either ray (behind a camera). This is closest_points() for the hot
+// loops: with n = u × v and w = b − a, d = |w·n| / |n|, and the depths are ((w × v)·n) / |n|²
+// and ((w × u)·n) / |n|². Written branch-free (selects) so that pair_row() vectorises; uu = |u|²
+// and par2 = kParallelAngle_rad², which callers hoist.
+inline __attribute__((always_inline)) double ray_pair_probability(double ax, double ay, double az,
+                                                                  double ux, double uy, double uz,
+                                                                  double uu, double bx, double by,
+                                                                  double bz, double vx, double vy,
+                                                                  double vz, double max_dist,
+                                                                  double par2, double min_depth) {
+  const double nx = uy * vz - uz * vy;
+  const double ny = uz * vx - ux * vz;
+  const double nz = ux * vy - uy * vx;
+  const double wx = bx - ax, wy = by - ay, wz = bz - az;
+  const double wn = wx * nx + wy * ny + wz * nz;
+  const double nn = nx * nx + ny * ny + nz * nz;
+  const double vv = vx * vx + vy * vy + vz * vz;
+  const double par = par2 * uu * vv;
+  const double nn_safe = nn > par ? nn : 1.0;
+  const double sa =
+      ((wy * vz - wz * vy) * nx + (wz * vx - wx * vz) * ny + (wx * vy - wy * vx) * nz) / nn_safe;
+  const double sb =
+      ((wy * uz - wz * uy) * nx + (wz * ux - wx * uz) * ny + (wx * uy - wy * ux) * nz) / nn_safe;
+  const double d = std::abs(wn) / std::sqrt(nn_safe);
+  const double p = 1.0 - d / max_dist;
+  // Near enough, not parallel, in front of both cameras.
+  double keep = d < max_dist ? p : 0.0;
+  keep = sb >= min_depth ? keep : 0.0;
+  keep = sa >= min_depth ? keep : 0.0;
+  keep = nn > par ? keep : 0.0;
+  return wn * wn < max_dist * max_dist * nn ? keep : 0.0;
 }
 
-// ray_pair_distance() of ray i against rays j = i+1 .. m-1 (rays by component), written
-// branch-free with the same operations in the same order so that it vectorises: row[j] is the
-// matching probability 1 - d / max_dist, or 0 when the pair has no edge. The restrict
-// parameters, and graph.cpp's -fno-math-errno (for the sqrt), let GCC vectorise it.
+// ray_pair_probability() of ray i against rays j = i+1 .. m-1 (rays by component) into row[j].
+// The restrict parameters, and graph.cpp's -fno-math-errno and -fno-trapping-math, let GCC
+// vectorise the loop.
 // On x86-64, GCC also builds an AVX2 version, picked at load time on CPUs that have it (no FMA:
 // the same operations, so the same values as the baseline SSE2 version).
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
@@ -50,34 +59,12 @@ void pair_row(const double* __restrict ox, const double* __restrict oy, const do
               const double* __restrict dx, const double* __restrict dy, const double* __restrict dz,
               std::size_t i, std::size_t m, double max_dist, double par2, double min_depth,
               double* __restrict row) {
-  const double max_dist2 = max_dist * max_dist;
   const double ax = ox[i], ay = oy[i], az = oz[i];
   const double ux = dx[i], uy = dy[i], uz = dz[i];
   const double uu = ux * ux + uy * uy + uz * uz;
   for (std::size_t j = i + 1; j < m; ++j) {
-    const double vx = dx[j], vy = dy[j], vz = dz[j];
-    const double nx = uy * vz - uz * vy;
-    const double ny = uz * vx - ux * vz;
-    const double nz = ux * vy - uy * vx;
-    const double wx = ox[j] - ax, wy = oy[j] - ay, wz = oz[j] - az;
-    const double wn = wx * nx + wy * ny + wz * nz;
-    const double nn = nx * nx + ny * ny + nz * nz;
-    const double vv = vx * vx + vy * vy + vz * vz;
-    const double par = par2 * uu * vv;
-    const double nn_safe = nn > par ? nn : 1.0;
-    // s_a = ((w x v) . n) / nn, s_b = ((w x u) . n) / nn.
-    const double sa =
-        ((wy * vz - wz * vy) * nx + (wz * vx - wx * vz) * ny + (wx * vy - wy * vx) * nz) / nn_safe;
-    const double sb =
-        ((wy * uz - wz * uy) * nx + (wz * ux - wx * uz) * ny + (wx * uy - wy * ux) * nz) / nn_safe;
-    // Near enough, not parallel, in front of both cameras (selects, no branches).
-    const double d = std::abs(wn) / std::sqrt(nn_safe);
-    const double p = 1.0 - d / max_dist;
-    double keep = d < max_dist ? p : 0.0;
-    keep = sb >= min_depth ? keep : 0.0;
-    keep = sa >= min_depth ? keep : 0.0;
-    keep = nn > par ? keep : 0.0;
-    row[j] = wn * wn < max_dist2 * nn ? keep : 0.0;
+    row[j] = ray_pair_probability(ax, ay, az, ux, uy, uz, uu, ox[j], oy[j], oz[j], dx[j], dy[j],
+                                  dz[j], max_dist, par2, min_depth);
   }
 }
 
@@ -258,32 +245,22 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
   return Status::Ok();
 }
 
-void FrameGraph::matching_pair(int joint, int k1, int k2, bool link) {
+void FrameGraph::matching_pair(int joint, int k1, int k2) {
   const auto& cj = cands_[idx(joint)];
-  const int n = static_cast<int>(cj.size());
-  auto& m = match_[idx(joint)];
-  float& m12 = m[idx(k1 * n + k2)];  // k1 < k2: the pair's entry
-  if (m12 >= 0.f) {  // computed by ensure_match(): only the neighbour lists are missing
-    if (link && m12 > 0.f) {
-      nbr_[idx(joint)][idx(k1)].push_back(k2);
-      nbr_[idx(joint)][idx(k2)].push_back(k1);
-    }
-    return;
-  }
+  float& m12 = match_[idx(joint)][pair_index(joint, k1, k2)];
   m12 = 0.f;
-  match_written_[idx(joint)].push_back(k1 * n + k2);
+  match_written_[idx(joint)].push_back(static_cast<int>(pair_index(joint, k1, k2)));
   const GraphCandidate& a = cj[idx(k1)];
   const GraphCandidate& b = cj[idx(k2)];
   if (a.view == b.view) return;
-  double d = 0;
-  if (!ray_pair_distance(a.ray, b.ray, options_.min_depth_m, options_.max_epipolar_dist_m, &d)) {
-    return;
-  }
-  m12 = static_cast<float>(1.0 - d / options_.max_epipolar_dist_m);
-  if (link) {
-    nbr_[idx(joint)][idx(k1)].push_back(k2);
-    nbr_[idx(joint)][idx(k2)].push_back(k1);
-  }
+  const Eigen::Vector3d& u = a.ray.direction;
+  const Eigen::Vector3d& oa = a.ray.origin_m;
+  const Eigen::Vector3d& v = b.ray.direction;
+  const Eigen::Vector3d& ob = b.ray.origin_m;
+  m12 = static_cast<float>(ray_pair_probability(
+      oa.x(), oa.y(), oa.z(), u.x(), u.y(), u.z(), u.x() * u.x() + u.y() * u.y() + u.z() * u.z(),
+      ob.x(), ob.y(), ob.z(), v.x(), v.y(), v.z(), options_.max_epipolar_dist_m,
+      kParallelAngle_rad * kParallelAngle_rad, options_.min_depth_m));
 }
 
 void FrameGraph::ensure_matches(int joint, std::span<const int> ks) {
@@ -347,10 +324,17 @@ void FrameGraph::build_matching(std::span<const std::vector<char>> settled) {
     for (int k = 0; k < n; ++k) {
       if (!sj || !(*sj)[idx(k)]) open.push_back(k);
     }
+    ensure_matches(j, open);
     // Pairs (k1 < k2) in ascending k1 then k2: every neighbour list comes out ascending.
+    auto& nb = nbr_[idx(j)];
     for (std::size_t i1 = 0; i1 < open.size(); ++i1) {
-      for (std::size_t i2 = i1 + 1; i2 < open.size(); ++i2)
-        matching_pair(j, open[i1], open[i2], true);
+      for (std::size_t i2 = i1 + 1; i2 < open.size(); ++i2) {
+        const int k1 = open[i1];
+        const int k2 = open[i2];
+        if (match(j, k1, k2) <= 0.f) continue;
+        nb[idx(k1)].push_back(k2);
+        nb[idx(k2)].push_back(k1);
+      }
     }
   }
 }

@@ -102,13 +102,13 @@ class FrameGraph {
     if (k1 == k2) return 0.f;
     const float m = match_[idx(joint)][pair_index(joint, k1, k2)];
     if (m >= 0.f) return m;  // computed: the common case, inline
-    matching_pair(joint, std::min(k1, k2), std::max(k1, k2), false);
+    matching_pair(joint, std::min(k1, k2), std::max(k1, k2));
     return match(joint, k1, k2);
   }
 
   // ensure_match() for every pair of the candidates `ks` of `joint` (distinct indices), in one
-  // pass over their rays laid out by component that the compiler vectorises (bit-identical to
-  // the pairwise computation). Rows whose pairs are all computed already are skipped.
+  // pass over their rays laid out by component that the compiler vectorises (the same formula
+  // as ensure_match(), so the same values). Rows whose pairs are all computed are skipped.
   void ensure_matches(int joint, std::span<const int> ks);
 
   // How many tracks have a tracking edge to candidate k of `joint`.
@@ -126,7 +126,8 @@ class FrameGraph {
   }
   static constexpr float kNotComputed = -1.f;  // any negative entry: not computed
 
-  void matching_pair(int joint, int k1, int k2, bool link);
+  // Computes and stores the matching edge of candidates k1 < k2 of `joint` (not yet computed).
+  void matching_pair(int joint, int k1, int k2);
 
   GraphOptions options_;
   int view_count_ = 0;
@@ -143,9 +144,9 @@ class FrameGraph {
   std::vector<int> batch_view_;
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
   // [joint][k1 * n + k2] for k1 < k2 (pair_index), negative until computed. Between frames
-  // every entry is negative:
-  // only the entries written (listed in match_written_) are reset, since a frame computes a
-  // small part of the n x n table (a dense reset cost more than all the matching).
+  // every entry is negative: only the entries written (listed in match_written_) are reset,
+  // since a frame computes a small part of the n x n table (a dense reset cost more than all
+  // the matching).
   std::vector<std::vector<float>> match_;
   std::vector<std::vector<int>> match_written_;     // [joint] flat indices written this frame
   std::vector<std::vector<float>> track_;           // [joint][t * n + k]
