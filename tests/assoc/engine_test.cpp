@@ -680,36 +680,29 @@ TEST(AssocEngine, NewPersonSeenByTooFewOfTheCamerasThatSeeItIsNotBorn) {
           << "camera " << v << " must see joint " << j;
     }
   }
-  AssociationOptions o;
-  const auto in_views = [](int n) {
-    return [n](int v, int, int) { return v % (12 / n) == 0; };  // n views spread around
+  // The first frame on a fresh engine, the person detected in `views` views spread around.
+  const auto first_frame = [&](const AssociationOptions& o, int views) -> Result<FrameResult> {
+    auto engine = Engine::create(t, f.cams(), o);
+    if (!engine.ok()) return engine.error();
+    return (*engine)->process(
+        f.frame_if_in(0, [views](int v, int, int) { return v % (12 / views) == 0; }));
   };
-  {
-    auto engine = Engine::create(t, f.cams(), o);
-    ASSERT_TRUE(engine.ok());
-    auto r = (*engine)->process(f.frame_if_in(0, in_views(2)));
-    ASSERT_TRUE(r.ok());
-    EXPECT_EQ(r->stats.births, 0);
-    EXPECT_EQ(r->stats.births_rejected, 1);
-    EXPECT_TRUE(r->skeletons.persons.empty());
-  }
-  {
-    auto engine = Engine::create(t, f.cams(), o);
-    ASSERT_TRUE(engine.ok());
-    auto r = (*engine)->process(f.frame_if_in(0, in_views(6)));
-    ASSERT_TRUE(r.ok());
-    EXPECT_EQ(r->stats.births, 1);
-    EXPECT_EQ(r->stats.births_rejected, 0);
-  }
-  {
-    AssociationOptions off = o;
-    off.tracking.min_birth_view_support = 0;
-    auto engine = Engine::create(t, f.cams(), off);
-    ASSERT_TRUE(engine.ok());
-    auto r = (*engine)->process(f.frame_if_in(0, in_views(2)));
-    ASSERT_TRUE(r.ok());
-    EXPECT_EQ(r->stats.births, 1);
-  }
+  const auto two = first_frame(AssociationOptions{}, 2);
+  ASSERT_TRUE(two.ok()) << two.error().message();
+  EXPECT_EQ(two->stats.births, 0);
+  EXPECT_EQ(two->stats.births_rejected, 1);
+  EXPECT_TRUE(two->skeletons.persons.empty());
+
+  const auto six = first_frame(AssociationOptions{}, 6);
+  ASSERT_TRUE(six.ok()) << six.error().message();
+  EXPECT_EQ(six->stats.births, 1);
+  EXPECT_EQ(six->stats.births_rejected, 0);
+
+  AssociationOptions off;
+  off.tracking.min_birth_view_support = 0;
+  const auto two_off = first_frame(off, 2);
+  ASSERT_TRUE(two_off.ok()) << two_off.error().message();
+  EXPECT_EQ(two_off->stats.births, 1);
 }
 
 }  // namespace

@@ -362,28 +362,36 @@ TEST_F(GraphTest, RebuildReusesStorageWithoutStaleEdges) {
   EXPECT_EQ(g.track_count(), 0);
 }
 
-// On a crowded simulated frame (12 views, 10 people, false candidates) the matching table equals
-// a brute-force evaluation of every candidate pair with closest_points (the line-to-line
-// prefilter changes no edge), neighbour lists are ascending and in other views, and limb edges
-// are sorted by view and ka: the orders parse_limb_bundles relies on.
+// The first frame of a simulated scene in a ring of `views` cameras (body19 detections with the
+// default noise), and the cameras.
+struct SimFrame {
+  std::vector<Camera> cameras;
+  DetectionSet detections;
+};
+
+Result<SimFrame> first_sim_frame(const sim::SceneOptions& scene, int views) {
+  sim::RigOptions rig;
+  rig.views = views;
+  Result<sim::Simulator> s =
+      sim::Simulator::create(rig, scene, sim::DetectionNoiseOptions{}, body19_topology());
+  if (!s.ok()) return s.error();
+  Result<sim::RenderedFrame> f = s->next();
+  if (!f.ok()) return f.error();
+  return SimFrame{s->rig().cameras, std::move(f->detections)};
+}
+
 // Matching edges built lazily (none at build, some on demand, then the rest for a set of
 // unsettled candidates) equal the eager build wherever both ends are unsettled or the pair was
 // asked for, and are 0 elsewhere; neighbour lists hold exactly the unsettled pairs, in order.
 TEST(GraphSimTest, LazyMatchingEdgesEqualTheEagerOnes) {
   sim::SceneOptions scene;
   scene.people = 6;
-  sim::RigOptions rig;
-  rig.views = 8;
-  Result<sim::Simulator> s =
-      sim::Simulator::create(rig, scene, sim::DetectionNoiseOptions{}, body19_topology());
-  ASSERT_TRUE(s.ok()) << s.error().message();
-  Result<sim::RenderedFrame> f = s->next();
+  Result<SimFrame> f = first_sim_frame(scene, 8);
   ASSERT_TRUE(f.ok()) << f.error().message();
   FrameGraph eager;
-  ASSERT_TRUE(eager.build(f->detections, s->rig().cameras, {}, GraphOptions{}).ok());
+  ASSERT_TRUE(eager.build(f->detections, f->cameras, {}, GraphOptions{}).ok());
   FrameGraph lazy;
-  ASSERT_TRUE(
-      lazy.build(f->detections, s->rig().cameras, {}, GraphOptions{}, /*matching=*/false).ok());
+  ASSERT_TRUE(lazy.build(f->detections, f->cameras, {}, GraphOptions{}, /*matching=*/false).ok());
   std::vector<std::vector<char>> settled(static_cast<std::size_t>(lazy.joint_count()));
   long asked = 0;
   for (int j = 0; j < lazy.joint_count(); ++j) {
@@ -434,18 +442,12 @@ TEST(GraphSimTest, LazyMatchingEdgesEqualTheEagerOnes) {
 TEST(GraphSimTest, BatchedMatchingEdgesEqualThePairwiseOnes) {
   sim::SceneOptions scene;
   scene.people = 6;
-  sim::RigOptions rig;
-  rig.views = 8;
-  Result<sim::Simulator> s =
-      sim::Simulator::create(rig, scene, sim::DetectionNoiseOptions{}, body19_topology());
-  ASSERT_TRUE(s.ok()) << s.error().message();
-  Result<sim::RenderedFrame> f = s->next();
+  Result<SimFrame> f = first_sim_frame(scene, 8);
   ASSERT_TRUE(f.ok()) << f.error().message();
   FrameGraph eager;
-  ASSERT_TRUE(eager.build(f->detections, s->rig().cameras, {}, GraphOptions{}).ok());
+  ASSERT_TRUE(eager.build(f->detections, f->cameras, {}, GraphOptions{}).ok());
   FrameGraph batch;
-  ASSERT_TRUE(
-      batch.build(f->detections, s->rig().cameras, {}, GraphOptions{}, /*matching=*/false).ok());
+  ASSERT_TRUE(batch.build(f->detections, f->cameras, {}, GraphOptions{}, /*matching=*/false).ok());
   long edges = 0;
   for (int j = 0; j < batch.joint_count(); ++j) {
     const int n = batch.candidate_count(j);
@@ -476,8 +478,7 @@ TEST(GraphSimTest, BatchedMatchingEdgesEqualThePairwiseOnes) {
     }
   }
   EXPECT_GT(edges, 100);
-  ASSERT_TRUE(
-      batch.build(f->detections, s->rig().cameras, {}, GraphOptions{}, /*matching=*/false).ok());
+  ASSERT_TRUE(batch.build(f->detections, f->cameras, {}, GraphOptions{}, /*matching=*/false).ok());
   for (int j = 0; j < batch.joint_count(); ++j) {
     const int n = batch.candidate_count(j);
     for (int k1 = 0; k1 < n; ++k1) {
@@ -490,20 +491,19 @@ TEST(GraphSimTest, BatchedMatchingEdgesEqualThePairwiseOnes) {
   }
 }
 
+// On a crowded simulated frame (12 views, 10 people, false candidates) the matching table equals
+// a brute-force evaluation of every candidate pair with closest_points (the line-to-line
+// prefilter changes no edge), neighbour lists are ascending and in other views, and limb edges
+// are sorted by view and ka: the orders parse_limb_bundles relies on.
 TEST(GraphSimTest, MatchingEdgesEqualBruteForceAndAreOrdered) {
   sim::SceneOptions scene;
   scene.people = 10;
   scene.area_radius_m = 3.0;
-  sim::RigOptions rig;
-  rig.views = 12;
-  Result<sim::Simulator> s =
-      sim::Simulator::create(rig, scene, sim::DetectionNoiseOptions{}, body19_topology());
-  ASSERT_TRUE(s.ok()) << s.error().message();
-  Result<sim::RenderedFrame> f = s->next();
+  Result<SimFrame> f = first_sim_frame(scene, 12);
   ASSERT_TRUE(f.ok()) << f.error().message();
   const GraphOptions opt;
   FrameGraph g;
-  ASSERT_TRUE(g.build(f->detections, s->rig().cameras, {}, opt).ok());
+  ASSERT_TRUE(g.build(f->detections, f->cameras, {}, opt).ok());
   long edges = 0;
   for (int j = 0; j < g.joint_count(); ++j) {
     const auto c = g.candidates(j);
