@@ -164,6 +164,7 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
     dir_y_.resize(idx(n));
     dir_z_.resize(idx(n));
     dist2_.resize(idx(n));
+    near_.resize(idx(n));
     view_starts_.clear();
     for (int k = 0; k < n; ++k) {
       const Eigen::Vector3d& d = cj[idx(k)].ray.direction;
@@ -195,9 +196,16 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
           d2[k] = vv - vd * vd;
         }
       }
+      // The few candidates within reach, gathered without a branch per candidate (which of
+      // them pass is data, so a branch would be mispredicted often).
+      int near = 0;
       for (int k = 0; k < n; ++k) {
+        near_[idx(near)] = k;
+        near += dist2_[idx(k)] < T2 ? 1 : 0;
+      }
+      for (int q = 0; q < near; ++q) {
+        const int k = near_[idx(q)];
         const double d2 = std::max(0.0, dist2_[idx(k)]);
-        if (d2 >= T2) continue;
         const double d = std::sqrt(d2);
         if (d >= options.max_track_dist_m) continue;
         tr[idx(t * n + k)] = static_cast<float>(1.0 - d / options.max_track_dist_m);
@@ -228,14 +236,23 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
       std::size_t b1 = b0;
       while (b1 < cb.size() && cb[b1].view == v->view_id) ++b1;
       const AffinityMatrix& aff = v->affinities[idx(l)];
+      // The pairs whose raw score can pass, in (ia, ib) order, gathered without a branch per
+      // pair (which pass is data); then the pow and the exact test on those few.
+      const std::size_t block = (a1 - a0) * (b1 - b0);
+      if (pass_.size() < block) pass_.resize(block);
+      std::size_t np = 0;
       for (std::size_t ia = a0; ia < a1; ++ia) {
         for (std::size_t ib = b0; ib < b1; ++ib) {
           const float raw = aff.at(ca[ia].index, cb[ib].index);
-          if (!(raw > 0.f) || raw < raw_min) continue;
-          const float p = std::pow(raw, exponent);
-          if (static_cast<double>(p) < options.min_affinity) continue;
-          edges.push_back(LimbEdge{v->view_id, static_cast<int>(ia), static_cast<int>(ib), p});
+          pass_[np] = PairPass{static_cast<int>(ia), static_cast<int>(ib), raw};
+          np += static_cast<std::size_t>((raw > 0.f) & (raw >= raw_min));  // false for NaN
         }
+      }
+      for (std::size_t q = 0; q < np; ++q) {
+        const PairPass& c = pass_[q];
+        const float p = std::pow(c.raw, exponent);
+        if (static_cast<double>(p) < options.min_affinity) continue;
+        edges.push_back(LimbEdge{v->view_id, c.ia, c.ib, p});
       }
       a0 = a1;
       b0 = b1;
@@ -298,18 +315,24 @@ void FrameGraph::ensure_matches(int joint, std::span<const int> ks) {
   double* row = batch_row_.data();
   for (std::size_t i = 0; i + 1 < m; ++i) {
     const int ki = ks[i];
+    // Branch-free scans: which entries are computed is data, a branch on it mispredicts.
     bool any = false;
-    for (std::size_t j = i + 1; j < m; ++j) any = any || mt[pair_index(joint, ki, ks[j])] < 0.f;
+    for (std::size_t j = i + 1; j < m; ++j) any |= mt[pair_index(joint, ki, ks[j])] < 0.f;
     if (!any) continue;
     pair_row(ox, oy, oz, dx, dy, dz, i, m, max_dist, par2, min_depth, row);
+    auto& written = match_written_[idx(joint)];
+    std::size_t nw = written.size();
+    written.resize(nw + (m - 1 - i));
     for (std::size_t j = i + 1; j < m; ++j) {
-      const int kj = ks[j];
-      const std::size_t e = pair_index(joint, ki, kj);
+      const std::size_t e = pair_index(joint, ki, ks[j]);
       float& m12 = mt[e];
-      if (m12 >= 0.f) continue;
-      m12 = batch_view_[i] == batch_view_[j] ? 0.f : static_cast<float>(row[j]);
-      match_written_[idx(joint)].push_back(static_cast<int>(e));
+      const bool todo = m12 < 0.f;
+      const float value = batch_view_[i] == batch_view_[j] ? 0.f : static_cast<float>(row[j]);
+      m12 = todo ? value : m12;
+      written[nw] = static_cast<int>(e);
+      nw += todo ? 1 : 0;
     }
+    written.resize(nw);
   }
 }
 

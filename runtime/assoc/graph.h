@@ -138,6 +138,15 @@ class FrameGraph {
   // to one track's joint, and where each view's candidates start (then n).
   std::vector<double> dir_x_, dir_y_, dir_z_, dist2_;
   std::vector<int> view_starts_;
+  std::vector<int> near_;  // candidates within max_track_dist_m of the current track joint
+  // Parsing-edge scratch: the (candidate a, candidate b, raw affinity) pairs of one view that
+  // pass the raw-score bound.
+  struct PairPass {
+    int ia;
+    int ib;
+    float raw;
+  };
+  std::vector<PairPass> pass_;
   // ensure_matches() scratch: the batch's rays by component, views, and one row of results.
   std::vector<double> batch_ox_, batch_oy_, batch_oz_, batch_dx_, batch_dy_, batch_dz_;
   std::vector<double> batch_row_;
