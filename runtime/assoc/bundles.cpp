@@ -709,19 +709,22 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
   thread_local std::vector<int> owner_a, owner_b;  // [k] track whose picked limb uses k; -2 two
   thread_local std::vector<int> assigned;          // [e] the track the 2D limb went to, or -1
   thread_local std::vector<char> removed;          // [e] left out by the consistency test
+  thread_local std::vector<int> to_track;          // the 2D limbs assigned to a track, ascending
   assigned.assign(edges.size(), -1);
   removed.assign(edges.size(), 0);
   for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
     const LimbEdge& x = edges[ix(e)];
     const int deg_a = graph.tracks_of_candidate(L.joint_a, x.ka);
     const int deg_b = graph.tracks_of_candidate(L.joint_b, x.kb);
-    if (deg_a == 0 || deg_b == 0) continue;
-    if (deg_a == 1 && deg_b == 1) {
-      // One track near each end (the common case): it is the choice if it is the same one.
+    if ((deg_a | deg_b) <= 1) {
+      // At most one track near each end (the common case): it is the choice if it is the same
+      // one at both. A candidate near no track has sole track -1, so this needs no branch on
+      // the data (which would be mispredicted often).
       const int ta = graph.sole_track_of_candidate(L.joint_a, x.ka);
-      if (ta == graph.sole_track_of_candidate(L.joint_b, x.kb)) assigned[ix(e)] = ta;
+      assigned[ix(e)] = ta == graph.sole_track_of_candidate(L.joint_b, x.kb) ? ta : -1;
       continue;
     }
+    if (deg_a == 0 || deg_b == 0) continue;
     int best = -1;
     float best_p = 0.f;
     for (int t = 0; t < T; ++t) {
@@ -733,6 +736,13 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     }
     assigned[ix(e)] = best;
   }
+  to_track.resize(edges.size());
+  std::size_t n_to_track = 0;
+  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+    to_track[n_to_track] = e;
+    n_to_track += assigned[ix(e)] >= 0 ? 1 : 0;
+  }
+  to_track.resize(n_to_track);
   // Per track and view the one 2D limb assigned to it, with the ambiguities marked (-2).
   thread_local std::vector<double> merit;  // [e] clique-score share of a consistent 2D limb
   merit.assign(edges.size(), 0.0);
@@ -740,9 +750,9 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     pick.assign(ix(T * V), -1);
     owner_a.assign(ix(graph.candidate_count(L.joint_a)), -1);
     owner_b.assign(ix(graph.candidate_count(L.joint_b)), -1);
-    for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+    for (const int e : to_track) {
       const int best = assigned[ix(e)];
-      if (best < 0 || removed[ix(e)]) continue;
+      if (removed[ix(e)]) continue;
       const LimbEdge& x = edges[ix(e)];
       int& slot = pick[ix(best * V + x.view)];
       if (slot == -1) {
@@ -758,10 +768,15 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
       for (int* o : {&owner_a[ix(x.ka)], &owner_b[ix(x.kb)]})
         *o = (*o == -1 || *o == best) ? best : -2;
     }
+    // A pick whose candidate is also in another track's 2D limb is ambiguous (branch-free:
+    // which views have a pick is data).
     bool any_ambiguous = false;
     for (int& e : pick) {
-      if (e >= 0 && (owner_a[ix(edges[ix(e)].ka)] < 0 || owner_b[ix(edges[ix(e)].kb)] < 0)) e = -2;
-      any_ambiguous = any_ambiguous || e == -2;
+      const bool live = e >= 0;
+      const LimbEdge& x = edges[ix(live ? e : 0)];
+      const bool shared = (owner_a[ix(x.ka)] < 0) | (owner_b[ix(x.kb)] < 0);
+      e = live & shared ? -2 : e;
+      any_ambiguous |= e == -2;
     }
     return any_ambiguous;
   };
@@ -775,9 +790,8 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     // then made again without it. 2D limbs that pass stay ambiguous if two of them remain.
     thread_local std::vector<int> core;  // [t * V + v] unambiguous picks of the first pass
     core = pick;
-    for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+    for (const int e : to_track) {
       const int t = assigned[ix(e)];
-      if (t < 0) continue;
       const LimbEdge& x = edges[ix(e)];
       if (core[ix(t * V + x.view)] != -2) {
         // Its view is unambiguous, unless a candidate is shared with another track's limb.
@@ -825,12 +839,15 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     if (!graph.track_has_joint(t, L.joint_a) || !graph.track_has_joint(t, L.joint_b)) continue;
     // Views where the track's 2D limb is ambiguous stay out of its bundle (the clique search
     // and assembling place their 2D limbs).
-    members.clear();
+    members.resize(ix(V));
     bool ambiguous = false;
+    std::size_t n_members = 0;
     for (int v = 0; v < V; ++v) {
       const int e = pick[ix(t * V + v)];
-      if (e >= 0) members.push_back(e);
+      members[n_members] = e;
+      n_members += e >= 0 ? 1 : 0;
     }
+    members.resize(n_members);
     if (members.empty()) continue;
     // A limb clique: every two of its 2D limbs are joined by matching edges at both ends. A 2D
     // limb that is not (an occluded or displaced detection, a stray limb) is dropped, the one
