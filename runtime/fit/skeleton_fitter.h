@@ -152,12 +152,12 @@ inline void project_with_jacobian(const Camera& cam, const Eigen::Vector3d& X, E
   const double iz = 1.0 / z;
   const double x = xc.x() * iz;
   const double y = xc.y() * iz;
-  // d(x, y) / d(xc).
-  Eigen::Matrix<double, 2, 3> P;
-  P << iz, 0.0, clamped ? 0.0 : -x * iz, 0.0, iz, clamped ? 0.0 : -y * iz;
+  // d(x, y) / d(xc) = [iz 0 px2; 0 iz py2].
+  const double px2 = clamped ? 0.0 : -x * iz;
+  const double py2 = clamped ? 0.0 : -y * iz;
   double xd = x;
   double yd = y;
-  Eigen::Matrix2d Dd = Eigen::Matrix2d::Identity();
+  double d00 = 1.0, d01 = 0.0, d10 = 0.0, d11 = 1.0;  // d(xd, yd) / d(x, y)
   if (cam.has_distortion()) {
     const Distortion& d = cam.distortion();
     const double r2 = x * x + y * y;
@@ -165,15 +165,24 @@ inline void project_with_jacobian(const Camera& cam, const Eigen::Vector3d& X, E
     const double dradial = d.k1 + r2 * (2.0 * d.k2 + 3.0 * r2 * d.k3);  // d radial / d r2
     xd = x * radial + 2.0 * d.p1 * x * y + d.p2 * (r2 + 2.0 * x * x);
     yd = y * radial + d.p1 * (r2 + 2.0 * y * y) + 2.0 * d.p2 * x * y;
-    Dd(0, 0) = radial + 2.0 * x * x * dradial + 2.0 * d.p1 * y + 6.0 * d.p2 * x;
-    Dd(0, 1) = 2.0 * x * y * dradial + 2.0 * d.p1 * x + 2.0 * d.p2 * y;
-    Dd(1, 0) = 2.0 * x * y * dradial + 2.0 * d.p1 * x + 2.0 * d.p2 * y;
-    Dd(1, 1) = radial + 2.0 * y * y * dradial + 6.0 * d.p1 * y + 2.0 * d.p2 * x;
+    d00 = radial + 2.0 * x * x * dradial + 2.0 * d.p1 * y + 6.0 * d.p2 * x;
+    d01 = 2.0 * x * y * dradial + 2.0 * d.p1 * x + 2.0 * d.p2 * y;
+    d10 = d01;
+    d11 = radial + 2.0 * y * y * dradial + 6.0 * d.p1 * y + 2.0 * d.p2 * x;
   }
-  px = Eigen::Vector2d(cam.fx() * xd + cam.skew() * yd + cam.cx(), cam.fy() * yd + cam.cy());
-  Eigen::Matrix2d Kp;
-  Kp << cam.fx(), cam.skew(), 0.0, cam.fy();
-  J.noalias() = (Kp * Dd) * P * cam.R();
+  const double fx = cam.fx(), fy = cam.fy(), sk = cam.skew();
+  px = Eigen::Vector2d(fx * xd + sk * yd + cam.cx(), fy * yd + cam.cy());
+  // J = K' D P R with K' = [fx sk; 0 fy], written out without the products by zeros: the
+  // rows of K'D, then of K'D P, then of J.
+  const double a00 = fx * d00 + sk * d10, a01 = fx * d01 + sk * d11;
+  const double a10 = fy * d10, a11 = fy * d11;
+  const double b00 = a00 * iz, b01 = a01 * iz, b02 = a00 * px2 + a01 * py2;
+  const double b10 = a10 * iz, b11 = a11 * iz, b12 = a10 * px2 + a11 * py2;
+  const Eigen::Matrix3d& R = cam.R();
+  for (int c = 0; c < 3; ++c) {
+    J(0, c) = b00 * R(0, c) + b01 * R(1, c) + b02 * R(2, c);
+    J(1, c) = b10 * R(0, c) + b11 * R(1, c) + b12 * R(2, c);
+  }
 }
 
 // Template bone length (metres, adult ~1.75 m) and rest direction for a bone joint_a ->
