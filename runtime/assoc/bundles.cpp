@@ -858,10 +858,13 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
       const std::size_t m = members.size();
       // Every matching edge among the members' candidates, at both ends, in one batch each.
       thread_local std::vector<int> ends;
+      thread_local std::vector<float> match_a, match_b;  // [i * m + j], i < j
+      match_a.resize(m * m);
+      match_b.resize(m * m);
       for (int end = 0; end < 2; ++end) {
         ends.clear();
         for (const int e : members) ends.push_back(end == 0 ? edges[ix(e)].ka : edges[ix(e)].kb);
-        graph.ensure_matches(end == 0 ? L.joint_a : L.joint_b, ends);
+        graph.ensure_matches(end == 0 ? L.joint_a : L.joint_b, ends, end == 0 ? match_a : match_b);
       }
       fail.assign(m * m, 0);
       pair_w.assign(m * m, 0.0);
@@ -869,11 +872,10 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
       evidence.assign(m, 0.0);
       int total = 0;
       for (std::size_t i = 0; i < m; ++i) {
-        const LimbEdge& x = edges[ix(members[i])];
         for (std::size_t j = i + 1; j < m; ++j) {
-          const LimbEdge& y = edges[ix(members[j])];
-          const float wa = graph.ensure_match(L.joint_a, x.ka, y.ka);
-          const float wb = wa > 0.f ? graph.ensure_match(L.joint_b, x.kb, y.kb) : 0.f;
+          // The members are in different views: their candidates are distinct at both ends.
+          const float wa = match_a[i * m + j];
+          const float wb = wa > 0.f ? match_b[i * m + j] : 0.f;
           if (wa > 0.f && wb > 0.f) {
             evidence[i] += static_cast<double>(wa + wb);
             evidence[j] += static_cast<double>(wa + wb);

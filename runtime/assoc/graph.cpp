@@ -280,9 +280,10 @@ void FrameGraph::matching_pair(int joint, int k1, int k2) {
       kParallelAngle_rad * kParallelAngle_rad, options_.min_depth_m));
 }
 
-void FrameGraph::ensure_matches(int joint, std::span<const int> ks) {
+void FrameGraph::ensure_matches(int joint, std::span<const int> ks, std::span<float> pairs) {
   const std::size_t m = ks.size();
   if (m < 2) return;
+  float* out = pairs.size() >= m * m ? pairs.data() : nullptr;
   const auto& cj = cands_[idx(joint)];
   auto& mt = match_[idx(joint)];
   batch_ox_.resize(m);
@@ -317,7 +318,16 @@ void FrameGraph::ensure_matches(int joint, std::span<const int> ks) {
     const int ki = ks[i];
     // Branch-free scans: which entries are computed is data, a branch on it mispredicts.
     bool any = false;
-    for (std::size_t j = i + 1; j < m; ++j) any |= mt[pair_index(joint, ki, ks[j])] < 0.f;
+    if (out) {
+      float* out_i = out + i * m;
+      for (std::size_t j = i + 1; j < m; ++j) {
+        const float v = mt[pair_index(joint, ki, ks[j])];
+        out_i[j] = v;
+        any |= v < 0.f;
+      }
+    } else {
+      for (std::size_t j = i + 1; j < m; ++j) any |= mt[pair_index(joint, ki, ks[j])] < 0.f;
+    }
     if (!any) continue;
     pair_row(ox, oy, oz, dx, dy, dz, i, m, max_dist, par2, min_depth, row);
     auto& written = match_written_[idx(joint)];
@@ -331,6 +341,7 @@ void FrameGraph::ensure_matches(int joint, std::span<const int> ks) {
       m12 = todo ? value : m12;
       written[nw] = static_cast<int>(e);
       nw += todo ? 1 : 0;
+      if (out) out[i * m + j] = m12;
     }
     written.resize(nw);
   }
