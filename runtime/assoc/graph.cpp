@@ -314,20 +314,31 @@ void FrameGraph::ensure_matches(int joint, std::span<const int> ks, std::span<fl
   const double* dy = batch_dy_.data();
   const double* dz = batch_dz_.data();
   double* row = batch_row_.data();
+  if (out) {
+    // Every pair computed and stored, without reading the table first: the entries of a
+    // batch are scattered over the table (one row per candidate), so reading which are
+    // computed costs a cache miss each, more than computing them again (the same formula on
+    // the same rays: an entry computed before is rewritten with its own value).
+    auto& written = match_written_[idx(joint)];
+    std::size_t nw = written.size();
+    written.resize(nw + m * (m - 1) / 2);  // repeated indices are harmless to the reset
+    for (std::size_t i = 0; i + 1 < m; ++i) {
+      pair_row(ox, oy, oz, dx, dy, dz, i, m, max_dist, par2, min_depth, row);
+      for (std::size_t j = i + 1; j < m; ++j) {
+        const std::size_t e = pair_index(joint, ks[i], ks[j]);
+        const float value = batch_view_[i] == batch_view_[j] ? 0.f : static_cast<float>(row[j]);
+        mt[e] = value;
+        out[i * m + j] = value;
+        written[nw++] = static_cast<int>(e);
+      }
+    }
+    return;
+  }
   for (std::size_t i = 0; i + 1 < m; ++i) {
     const int ki = ks[i];
-    // Branch-free scans: which entries are computed is data, a branch on it mispredicts.
+    // Branch-free scan: which entries are computed is data, a branch on it mispredicts.
     bool any = false;
-    if (out) {
-      float* out_i = out + i * m;
-      for (std::size_t j = i + 1; j < m; ++j) {
-        const float v = mt[pair_index(joint, ki, ks[j])];
-        out_i[j] = v;
-        any |= v < 0.f;
-      }
-    } else {
-      for (std::size_t j = i + 1; j < m; ++j) any |= mt[pair_index(joint, ki, ks[j])] < 0.f;
-    }
+    for (std::size_t j = i + 1; j < m; ++j) any |= mt[pair_index(joint, ki, ks[j])] < 0.f;
     if (!any) continue;
     pair_row(ox, oy, oz, dx, dy, dz, i, m, max_dist, par2, min_depth, row);
     auto& written = match_written_[idx(joint)];
@@ -341,7 +352,6 @@ void FrameGraph::ensure_matches(int joint, std::span<const int> ks, std::span<fl
       m12 = todo ? value : m12;
       written[nw] = static_cast<int>(e);
       nw += todo ? 1 : 0;
-      if (out) out[i * m + j] = m12;
     }
     written.resize(nw);
   }
