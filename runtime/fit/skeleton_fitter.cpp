@@ -426,9 +426,17 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
   }
   if (!touched[ix(order_.front())] && wt == 0) return SolveStats{};
 
-  auto skew = [](const Eigen::Vector3d& v) {
+  // s·[v]× (sign -1: s·(−[v]×)), element by element as the scalar-times-matrix product would
+  // give it (a comma-initialised temporary cost more than the rest of the step's setup).
+  auto scaled_skew = [](double s, const Eigen::Vector3d& v, double sign) {
+    const double k[9] = {0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0};
     Eigen::Matrix3d m;
-    m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+    for (int row = 0; row < 3; ++row) {
+      for (int col = 0; col < 3; ++col) {
+        const double e = k[3 * row + col];
+        m(row, col) = s * (sign < 0 ? -e : e);
+      }
+    }
     return m;
   };
   std::vector<Eigen::Vector3d> X(ix(J));
@@ -522,8 +530,8 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
     const JointMats& S = S_buf[cur];
     const JointVecs& G = G_buf[cur];
     for (int j = 0; j < J; ++j) {
-      P[ix(j)] = parents_[ix(j)] < 0 ? Eigen::Matrix3d::Identity()
-                                     : Eigen::Matrix3d(-L[ix(j)] * skew(u[ix(j)]));
+      P[ix(j)] =
+          parents_[ix(j)] < 0 ? Eigen::Matrix3d::Identity() : scaled_skew(-L[ix(j)], u[ix(j)], 1.0);
       Sub[ix(j)] = S[ix(j)];
       Tt[ix(j)].setZero();
       ht[ix(j)].setZero();
@@ -538,7 +546,7 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
       ht[ix(root)] = wt * wt * (r - state.root_prev);
       for (int j = 0; j < J; ++j) {
         if (parents_[ix(j)] < 0) continue;
-        const Eigen::Matrix3d Jt = wt * L[ix(j)] * (-skew(u[ix(j)]));
+        const Eigen::Matrix3d Jt = scaled_skew(wt * L[ix(j)], u[ix(j)], -1.0);
         const Eigen::Vector3d res = wt * L[ix(j)] * (u[ix(j)] - state.dir_prev[ix(j)]);
         Tt[ix(j)] = Jt.transpose() * Jt;
         ht[ix(j)] = Jt.transpose() * res;
