@@ -426,16 +426,13 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
   }
   if (!touched[ix(order_.front())] && wt == 0) return SolveStats{};
 
-  // s·[v]× (sign -1: s·(−[v]×)), element by element as the scalar-times-matrix product would
-  // give it (a comma-initialised temporary cost more than the rest of the step's setup).
-  auto scaled_skew = [](double s, const Eigen::Vector3d& v, double sign) {
+  // s·[v]×, element by element as the scalar-times-matrix product gives it (a comma-initialised
+  // temporary cost more than the rest of the step's setup). s·(−[v]×) is (−s)·[v]×, exactly.
+  auto scaled_skew = [](double s, const Eigen::Vector3d& v) {
     const double k[9] = {0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0};
     Eigen::Matrix3d m;
     for (int row = 0; row < 3; ++row) {
-      for (int col = 0; col < 3; ++col) {
-        const double e = k[3 * row + col];
-        m(row, col) = s * (sign < 0 ? -e : e);
-      }
+      for (int col = 0; col < 3; ++col) m(row, col) = s * k[3 * row + col];
     }
     return m;
   };
@@ -531,7 +528,7 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
     const JointVecs& G = G_buf[cur];
     for (int j = 0; j < J; ++j) {
       P[ix(j)] =
-          parents_[ix(j)] < 0 ? Eigen::Matrix3d::Identity() : scaled_skew(-L[ix(j)], u[ix(j)], 1.0);
+          parents_[ix(j)] < 0 ? Eigen::Matrix3d::Identity() : scaled_skew(-L[ix(j)], u[ix(j)]);
       Sub[ix(j)] = S[ix(j)];
       Tt[ix(j)].setZero();
       ht[ix(j)].setZero();
@@ -546,7 +543,7 @@ SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
       ht[ix(root)] = wt * wt * (r - state.root_prev);
       for (int j = 0; j < J; ++j) {
         if (parents_[ix(j)] < 0) continue;
-        const Eigen::Matrix3d Jt = scaled_skew(wt * L[ix(j)], u[ix(j)], -1.0);
+        const Eigen::Matrix3d Jt = scaled_skew(-(wt * L[ix(j)]), u[ix(j)]);
         const Eigen::Vector3d res = wt * L[ix(j)] * (u[ix(j)] - state.dir_prev[ix(j)]);
         Tt[ix(j)] = Jt.transpose() * Jt;
         ht[ix(j)] = Jt.transpose() * res;
