@@ -1,6 +1,7 @@
 #include "runtime/assoc/graph.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <string>
 
@@ -284,6 +285,7 @@ void FrameGraph::ensure_matches(int joint, std::span<const int> ks, std::span<fl
   const std::size_t m = ks.size();
   if (m < 2) return;
   float* out = pairs.size() >= m * m ? pairs.data() : nullptr;
+  assert((pairs.empty() || out) && "ensure_matches: `pairs` must hold ks.size()^2 entries");
   const auto& cj = cands_[idx(joint)];
   auto& mt = match_[idx(joint)];
   batch_ox_.resize(m);

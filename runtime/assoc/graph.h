@@ -108,9 +108,10 @@ class FrameGraph {
 
   // ensure_match() for every pair of the candidates `ks` of `joint` (distinct indices), in one
   // pass over their rays laid out by component that the compiler vectorises (the same formula
-  // as ensure_match(), so the same values). Rows whose pairs are all computed are skipped.
-  // `pairs` (optional, at least m x m for m = ks.size()) receives the edge of ks[i], ks[j] at
-  // [i * m + j] for every i < j, so the caller need not look them up again.
+  // as ensure_match(), so the same values). Without `pairs`, rows whose pairs are all computed
+  // are skipped. With `pairs` (at least m x m for m = ks.size()), every pair is computed and
+  // stored without reading the table first, and the edge of ks[i], ks[j] is also written to
+  // pairs[i * m + j] for every i < j, so the caller need not look them up again.
   void ensure_matches(int joint, std::span<const int> ks, std::span<float> pairs = {});
 
   // How many tracks have a tracking edge to candidate k of `joint`.

@@ -438,7 +438,8 @@ TEST(GraphSimTest, LazyMatchingEdgesEqualTheEagerOnes) {
 
 // ensure_matches() (the vectorised batch track-first parsing uses) gives bit for bit the values
 // of the pairwise computation for every pair of the batch, same-view pairs included (0), leaves
-// every other pair uncomputed, and keeps values computed before it; a rebuild forgets them.
+// every other pair uncomputed, and keeps values computed before it; a rebuild forgets them. The
+// same holds with an output array, which receives the batch's values.
 TEST(GraphSimTest, BatchedMatchingEdgesEqualThePairwiseOnes) {
   sim::SceneOptions scene;
   scene.people = 6;
@@ -448,6 +449,9 @@ TEST(GraphSimTest, BatchedMatchingEdgesEqualThePairwiseOnes) {
   ASSERT_TRUE(eager.build(f->detections, f->cameras, {}, GraphOptions{}).ok());
   FrameGraph batch;
   ASSERT_TRUE(batch.build(f->detections, f->cameras, {}, GraphOptions{}, /*matching=*/false).ok());
+  FrameGraph out_graph;
+  ASSERT_TRUE(
+      out_graph.build(f->detections, f->cameras, {}, GraphOptions{}, /*matching=*/false).ok());
   long edges = 0;
   for (int j = 0; j < batch.joint_count(); ++j) {
     const int n = batch.candidate_count(j);
@@ -460,18 +464,35 @@ TEST(GraphSimTest, BatchedMatchingEdgesEqualThePairwiseOnes) {
     }
     if (ks.size() >= 2) batch.ensure_match(j, ks[0], ks[1]);
     batch.ensure_matches(j, ks);
+    // The form with an output (track-first's) stores the same values and hands them back.
+    if (ks.size() >= 2) out_graph.ensure_match(j, ks[0], ks[1]);
+    const std::size_t m = ks.size();
+    std::vector<float> out(m * m, -2.f);
+    out_graph.ensure_matches(j, ks, out);
+    for (std::size_t a = 0; a < m; ++a) {
+      for (std::size_t b = a + 1; b < m; ++b) {
+        EXPECT_EQ(out[a * m + b], eager.match(j, ks[a], ks[b]))
+            << "output: joint " << j << " " << ks[a] << "-" << ks[b];
+      }
+    }
     for (int k1 = 0; k1 < n; ++k1) {
       for (int k2 = 0; k2 < n; ++k2) {
         const bool both =
             k1 != k2 && in[static_cast<std::size_t>(k1)] && in[static_cast<std::size_t>(k2)];
         const float want = both ? eager.match(j, k1, k2) : 0.f;
         EXPECT_EQ(batch.match(j, k1, k2), want) << "joint " << j << " " << k1 << "-" << k2;
+        EXPECT_EQ(out_graph.match(j, k1, k2), want)
+            << "with output: joint " << j << " " << k1 << "-" << k2;
         if (both) {
           EXPECT_TRUE(batch.match_computed(j, k1, k2))
               << "computed: joint " << j << " " << k1 << "-" << k2;
+          EXPECT_TRUE(out_graph.match_computed(j, k1, k2))
+              << "computed with output: joint " << j << " " << k1 << "-" << k2;
         } else if (k1 != k2) {
           EXPECT_FALSE(batch.match_computed(j, k1, k2))
               << "not computed: joint " << j << " " << k1 << "-" << k2;
+          EXPECT_FALSE(out_graph.match_computed(j, k1, k2))
+              << "not computed with output: joint " << j << " " << k1 << "-" << k2;
         }
         edges += both && want > 0.f ? 1 : 0;
       }
