@@ -1,0 +1,65 @@
+// Detection ceiling of the Shelf benchmark: the strict PCP that a method could at best reach
+// when its joints are triangulated from the given 2D detections, whatever its association.
+//
+// For every annotated actor and each of the 12 Shelf joints that are detector joints (ankles,
+// knees, hips, wrists, elbows, shoulders: the same names in BODY_25), the ceiling takes, among
+// all points the detections support, the one nearest the annotated joint. A point is supported
+// when it is the least-squares point (over back-projected rays, unweighted) of candidates of
+// that joint type in >= min_views different views, and reprojects within
+// max_reprojection_error_px of each of them. The supported points of a joint type are:
+//   - every pair of candidates from two views that passes the test;
+//   - every such pair extended with, in each other view, the candidate nearest the pair's
+//     reprojection when it is within the threshold, re-solved, when the whole set passes.
+// The three joints Shelf derives (bottom head, top head, hip centre) are taken from the
+// annotation itself, so head and torso always count as correct: the ceiling is generous there.
+//
+// Choosing each joint by its distance to the annotation uses the ground truth, so no real
+// method can do better on the limbs whose endpoints are detector joints, unless it places
+// joints where no two views' detections agree (a learned prior, for example). The ceiling
+// tells which lost limb-frames are lost in the detections themselves and which are lost by
+// the association, triangulation or fit.
+#pragma once
+
+#include <span>
+#include <vector>
+
+#include "runtime/core/error.h"
+#include "runtime/eval/shelf_pcp.h"
+#include "runtime/geometry/camera.h"
+#include "runtime/io/shelf_gt.h"
+#include "runtime/msg/messages.h"
+
+namespace mocap {
+
+struct DetectionCeilingOptions {
+  // A candidate supports a point that reprojects within this distance of it (pixels). The
+  // association engine rejects views beyond 25 px (TriangulationOptions).
+  double max_reprojection_error_px = 25.0;
+  // A supported point needs candidates in at least this many views.
+  int min_views = 2;
+  // Candidates with a lower heatmap score are ignored (as GraphOptions does).
+  double min_candidate_score = 0.05;
+  // At most this many candidates per (view, joint) are used, the best-scoring ones: bounds
+  // the work (pairs grow with the square) on pathological files.
+  int max_candidates_per_view_joint = 40;
+
+  Status validate() const;
+};
+
+struct DetectionCeilingStats {
+  long long supported_points = 0;  // points found, summed over frames and joint types
+  long long actor_joints = 0;      // detector joints of annotated actors
+  long long actor_joints_without_support = 0;  // ... with no supported point at all
+};
+
+// One estimate per annotated actor of `gt` (person_id = actor id): its detector joints are the
+// supported points nearest the annotation (NaN when the detections support none), its
+// derived joints the annotation. `detections` must be in body25_topology(); view_id is an index
+// into `cameras`. kInvalidArgument when the topology, a view id or the options are wrong.
+Result<ShelfEstimateFrame> detection_ceiling_frame(const DetectionSet& detections,
+                                                   std::span<const Camera> cameras,
+                                                   const ShelfGtFrame& gt,
+                                                   const DetectionCeilingOptions& options,
+                                                   DetectionCeilingStats* stats = nullptr);
+
+}  // namespace mocap
