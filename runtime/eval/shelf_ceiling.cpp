@@ -126,10 +126,10 @@ Result<ShelfEstimateFrame> detection_ceiling_frame(const DetectionSet& detection
                                                     std::to_string(cameras.size()) + " given)");
     }
     if (static_cast<int>(v.candidates.size()) != body25.joint_count()) {
-      return Error(ErrorCode::kInvalidArgument,
-                   frame + ", view " + std::to_string(v.view_id) + ": " +
-                       std::to_string(v.candidates.size()) + " joint types, BODY_25 has " +
-                       std::to_string(body25.joint_count()));
+      return Error(ErrorCode::kInvalidArgument, frame + ", view " + std::to_string(v.view_id) +
+                                                    ": " + std::to_string(v.candidates.size()) +
+                                                    " joint types, BODY_25 has " +
+                                                    std::to_string(body25.joint_count()));
     }
   }
 
@@ -156,8 +156,8 @@ Result<ShelfEstimateFrame> detection_ceiling_frame(const DetectionSet& detection
           ranked.push_back(&c);
         }
       }
-      const auto keep = std::min(ranked.size(),
-                                 static_cast<std::size_t>(options.max_candidates_per_view_joint));
+      const auto keep =
+          std::min(ranked.size(), static_cast<std::size_t>(options.max_candidates_per_view_joint));
       std::partial_sort(
           ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(keep), ranked.end(),
           [](const JointCandidate* p, const JointCandidate* q) { return p->score > q->score; });

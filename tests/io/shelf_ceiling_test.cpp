@@ -52,8 +52,8 @@ ShelfJoints standing_person() {
 std::vector<Camera> ring(int n) {
   std::vector<Camera> cams;
   for (int i = 0; i < n; ++i) {
-    cams.push_back(testing::ring_camera(2.0 * std::numbers::pi * i / n, 4.0, 2.0,
-                                        Eigen::Vector3d(0, 0, 1)));
+    cams.push_back(
+        testing::ring_camera(2.0 * std::numbers::pi * i / n, 4.0, 2.0, Eigen::Vector3d(0, 0, 1)));
   }
   return cams;
 }

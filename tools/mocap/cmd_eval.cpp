@@ -112,10 +112,11 @@ int eval_shelf_ceiling(Args args) {
       "joint (ankles, knees, hips, wrists, elbows, shoulders) of every annotated actor is the\n"
       "point nearest the annotation among the points that the detections support (the\n"
       "least-squares point of candidates in >= 2 views, each within the reprojection limit);\n"
-      "head and torso count as correct. It uses the ground truth to choose, so no method that\n"
-      "triangulates these detections scores higher on those limbs (a joint seen in one view\n"
-      "counts as wrong; the engine's fit can still place it). Then runs the engine and\n"
-      "prints, per actor, the limb-frames it loses that the ceiling keeps.\n"
+      "head and torso count as correct. It uses the ground truth to choose, so no method\n"
+      "whose joints are least-squares points of these detections scores higher on those\n"
+      "limbs (a joint seen in one view counts as wrong; the engine's fit can still place\n"
+      "it). Then runs the engine and prints, per actor, the limb-frames it loses that the\n"
+      "ceiling keeps.\n"
       "The last line is ceiling_avg_pcp=NN.NN.");
   p.option("--data", &data, "DIR",
            "Shelf folder with calibration.json, detection/<v>.txt and gt.txt (default: "
