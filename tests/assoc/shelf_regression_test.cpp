@@ -1,7 +1,10 @@
 // Shelf regression: the whole sequence through the engine, scored by strict PCP.
 //
-// The target is avg PCP >= 98.6 (A1-A3); what the engine measures today is asserted
-// here as a floor so a regression fails the suite. Raise kFloor as the engine improves.
+// The target is avg PCP >= 98.6 (A1-A3). It is above what these detections allow:
+// `mocap eval shelf-ceiling` (runtime/eval/shelf_ceiling.h) measures 98.28 for the best
+// least-squares triangulations of the candidates, chosen knowing the ground truth. What the
+// engine measures today is asserted here as a floor, so a regression fails the suite. Raise
+// the floors as the engine improves.
 #include <gtest/gtest.h>
 
 #include "runtime/eval/shelf_pcp.h"
@@ -12,9 +15,13 @@
 namespace mocap {
 namespace {
 
-constexpr double kFloorAllViews = 97.0;    // measured 97.11 (5 views)
-constexpr double kFloorThreeViews = 91.5;  // measured 92.03-95.67 over the 3-view subsets below
-constexpr double kFloorFourViews = 95.5;   // measured 95.74 (views 0,1,2,3)
+constexpr double kFloorAllViews = 97.1;    // measured 97.20 (5 views)
+constexpr double kFloorThreeViews = 91.9;  // measured 92.05-95.69 over the 3-view subsets below
+constexpr double kFloorFourViews = 95.7;   // measured 95.84 (views 0,1,2,3)
+// Per actor, all five views: measured A1 99.86, A2 93.78, A3 97.95.
+constexpr double kFloorA1 = 99.7;
+constexpr double kFloorA2 = 93.5;
+constexpr double kFloorA3 = 97.8;
 
 PcpReport run(const std::filesystem::path& dir, std::vector<int> views) {
   ShelfRunOptions opt;
@@ -36,6 +43,11 @@ TEST(ShelfRegression, AllViewsStrictPcpAndNoIdSwitches) {
   for (const ActorPcp& a : rep.actors) {
     EXPECT_EQ(a.unmatched_frames, 0) << a.name;
     EXPECT_EQ(a.id_switches, 0) << a.name;
+    const double actor_floor = a.actor_id == 0   ? kFloorA1
+                               : a.actor_id == 1 ? kFloorA2
+                               : a.actor_id == 2 ? kFloorA3
+                                                 : 0.0;  // A4 is not averaged
+    EXPECT_GE(a.pcp, actor_floor) << a.name;
   }
 }
 
