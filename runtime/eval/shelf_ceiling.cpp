@@ -46,11 +46,47 @@ bool supported(const Eigen::Vector3d& X, std::span<const Obs* const> obs,
                      [&](const Obs* o) { return reprojection_px(X, *o, cameras) <= max_px; });
 }
 
-// Every point the candidates `obs` (one joint type, all views) support.
-std::vector<Eigen::Vector3d> supported_points(const std::vector<Obs>& obs,
-                                              std::span<const Camera> cameras,
-                                              const DetectionCeilingOptions& opt) {
-  std::vector<Eigen::Vector3d> points;
+// Every subset of `by_view` (at most one candidate per view, >= min_views views) whose
+// least-squares point every member supports.
+void all_subsets(const std::vector<std::vector<const Obs*>>& by_view,
+                 std::span<const Camera> cameras, const DetectionCeilingOptions& opt,
+                 std::vector<Eigen::Vector3d>& points) {
+  const std::size_t n = by_view.size();
+  std::vector<std::size_t> pick(n, 0);  // 0 = no candidate of that view, k = candidate k - 1
+  std::vector<const Obs*> set;
+  while (true) {
+    set.clear();
+    for (std::size_t v = 0; v < n; ++v) {
+      if (pick[v] > 0) set.push_back(by_view[v][pick[v] - 1]);
+    }
+    if (static_cast<int>(set.size()) >= opt.min_views) {
+      const auto X = least_squares_point(set);
+      if (X && supported(*X, set, cameras, opt.max_reprojection_error_px)) points.push_back(*X);
+    }
+    std::size_t v = 0;  // odometer step
+    while (v < n && pick[v] == by_view[v].size()) pick[v++] = 0;
+    if (v == n) return;
+    ++pick[v];
+  }
+}
+
+// Every point the candidates `obs` (one joint type, all views) support: all subsets when
+// there are at most max_subsets_per_joint, else pairs and their greedy extensions. Returns
+// whether the search was exhaustive.
+bool supported_points(const std::vector<Obs>& obs, std::span<const Camera> cameras,
+                      const DetectionCeilingOptions& opt, std::vector<Eigen::Vector3d>& points) {
+  points.clear();
+  std::vector<std::vector<const Obs*>> by_view;
+  for (std::size_t i = 0; i < obs.size(); ++i) {
+    if (i == 0 || obs[i].view != obs[i - 1].view) by_view.emplace_back();
+    by_view.back().push_back(&obs[i]);
+  }
+  double subsets = 1;
+  for (const auto& v : by_view) subsets *= static_cast<double>(v.size() + 1);
+  if (subsets <= static_cast<double>(opt.max_subsets_per_joint)) {
+    all_subsets(by_view, cameras, opt, points);
+    return true;
+  }
   const double max_px = opt.max_reprojection_error_px;
   std::vector<const Obs*> set;
   std::vector<int> views;
@@ -83,7 +119,7 @@ std::vector<Eigen::Vector3d> supported_points(const std::vector<Obs>& obs,
       if (Y && supported(*Y, set, cameras, max_px)) points.push_back(*Y);
     }
   }
-  return points;
+  return false;
 }
 
 }  // namespace
@@ -102,6 +138,9 @@ Status DetectionCeilingOptions::validate() const {
   }
   if (max_candidates_per_view_joint < 1 || max_candidates_per_view_joint > 4096) {
     return bad("max_candidates_per_view_joint", "must be in [1, 4096]");
+  }
+  if (max_subsets_per_joint < 1 || max_subsets_per_joint > (1 << 24)) {
+    return bad("max_subsets_per_joint", "must be in [1, 2^24]");
   }
   return Status::Ok();
 }
@@ -144,6 +183,7 @@ Result<ShelfEstimateFrame> detection_ceiling_frame(const DetectionSet& detection
 
   std::vector<Obs> obs;
   std::vector<const JointCandidate*> ranked;
+  std::vector<Eigen::Vector3d> points;
   for (int sj = 0; sj < shelf.joint_count(); ++sj) {
     const int bj = body25.find_joint(shelf.joint_name(sj));
     if (bj < 0) continue;  // derived joint (bottom_head, top_head, hip_center)
@@ -167,8 +207,11 @@ Result<ShelfEstimateFrame> detection_ceiling_frame(const DetectionSet& detection
         obs.push_back(Obs{v.view_id, px, cam.backproject(px)});
       }
     }
-    const std::vector<Eigen::Vector3d> points = supported_points(obs, cameras, options);
-    if (stats != nullptr) stats->supported_points += static_cast<long long>(points.size());
+    const bool exhaustive = supported_points(obs, cameras, options, points);
+    if (stats != nullptr) {
+      stats->supported_points += static_cast<long long>(points.size());
+      ++(exhaustive ? stats->joint_searches_exhaustive : stats->joint_searches_greedy);
+    }
     for (ShelfEstimate& e : out) {
       const Eigen::Vector3d& g = e.joints_m[static_cast<std::size_t>(sj)];
       Eigen::Vector3d best = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());

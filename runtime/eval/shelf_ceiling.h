@@ -4,12 +4,12 @@
 // For every annotated actor and each of the 12 Shelf joints that are detector joints (ankles,
 // knees, hips, wrists, elbows, shoulders: the same names in BODY_25), the ceiling takes, among
 // all points the detections support, the one nearest the annotated joint. A point is supported
-// when it is the least-squares point (over back-projected rays, unweighted) of candidates of
-// that joint type in >= min_views different views, and reprojects within
-// max_reprojection_error_px of each of them. The supported points of a joint type are:
-//   - every pair of candidates from two views that passes the test;
-//   - every such pair extended with, in each other view, the candidate nearest the pair's
-//     reprojection when it is within the threshold, re-solved, when the whole set passes.
+// when it is the least-squares point (over back-projected rays, unweighted) of a set of
+// candidates of that joint type, at most one per view, in >= min_views different views, and
+// reprojects within max_reprojection_error_px of each of them. Every such set is tried when
+// there are at most max_subsets_per_joint of them (always on Shelf); otherwise, to bound the
+// work, only every pair of candidates from two views, and each pair extended with, in each
+// other view, the candidate nearest the pair's reprojection (counted in the stats).
 // The three joints Shelf derives (bottom head, top head, hip centre) are taken from the
 // annotation itself, so head and torso always count as correct: the ceiling is generous there.
 //
@@ -44,6 +44,9 @@ struct DetectionCeilingOptions {
   // At most this many candidates per (view, joint) are used, the best-scoring ones: bounds
   // the work (pairs grow with the square) on pathological files.
   int max_candidates_per_view_joint = 40;
+  // Past this many candidate sets (the product over views of candidates + 1) a joint type
+  // falls back from trying every set to pairs and their greedy extensions.
+  int max_subsets_per_joint = 1 << 16;
 
   Status validate() const;
 };
@@ -52,6 +55,8 @@ struct DetectionCeilingStats {
   long long supported_points = 0;              // points found, summed over frames and joint types
   long long actor_joints = 0;                  // detector joints of annotated actors
   long long actor_joints_without_support = 0;  // ... with no supported point at all
+  long long joint_searches_exhaustive = 0;     // (frame, joint type) searches over every set
+  long long joint_searches_greedy = 0;         // ... over pairs and extensions only
 };
 
 // One estimate per annotated actor of `gt` (person_id = actor id): its detector joints are the

@@ -147,6 +147,32 @@ TEST(ShelfCeiling, OfTwoSupportedPointsTheNearestToTheAnnotationIsTaken) {
   EXPECT_LT(((*est)[0].joints_m[kRWrist] - person[kRWrist]).norm(), 1e-3);
 }
 
+TEST(ShelfCeiling, PastTheSubsetBudgetPairsAndTheirExtensionsAreSearched) {
+  const auto cams = ring(4);
+  const ShelfJoints person = standing_person();
+  ShelfJoints other = person;
+  for (auto& j : other) j += Eigen::Vector3d(1.5, 0.5, 0);
+  std::vector<std::pair<int, Eigen::Vector3d>> extra;
+  for (int sj = 0; sj < kShelfJointCount; ++sj) extra.emplace_back(sj, other[sj]);
+  const DetectionSet d = detect(cams, person, extra);
+  DetectionCeilingStats all;
+  auto est = detection_ceiling_frame(d, cams, gt_of(person), {}, &all);
+  ASSERT_TRUE(est.ok());
+  EXPECT_EQ(all.joint_searches_exhaustive, 12);  // 3^4 = 81 sets per joint type
+  EXPECT_EQ(all.joint_searches_greedy, 0);
+  DetectionCeilingOptions small;
+  small.max_subsets_per_joint = 80;
+  DetectionCeilingStats greedy;
+  est = detection_ceiling_frame(d, cams, gt_of(person), small, &greedy);
+  ASSERT_TRUE(est.ok());
+  EXPECT_EQ(greedy.joint_searches_exhaustive, 0);
+  EXPECT_EQ(greedy.joint_searches_greedy, 12);
+  EXPECT_GT(greedy.supported_points, 0);
+  for (int sj = 0; sj < kShelfJointCount; ++sj) {
+    EXPECT_LT(((*est)[0].joints_m[sj] - person[sj]).norm(), 1e-3) << "joint " << sj;
+  }
+}
+
 TEST(ShelfCeiling, AJointSeenInOneViewHasNoSupportedPoint) {
   const auto cams = ring(3);
   const ShelfJoints person = standing_person();
@@ -206,6 +232,9 @@ TEST(ShelfCeiling, BadInputIsAnErrorNamingIt) {
   bad = {};
   bad.min_views = 1;
   EXPECT_FALSE(detection_ceiling_frame(d, cams, gt_of(person), bad).ok());
+  bad = {};
+  bad.max_subsets_per_joint = 0;
+  EXPECT_FALSE(detection_ceiling_frame(d, cams, gt_of(person), bad).ok());
 
   d.frame_id = 7;
   d.views[1].view_id = 5;
@@ -221,10 +250,10 @@ TEST(ShelfCeiling, BadInputIsAnErrorNamingIt) {
   EXPECT_THAT(r.error().message(), HasSubstr("BODY_25"));
 }
 
-// The measured ceiling of the Shelf detections: 98.28 (A1 99.93, A2 96.22, A3 98.70) with
+// The measured ceiling of the Shelf detections: 98.37 (A1 99.93, A2 96.49, A3 98.70) with
 // all five views at 25 px, below the 98.6 that issue #3 asks of the engine. This pins the
-// measurement (docs/architecture.md, "Shelf detection ceiling") and that every annotated
-// detector joint has some supported point.
+// measurement (docs/architecture.md, "Shelf detection ceiling"), that every annotated
+// detector joint has some supported point and that every candidate set was tried.
 TEST(ShelfCeilingData, TheShelfDetectionsCapStrictPcpBelow98Point6) {
   MOCAP_REQUIRE_DATA(dir, "shelf");
   auto calib = load_calibration(dir / "calibration.json");
@@ -248,9 +277,10 @@ TEST(ShelfCeilingData, TheShelfDetectionsCapStrictPcpBelow98Point6) {
     ceiling.push_back(*est);
   }
   EXPECT_EQ(stats.actor_joints_without_support, 0);
+  EXPECT_EQ(stats.joint_searches_greedy, 0);
   auto report = evaluate_shelf_pcp(*gt, ceiling);
   ASSERT_TRUE(report.ok());
-  EXPECT_NEAR(report->avg_pcp, 98.28, 0.005);
+  EXPECT_NEAR(report->avg_pcp, 98.37, 0.005);
   EXPECT_LT(report->avg_pcp, 98.6);
 }
 
