@@ -2,10 +2,12 @@
 # Runs the whole test suite (GoogleTest via CTest). Builds first if needed.
 #
 #   tools/test.sh              Release build in build/
-#   tools/test.sh --sanitize   ASan + UBSan build in build-asan/ of the test executables only
-#                              (line-table debug info), without the hil and e2e labels: the
-#                              HIL VM boot and the two whole-recording runs (~1 min each under
-#                              ASan) are in the Release suite, to keep CI within its budget
+#   tools/test.sh --sanitize   ASan + UBSan build in build-asan/ of the test executables only,
+#                              without the hil and e2e labels: the HIL VM boot and the two
+#                              whole-recording runs (~1 min each under ASan) are in the
+#                              Release suite, to keep CI within its budget. No debug info
+#                              (-g0): reports name functions (UBSan also file:line), and the
+#                              cold build takes ~13.5 instead of ~15.4 min
 # Extra arguments after -- go to ctest (e.g. -- -R Shelf).
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -15,7 +17,7 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --sanitize) SANITIZE=1 ;;
     --) shift; CTEST_ARGS=("$@"); break ;;
-    -h|--help) sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "test.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
   esac
   shift
@@ -27,7 +29,7 @@ bash "$ROOT/tools/setup.sh" --no-build
 if [ "$SANITIZE" -eq 1 ]; then
   B="$ROOT/build-asan"
   cmake -S "$ROOT" -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMOCAP_SANITIZE=ON \
-    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" >/dev/null
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g0 -DNDEBUG" >/dev/null
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
   CTEST_ARGS=(-LE "hil|e2e" "${CTEST_ARGS[@]}")
   BUILD_TARGET=(--target mocap_tests)
