@@ -6,8 +6,8 @@
 #                              without the hil and e2e labels: the HIL VM boot and the two
 #                              whole-recording runs (~1 min each under ASan) are in the
 #                              Release suite, to keep CI within its budget. No debug info
-#                              (-g0): reports name functions (UBSan also file:line), and the
-#                              cold build takes ~13.5 instead of ~15.4 min
+#                              (-g0): reports name functions (UBSan also file:line), and a
+#                              cold CI build took 14.7 instead of 15.4 min (one run each)
 # Extra arguments after -- go to ctest (e.g. -- -R Shelf).
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
