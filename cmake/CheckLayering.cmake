@@ -1,20 +1,35 @@
-# Fails when a file under ROOT includes a hardware header (V4L2, libcamera, libgpiod,
-# media controller, DRM, FFmpeg) or anything from hal/. runtime/ must stay portable; hardware
-# and codecs live in hal/.
-file(GLOB_RECURSE files "${ROOT}/*.h" "${ROOT}/*.hpp" "${ROOT}/*.cpp" "${ROOT}/*.cc")
+# The layering rules, checked over the sources (RULE selects one; ROOT is the repository):
+#   runtime  runtime/ includes no hardware header (V4L2, libcamera, libgpiod, media controller,
+#            DRM, FFmpeg) and nothing from hal/: the core stays portable.
+#   tools    nothing outside tools/ includes tools/, but the tests of the executables
+#            (tests/tools/): the executables compose runtime/ and hal/, never the reverse.
+if(RULE STREQUAL "runtime")
+  file(GLOB_RECURSE files "${ROOT}/runtime/*.h" "${ROOT}/runtime/*.hpp" "${ROOT}/runtime/*.cpp"
+       "${ROOT}/runtime/*.cc")
+  set(regex "(linux/|libcamera/|gpiod|media/|drm/|sys/ioctl|asm/|libav|libsw|hal/)")
+  set(what "hardware headers included under runtime/")
+elseif(RULE STREQUAL "tools")
+  file(GLOB_RECURSE files "${ROOT}/runtime/*.h" "${ROOT}/runtime/*.cpp" "${ROOT}/hal/*.h"
+       "${ROOT}/hal/*.cpp" "${ROOT}/tests/*.h" "${ROOT}/tests/*.cpp")
+  list(FILTER files EXCLUDE REGEX "^${ROOT}/tests/tools/")
+  set(regex "tools/")
+  set(what "tools/ included from outside tools/")
+else()
+  message(FATAL_ERROR "RULE must be runtime or tools, got '${RULE}'")
+endif()
 set(bad "")
 foreach(f IN LISTS files)
-  file(STRINGS "${f}" lines REGEX "^[ \t]*#[ \t]*include[ \t]*[<\"](linux/|libcamera/|gpiod|media/|drm/|sys/ioctl|asm/|libav|libsw|hal/)")
+  file(STRINGS "${f}" lines REGEX "^[ \t]*#[ \t]*include[ \t]*[<\"]${regex}")
   if(lines)
     list(APPEND bad "${f}: ${lines}")
   endif()
 endforeach()
 list(LENGTH files n)
 if(n EQUAL 0)
-  message(FATAL_ERROR "layering check found no sources under ${ROOT}")
+  message(FATAL_ERROR "layering check (${RULE}) found no sources under ${ROOT}")
 endif()
 if(bad)
   string(REPLACE ";" "\n" bad "${bad}")
-  message(FATAL_ERROR "hardware headers included under runtime/:\n${bad}")
+  message(FATAL_ERROR "${what}:\n${bad}")
 endif()
-message(STATUS "layering: ${n} files under ${ROOT}, no hardware header")
+message(STATUS "layering (${RULE}): ${n} files, no forbidden include")

@@ -43,12 +43,6 @@ std::string list_modes(std::span<const CameraMode> offered) {
 
 }  // namespace
 
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 std::string to_string(const CameraMode& m) {
   char buf[96];
   std::snprintf(buf, sizeof buf, "%s %dx%d @%g", std::string(to_string(m.format)).c_str(),

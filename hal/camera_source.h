@@ -22,14 +22,11 @@
 #include <string_view>
 #include <vector>
 
+#include "runtime/core/clock.h"  // monotonic_ns: the clock of every frame timestamp
 #include "runtime/core/error.h"
 #include "runtime/msg/messages.h"
 
 namespace mocap::hal {
-
-// CLOCK_MONOTONIC now, in nanoseconds: the clock of every frame timestamp (V4L2 and libcamera
-// stamp buffers with it) and of the trigger line.
-std::int64_t monotonic_ns();
 
 // One capture configuration a camera offers.
 struct CameraMode {

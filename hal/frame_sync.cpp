@@ -4,6 +4,8 @@
 #include <cmath>
 #include <string>
 
+#include "runtime/core/stats.h"
+
 namespace mocap::hal {
 namespace {
 
@@ -225,11 +227,7 @@ SyncStats FrameSynchronizer::stats() const {
   s.complete_sets = complete_;
   s.partial_sets = partial_;
   s.cameras = cams_;
-  if (!skews_ms_.empty()) {
-    std::vector<double> v = skews_ms_;
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-    s.skew_median_ms = v[v.size() / 2];
-  }
+  s.skew_median_ms = sample_median(skews_ms_);
   s.skew_max_ms = skew_max_ms_;
   return s;
 }

@@ -11,8 +11,9 @@
 #include <ctime>
 #include <utility>
 
-#include "hal/camera_source.h"  // monotonic_ns
+#include "runtime/core/clock.h"
 #include "runtime/core/log.h"
+#include "runtime/core/stats.h"
 
 namespace mocap::hal {
 namespace {
@@ -20,7 +21,8 @@ namespace {
 MOCAP_LOG_CATEGORY(Trigger)
 constexpr std::size_t kKeepTimes = 4096;
 
-void sleep_until_ns(std::int64_t t_ns) {
+// Absolute CLOCK_MONOTONIC sleep (no drift between pulses), resumed after signals.
+void nanosleep_until_ns(std::int64_t t_ns) {
   timespec ts{};
   ts.tv_sec = static_cast<time_t>(t_ns / 1'000'000'000);
   ts.tv_nsec = static_cast<long>(t_ns % 1'000'000'000);
@@ -259,13 +261,13 @@ void TriggerMaster::run() {
   for (std::uint64_t k = 0; !stop_requested_.load(); ++k) {
     if (options_.max_pulses != 0 && k >= options_.max_pulses) break;
     const std::int64_t due = scheduled_rise_ns(k);
-    sleep_until_ns(due);
+    nanosleep_until_ns(due);
     if (Status s = line_->set(true); !s.ok()) {
       error = s.error().message();
       break;
     }
     const std::int64_t rose = monotonic_ns();
-    sleep_until_ns(rose + width_ns_);
+    nanosleep_until_ns(rose + width_ns_);
     if (Status s = line_->set(false); !s.ok()) {
       error = s.error().message();
       break;
@@ -297,7 +299,7 @@ bool TriggerMaster::wait_done(int timeout_ms) {
   const std::int64_t deadline = monotonic_ns() + static_cast<std::int64_t>(timeout_ms) * 1'000'000;
   while (running_.load()) {
     if (monotonic_ns() >= deadline) return false;
-    sleep_until_ns(std::min(deadline, monotonic_ns() + 1'000'000));
+    nanosleep_until_ns(std::min(deadline, monotonic_ns() + 1'000'000));
   }
   if (thread_.joinable()) thread_.join();
   return true;
@@ -314,8 +316,7 @@ TriggerMasterStats TriggerMaster::stats() const {
     for (std::size_t i = 0; i < rises_.size(); ++i) {
       late.push_back(rises_[i] - scheduled_rise_ns(first + i));
     }
-    std::nth_element(late.begin(), late.begin() + static_cast<long>(late.size() / 2), late.end());
-    s.median_late_ns = late[late.size() / 2];
+    s.median_late_ns = sample_median(std::move(late));
   }
   return s;
 }
@@ -345,10 +346,7 @@ TriggerMonitorStats TriggerMonitor::stats() const {
   std::vector<double> dt;
   for (std::size_t i = 1; i < times_.size(); ++i)
     dt.push_back(static_cast<double>(times_[i] - times_[i - 1]));
-  std::vector<double> sorted = dt;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2),
-                   sorted.end());
-  s.period_median_ns = sorted[sorted.size() / 2];
+  s.period_median_ns = sample_median(dt);
   for (double d : dt) {
     if (d > 1.5 * s.period_median_ns) {
       ++s.gaps;

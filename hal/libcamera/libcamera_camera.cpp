@@ -433,6 +433,9 @@ Result<Capture> LibcameraCamera::next(int timeout_ms) {
     case PixelFormat::kNV12:
       f.format = PixelFormat::kNV12;
       f.stride_bytes = s.stride_bytes;
+      // Two planes: the UV plane starts after plane 0's whole length, which may be padded past
+      // stride x height (alignment of the ISP's buffers), in one dmabuf or in the copy below.
+      if (nv12_split) f.uv_offset_bytes = fb_planes[0].length;
       if (nv12_split && !nv12_contiguous) {
         // Planes in separate buffers: copied together (the request goes back at once).
         std::vector<std::uint8_t> both(fb_planes[0].length + fb_planes[1].length);

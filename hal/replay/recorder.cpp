@@ -45,7 +45,55 @@ AVPixelFormat av_format(PixelFormat f) {
 // Timestamps in microseconds.
 constexpr AVRational kTimeBase{1, 1'000'000};
 
+// The encoder of a codec (H.264 falls back to MPEG-4 part 2 when the build lacks libx264).
+const AVCodec* find_encoder(VideoCodec codec) {
+  switch (codec) {
+    case VideoCodec::kH264: {
+      const AVCodec* c = avcodec_find_encoder_by_name("libx264");
+      return c != nullptr ? c : avcodec_find_encoder(AV_CODEC_ID_MPEG4);
+    }
+    case VideoCodec::kVP9:
+      return avcodec_find_encoder_by_name("libvpx-vp9");
+    case VideoCodec::kMJPEG:
+      return avcodec_find_encoder(AV_CODEC_ID_MJPEG);
+    case VideoCodec::kMPEG4:
+      return avcodec_find_encoder(AV_CODEC_ID_MPEG4);
+  }
+  return nullptr;
+}
+
+// High quality for the pose CNN's purposes, at a speed that keeps up with capture.
+void set_quality(const AVCodec* codec, AVCodecContext* ctx, AVDictionary** opts) {
+  const std::string name = codec->name;
+  if (name == "libx264") {
+    av_dict_set(opts, "preset", "veryfast", 0);
+    av_dict_set(opts, "crf", "18", 0);  // visually lossless
+  } else if (name == "libvpx-vp9") {
+    av_dict_set(opts, "deadline", "realtime", 0);
+    av_dict_set(opts, "cpu-used", "8", 0);
+    av_dict_set(opts, "crf", "20", 0);
+    ctx->bit_rate = 0;  // constant quality
+  } else {
+    ctx->flags |= AV_CODEC_FLAG_QSCALE;
+    ctx->global_quality = FF_QP2LAMBDA * 2;
+  }
+}
+
 }  // namespace
+
+std::string_view to_string(VideoCodec codec) {
+  switch (codec) {
+    case VideoCodec::kH264:
+      return "h264";
+    case VideoCodec::kVP9:
+      return "vp9";
+    case VideoCodec::kMJPEG:
+      return "mjpeg";
+    case VideoCodec::kMPEG4:
+      return "mpeg4";
+  }
+  return "?";
+}
 
 // One view: container, encoder and converter.
 class Recorder::ViewEncoder {
@@ -62,7 +110,7 @@ class Recorder::ViewEncoder {
   }
 
   Status open(const std::filesystem::path& path, const Frame& first, double rate_hz,
-              std::string* codec_name) {
+              VideoCodec wanted, std::string* codec_name) {
     path_ = path.string();
     width_ = first.width_px;
     height_ = first.height_px;
@@ -70,28 +118,29 @@ class Recorder::ViewEncoder {
         out_ == nullptr) {
       return fail("cannot create an mp4 container");
     }
-    const AVCodec* codec = avcodec_find_encoder_by_name("libx264");
-    if (codec == nullptr) codec = avcodec_find_encoder(AV_CODEC_ID_MPEG4);
-    if (codec == nullptr)
-      return fail("this FFmpeg build has neither libx264 nor an MPEG-4 encoder");
+    const AVCodec* codec = find_encoder(wanted);
+    if (codec == nullptr) {
+      return fail("this FFmpeg build has no " + std::string(to_string(wanted)) + " encoder");
+    }
+    const bool yuv420 = codec->id == AV_CODEC_ID_H264 || codec->id == AV_CODEC_ID_MPEG4;
+    if (yuv420 && (width_ % 2 != 0 || height_ % 2 != 0)) {
+      return fail(std::string(codec->name) + " needs an even width and height, the frames are " +
+                  std::to_string(width_) + "x" + std::to_string(height_) +
+                  ": record this view as VP9 or MJPEG");
+    }
     *codec_name = codec->name;
+    pix_fmt_ = codec->id == AV_CODEC_ID_MJPEG ? AV_PIX_FMT_YUVJ420P : AV_PIX_FMT_YUV420P;
     codec_ = avcodec_alloc_context3(codec);
     codec_->width = width_;
     codec_->height = height_;
-    codec_->pix_fmt = AV_PIX_FMT_YUV420P;
+    codec_->pix_fmt = pix_fmt_;
     codec_->time_base = kTimeBase;
     codec_->framerate = av_d2q(rate_hz, 1000);
     codec_->gop_size = static_cast<int>(std::lround(rate_hz));  // a keyframe every second
     if ((out_->oformat->flags & AVFMT_GLOBALHEADER) != 0)
       codec_->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
     AVDictionary* opts = nullptr;
-    if (std::string(codec->name) == "libx264") {
-      av_dict_set(&opts, "preset", "veryfast", 0);
-      av_dict_set(&opts, "crf", "18", 0);  // visually lossless for the pose CNN's purposes
-    } else {
-      codec_->flags |= AV_CODEC_FLAG_QSCALE;
-      codec_->global_quality = FF_QP2LAMBDA * 2;
-    }
+    set_quality(codec, codec_, &opts);
     int r = avcodec_open2(codec_, codec, &opts);
     av_dict_free(&opts);
     if (r < 0) return fail("encoder " + std::string(codec->name) + ": " + av_error(r));
@@ -100,8 +149,9 @@ class Recorder::ViewEncoder {
     avcodec_parameters_from_context(stream_->codecpar, codec_);
     if ((r = avio_open(&out_->pb, path_.c_str(), AVIO_FLAG_WRITE)) < 0) return fail(av_error(r));
     if ((r = avformat_write_header(out_, nullptr)) < 0) return fail(av_error(r));
+    header_written_ = true;
     frame_ = av_frame_alloc();
-    frame_->format = AV_PIX_FMT_YUV420P;
+    frame_->format = pix_fmt_;
     frame_->width = width_;
     frame_->height = height_;
     if (av_frame_get_buffer(frame_, 0) < 0) return fail("out of memory");
@@ -120,17 +170,18 @@ class Recorder::ViewEncoder {
       return fail("frame format " + std::string(to_string(f.format)) + " cannot be encoded");
     if (pts_us <= last_pts_) pts_us = last_pts_ + 1;  // strictly increasing for the muxer
     last_pts_ = pts_us;
-    sws_ = sws_getCachedContext(sws_, width_, height_, in, width_, height_, AV_PIX_FMT_YUV420P,
-                                SWS_BILINEAR, nullptr, nullptr, nullptr);
-    if (sws_ == nullptr) return fail("no conversion to YUV420P");
+    sws_ = sws_getCachedContext(sws_, width_, height_, in, width_, height_, pix_fmt_, SWS_BILINEAR,
+                                nullptr, nullptr, nullptr);
+    if (sws_ == nullptr) return fail("no conversion to the encoder's pixel format");
     const std::uint8_t* src[4] = {f.buffer->bytes().data(), nullptr, nullptr, nullptr};
     int src_stride[4] = {f.stride_bytes, 0, 0, 0};
     const std::size_t luma = static_cast<std::size_t>(f.stride_bytes) * height_;
-    const std::size_t need = f.format == PixelFormat::kNV12 ? luma + luma / 2 : luma;
+    const std::size_t uv = f.uv_offset_bytes > 0 ? f.uv_offset_bytes : luma;
+    const std::size_t need = f.format == PixelFormat::kNV12 ? uv + luma / 2 : luma;
     if (f.buffer->bytes().size() < need)
       return fail("frame buffer is shorter than its format needs");
     if (f.format == PixelFormat::kNV12) {
-      src[1] = src[0] + luma;
+      src[1] = src[0] + uv;
       src_stride[1] = f.stride_bytes;
     }
     if (av_frame_make_writable(frame_) < 0) return fail("out of memory");
@@ -140,7 +191,8 @@ class Recorder::ViewEncoder {
   }
 
   Status finish() {
-    if (out_ == nullptr || finished_) return Status::Ok();
+    // An encoder whose open() failed part-way has nothing to flush (and maybe no codec).
+    if (!header_written_ || finished_) return Status::Ok();
     finished_ = true;
     if (Status s = send(nullptr); !s.ok()) return s;
     if (const int r = av_write_trailer(out_); r < 0) return fail(av_error(r));
@@ -156,6 +208,12 @@ class Recorder::ViewEncoder {
       r = avcodec_receive_packet(codec_, packet_);
       if (r == AVERROR(EAGAIN) || r == AVERROR_EOF) return Status::Ok();
       if (r < 0) return fail("encode: " + av_error(r));
+      // Every sample gets a duration (one nominal frame period when the encoder gave none):
+      // the mp4 muxer sizes the edit list by the samples' durations, and a last sample without
+      // one was cut off by demuxers (a 10-frame take read back as 9 frames).
+      if (packet_->duration <= 0) {
+        packet_->duration = av_rescale_q(1, av_inv_q(codec_->framerate), codec_->time_base);
+      }
       av_packet_rescale_ts(packet_, codec_->time_base, stream_->time_base);
       packet_->stream_index = stream_->index;
       r = av_interleaved_write_frame(out_, packet_);
@@ -176,6 +234,8 @@ class Recorder::ViewEncoder {
   AVFrame* frame_ = nullptr;
   AVPacket* packet_ = nullptr;
   SwsContext* sws_ = nullptr;
+  AVPixelFormat pix_fmt_ = AV_PIX_FMT_YUV420P;
+  bool header_written_ = false;  // open() got as far as the container header
 };
 
 Status RecorderOptions::validate() const {
@@ -184,6 +244,11 @@ Status RecorderOptions::validate() const {
     return Error(ErrorCode::kInvalidArgument, "recorder: views must be in 1..16");
   if (!(frame_rate_hz > 0) || frame_rate_hz > 1000) {
     return Error(ErrorCode::kInvalidArgument, "recorder: frame_rate_hz must be in (0, 1000]");
+  }
+  if (!codecs.empty() && static_cast<int>(codecs.size()) != views) {
+    return Error(ErrorCode::kInvalidArgument, "recorder: " + std::to_string(codecs.size()) +
+                                                  " codecs for " + std::to_string(views) +
+                                                  " views (one per view, or none for H.264)");
   }
   return Status::Ok();
 }
@@ -221,6 +286,7 @@ Result<std::unique_ptr<Recorder>> Recorder::create(const RecorderOptions& option
   r->last_.resize(static_cast<std::size_t>(options.views));
   r->stats_.frames.assign(static_cast<std::size_t>(options.views), 0);
   r->stats_.repeated.assign(static_cast<std::size_t>(options.views), 0);
+  r->stats_.encoders.assign(static_cast<std::size_t>(options.views), "");
   return r;
 }
 
@@ -258,8 +324,14 @@ Status Recorder::write(const FrameSet& set) {
     if (!encoders_[vi]) {
       encoders_[vi] = std::make_unique<ViewEncoder>();
       const auto path = options_.dir / "videos" / (std::to_string(v) + ".mp4");
-      if (Status s = encoders_[vi]->open(path, *f, options_.frame_rate_hz, &stats_.codec); !s.ok())
+      const VideoCodec codec = options_.codecs.empty() ? VideoCodec::kH264 : options_.codecs[vi];
+      if (Status s =
+              encoders_[vi]->open(path, *f, options_.frame_rate_hz, codec, &stats_.encoders[vi]);
+          !s.ok()) {
+        encoders_[vi].reset();  // half-open: nothing to flush
         return s;
+      }
+      if (v == 0) stats_.codec = stats_.encoders[0];
     }
     if (Status s = encoders_[vi]->encode(*f, pts_us); !s.ok()) return s;
     ++stats_.frames[vi];

@@ -7,8 +7,10 @@
 //   while (auto set = rig->next_set(100)) rec->write(*set);
 //   rec->finish();                              // flushes the encoders, closes the files
 //
-// Each view is encoded with libavcodec (H.264 via libx264 when the FFmpeg build has it, else
-// MPEG-4 part 2) at high quality, from RGB24, YUYV or NV12 frames (converted with libswscale).
+// Each view is encoded with libavcodec at high quality, from RGB24, YUYV or NV12 frames
+// (converted with libswscale): H.264 (libx264; MPEG-4 part 2 when the FFmpeg build lacks it) by
+// default, or per view VP9 (libvpx), MJPEG or MPEG-4. H.264 needs an even width and height;
+// VP9 and MJPEG take any size.
 // Presentation times are the sets' timestamps relative to the first set, so the replay
 // reproduces the capture timing. A view missing from a set repeats its previous frame (counted
 // in RecorderStats::repeated) so the videos stay aligned frame for frame. The calibration file
@@ -20,6 +22,8 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "runtime/core/error.h"
@@ -27,11 +31,15 @@
 
 namespace mocap::hal {
 
+enum class VideoCodec { kH264, kVP9, kMJPEG, kMPEG4 };
+std::string_view to_string(VideoCodec codec);  // "h264", "vp9", "mjpeg", "mpeg4"
+
 struct RecorderOptions {
   std::filesystem::path dir;  // created; must not already hold a recording
   int views = 0;
   double frame_rate_hz = 30;                         // nominal rate written in the container
   std::optional<std::filesystem::path> calibration;  // copied to dir/calibration.json
+  std::vector<VideoCodec> codecs;                    // per view; empty = H.264 for every view
   Status validate() const;
 };
 
@@ -39,7 +47,8 @@ struct RecorderStats {
   std::uint64_t sets = 0;
   std::vector<std::uint64_t> frames;    // per view, written (repeats included)
   std::vector<std::uint64_t> repeated;  // per view, frames repeated for a missing view
-  std::string codec;                    // "libx264" or "mpeg4"
+  std::string codec;                    // view 0's encoder, e.g. "libx264"
+  std::vector<std::string> encoders;    // per view, e.g. "libx264", "libvpx-vp9", "mjpeg"
 };
 
 class Recorder {

@@ -33,18 +33,22 @@ Result<std::unique_ptr<ReplayCamera>> ReplayCamera::open(const ReplayCameraOptio
                         "replay of " + options.video.filename().string() + " (" + info.codec + ")",
                         "replay",
                         {cam->mode_}};
+  cam->frame_count_ = info.frame_count;
+  cam->codec_ = info.codec;
   cam->decoder_ = std::move(*dec);
   return cam;
 }
 
-Status ReplayCamera::start() {
+Status ReplayCamera::start() { return start_at(options_.epoch_ns); }
+
+Status ReplayCamera::start_at(std::int64_t epoch_ns) {
   if (started_) return Status::Ok();
   if (!decoder_) {
     return Error(ErrorCode::kInvalidArgument,
                  options_.video.string() + ": replay camera was stopped; open it again");
   }
   started_ = true;
-  start_ns_ = options_.epoch_ns > 0 ? options_.epoch_ns : monotonic_ns();
+  start_ns_ = epoch_ns > 0 ? epoch_ns : monotonic_ns();
   return Status::Ok();
 }
 

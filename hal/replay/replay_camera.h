@@ -5,8 +5,10 @@
 // of the video is CaptureStatus::kEnded; corrupt data is an Error naming the file and frame.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <string>
 
 #include "hal/camera_source.h"
 
@@ -32,8 +34,15 @@ class ReplayCamera final : public CameraSource {
   const CameraDescription& description() const override { return description_; }
   const CameraMode& mode() const override { return mode_; }
   Status start() override;
+  // start() with the recording's first frame at monotonic time epoch_ns (> 0): the views of one
+  // recording share it, so their frames n carry the same timestamp.
+  Status start_at(std::int64_t epoch_ns);
   void stop() override;
   Result<Capture> next(int timeout_ms) override;
+
+  // Frames the container announces (0 when it does not say) and the codec, e.g. "h264".
+  std::int64_t frame_count() const { return frame_count_; }
+  const std::string& codec() const { return codec_; }
 
  private:
   ReplayCamera() = default;
@@ -45,6 +54,8 @@ class ReplayCamera final : public CameraSource {
   std::int64_t start_ns_ = 0;
   bool have_pending_ = false;  // a decoded frame not yet handed out (paced, before its time)
   Frame pending_;
+  std::int64_t frame_count_ = 0;
+  std::string codec_;
 };
 
 }  // namespace mocap::hal

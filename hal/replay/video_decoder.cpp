@@ -9,6 +9,7 @@ extern "C" {
 #include <libswscale/swscale.h>
 }
 
+#include <algorithm>
 #include <cstdarg>
 #include <cstdio>
 #include <mutex>
@@ -51,6 +52,18 @@ void forward_av_log(void* avcl, int level, const char* fmt, std::va_list args) {
 void install_av_log() {
   static std::once_flag once;
   std::call_once(once, [] { av_log_set_callback(forward_av_log); });
+}
+
+namespace {
+
+constexpr std::size_t kGuardBytes = 64;
+constexpr std::uint8_t kGuardByte = 0xA5;
+
+}  // namespace
+
+int video_rgb_stride_bytes(int width_px) {
+  const int row_px = (width_px + 31) / 32 * 32;
+  return (row_px * 3 + 63) / 64 * 64;
 }
 
 struct VideoDecoder::Impl {
@@ -175,10 +188,19 @@ Error VideoDecoder::fail(ErrorCode code, const std::string& what) {
 Result<bool> VideoDecoder::next(VideoFrame& out) {
   if (failed_) return *failed_;
   if (ended_) return false;
+  Result<bool> got = receive_frame();
+  if (!got.ok() || !*got) return got;
+  if (Status s = convert_frame(out); !s.ok()) return s.error();
+  ++decoded_;
+  return true;
+}
+
+// Feeds packets to the decoder until it gives a frame (impl_->frame): true; false at the end.
+Result<bool> VideoDecoder::receive_frame() {
   Impl& m = *impl_;
   while (true) {
     const int rc = avcodec_receive_frame(m.codec, m.frame);
-    if (rc == 0) break;
+    if (rc == 0) return true;
     if (rc == AVERROR_EOF) {
       ended_ = true;
       if (info_.frame_count > 0 && decoded_ < info_.frame_count) {
@@ -224,7 +246,11 @@ Result<bool> VideoDecoder::next(VideoFrame& out) {
                                          "; FFmpeg: " + av_error_text(s) + ")");
     }
   }
+}
 
+// impl_->frame as packed RGB24 into `out` (the frame is released).
+Status VideoDecoder::convert_frame(VideoFrame& out) {
+  Impl& m = *impl_;
   AVFrame* f = m.frame;
   if ((f->flags & AV_FRAME_FLAG_CORRUPT) != 0 || f->decode_error_flags != 0) {
     av_frame_unref(f);
@@ -245,13 +271,27 @@ Result<bool> VideoDecoder::next(VideoFrame& out) {
   }
   out.width_px = f->width;
   out.height_px = f->height;
-  out.stride_bytes = f->width * 3;
-  out.rgb.resize(static_cast<std::size_t>(out.stride_bytes) * static_cast<std::size_t>(f->height));
+  out.stride_bytes = video_rgb_stride_bytes(f->width);
+  const std::size_t image_bytes =
+      static_cast<std::size_t>(out.stride_bytes) * static_cast<std::size_t>(f->height);
+  // A guard past the image, checked after the conversion: a converter that writes past the rows
+  // it was given is an error here, never a corrupted heap later.
+  out.rgb.resize(image_bytes + kGuardBytes);
+  std::fill(out.rgb.begin() + static_cast<std::ptrdiff_t>(image_bytes), out.rgb.end(), kGuardByte);
   std::uint8_t* dst[4] = {out.rgb.data(), nullptr, nullptr, nullptr};
   int dst_stride[4] = {out.stride_bytes, 0, 0, 0};
   const int rows = sws_scale(m.sws, f->data, f->linesize, 0, f->height, dst, dst_stride);
+  const bool guard_intact =
+      std::all_of(out.rgb.begin() + static_cast<std::ptrdiff_t>(image_bytes), out.rgb.end(),
+                  [](std::uint8_t b) { return b == kGuardByte; });
+  out.rgb.resize(image_bytes);  // keeps the capacity: the next frame reuses the buffer
   std::int64_t pts = f->best_effort_timestamp;
   av_frame_unref(f);
+  if (!guard_intact) {
+    return fail(ErrorCode::kInternal, "RGB conversion of frame " + std::to_string(decoded_) +
+                                          " wrote past the " + std::to_string(out.width_px) + "x" +
+                                          std::to_string(out.height_px) + " image");
+  }
   if (rows != out.height_px) {
     return fail(ErrorCode::kInternal, "RGB conversion of frame " + std::to_string(decoded_) +
                                           " wrote " + std::to_string(rows) + " rows");
@@ -265,8 +305,7 @@ Result<bool> VideoDecoder::next(VideoFrame& out) {
   } else {
     out.timestamp_ns = av_rescale_q(pts - m.start_pts, m.time_base, AVRational{1, 1000000000});
   }
-  ++decoded_;
-  return true;
+  return {};
 }
 
 }  // namespace mocap::hal

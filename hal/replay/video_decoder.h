@@ -40,12 +40,18 @@ struct VideoInfo {
   std::int64_t frame_count = 0;
 };
 
+// Row stride of the RGB24 frames the decoder writes: the row rounded up to 32 pixels, then to
+// 64 bytes. libswscale's SIMD converters write whole 16-pixel blocks, past a row of width_px * 3
+// bytes (8 pixels, 24 bytes past the last row of a 1080-wide frame): with this stride every
+// write stays inside its own row.
+int video_rgb_stride_bytes(int width_px);
+
 struct VideoFrame {
   std::int64_t index = -1;        // 0, 1, 2, ... in decoding (presentation) order
   std::int64_t timestamp_ns = 0;  // presentation time from the stream start, nanoseconds
   int width_px = 0;
   int height_px = 0;
-  int stride_bytes = 0;           // width_px * 3 (packed)
+  int stride_bytes = 0;           // video_rgb_stride_bytes(width_px): >= width_px * 3
   std::vector<std::uint8_t> rgb;  // RGB24, stride_bytes * height_px bytes (reused by next())
 };
 
@@ -71,6 +77,8 @@ class VideoDecoder {
   struct Impl;
   explicit VideoDecoder(std::unique_ptr<Impl> impl);
   Error fail(ErrorCode code, const std::string& what);
+  Result<bool> receive_frame();
+  Status convert_frame(VideoFrame& out);
 
   std::unique_ptr<Impl> impl_;
   VideoInfo info_;

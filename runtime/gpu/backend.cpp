@@ -6,19 +6,35 @@ MOCAP_DECLARE_LOG_CATEGORY(Gpu);
 
 namespace mocap::gpu {
 
-Result<BackendChoice> choose_backend(std::string_view name, const GpuOptions& gpu_options) {
+std::string_view to_string(BackendRequest request) {
+  switch (request) {
+    case BackendRequest::kAuto:
+      return "auto";
+    case BackendRequest::kVulkan:
+      return "vulkan";
+    case BackendRequest::kCpu:
+      return "cpu";
+  }
+  return "?";
+}
+
+Result<BackendRequest> parse_backend_request(std::string_view name) {
+  for (BackendRequest r : {BackendRequest::kAuto, BackendRequest::kVulkan, BackendRequest::kCpu}) {
+    if (name == to_string(r)) return r;
+  }
+  return Error(ErrorCode::kInvalidArgument,
+               "backend must be auto, vulkan or cpu, got '" + std::string(name) + "'");
+}
+
+Result<BackendChoice> choose_backend(BackendRequest request, const GpuOptions& gpu_options) {
   BackendChoice out;
-  if (name == "cpu") {
+  if (request == BackendRequest::kCpu) {
     out.description = "CPU reference kernels (single thread, slow)";
     return out;
   }
-  if (name != "vulkan" && name != "auto") {
-    return Error(ErrorCode::kInvalidArgument,
-                 "backend must be auto, vulkan or cpu, got '" + std::string(name) + "'");
-  }
   auto ctx = Context::create(gpu_options);
   if (!ctx.ok()) {
-    if (name == "vulkan") return ctx.error();
+    if (request == BackendRequest::kVulkan) return ctx.error();
     out.fallback_reason = ctx.error().message();
     out.description = "CPU reference kernels (single thread, slow; no Vulkan device)";
     MOCAP_LOG(Gpu, Warn) << "no usable Vulkan device (" << out.fallback_reason

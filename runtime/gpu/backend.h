@@ -3,7 +3,7 @@
 // falls back to the CPU backend, saying so (reason and fix) in the log: a box without any
 // Vulkan driver still produces detections, slowly.
 //
-//   auto b = gpu::choose_backend("auto", gpu_options);
+//   auto b = gpu::choose_backend(BackendRequest::kAuto, gpu_options);
 //   PoseDetectorOptions o;  o.backend = b->backend;
 //   auto det = PoseDetector::create(model, o, b->context.get());
 #pragma once
@@ -13,6 +13,7 @@
 #include <string_view>
 
 #include "runtime/core/error.h"
+#include "runtime/gpu/cnn_options.h"
 #include "runtime/gpu/context.h"
 #include "runtime/gpu/pose_detector.h"
 
@@ -25,8 +26,8 @@ struct BackendChoice {
   std::string fallback_reason;       // why "auto" chose the CPU; empty otherwise
 };
 
-// name: "auto", "vulkan" or "cpu". "vulkan" fails (naming the reason and the fix) when no
-// device can be opened; "auto" then logs a warning and returns the CPU backend.
-Result<BackendChoice> choose_backend(std::string_view name, const GpuOptions& gpu_options);
+// kVulkan fails (naming the reason and the fix) when no device can be opened; kAuto then logs a
+// warning and returns the CPU backend.
+Result<BackendChoice> choose_backend(BackendRequest request, const GpuOptions& gpu_options);
 
 }  // namespace mocap::gpu

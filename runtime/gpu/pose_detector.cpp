@@ -1,9 +1,9 @@
 #include "runtime/gpu/pose_detector.h"
 
-#include <chrono>
 #include <set>
 #include <string>
 
+#include "runtime/core/clock.h"
 #include "runtime/nn/cpu_ops.h"
 #include "runtime/nn/preprocess.h"
 #include "runtime/skeleton/topology.h"
@@ -11,12 +11,6 @@
 namespace mocap::gpu {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_between(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double, std::milli>(b - a).count();
-}
 
 Error invalid(const std::string& what) {
   return Error(ErrorCode::kInvalidArgument, std::string("pose detector: ") + what);
@@ -28,9 +22,9 @@ constexpr const char* kHeadNames[4] = {"heatmap", "offsets", "displacement_fwd",
 }  // namespace
 
 Status PoseDetectorOptions::validate() const {
-  if (input_size_px < 17 || input_size_px > 1025) {
-    return invalid(std::string("input_size_px ") + std::to_string(input_size_px) +
-                   " must be in [17, 1025]");
+  if (input_size_px < kMinInputSizePx || input_size_px > kMaxInputSizePx) {
+    return invalid(std::string("input_size_px ") + std::to_string(input_size_px) + " must be in [" +
+                   std::to_string(kMinInputSizePx) + ", " + std::to_string(kMaxInputSizePx) + "]");
   }
   if (max_views < 1 || max_views > 16) {
     return invalid(std::string("max_views ") + std::to_string(max_views) + " must be in [1, 16]");
@@ -96,20 +90,20 @@ Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& mode
 
 Result<std::vector<nn::PoseNetView>> PoseDetector::run_vulkan(std::span<const nn::FrameView> frames,
                                                               std::vector<nn::Letterbox>& boxes) {
-  const auto t0 = Clock::now();
+  const auto t0 = monotonic_ns();
   auto b = pre_->run(frames);
   if (!b.ok()) return b.error();
   boxes = std::move(*b);
-  const auto t1 = Clock::now();
+  const auto t1 = monotonic_ns();
   if (Status s = net_->run(pre_->output()); !s.ok()) return s.error();
   nn::Tensor outs[4];
   for (int h = 0; h < 4; ++h) {
     if (Status s = net_->read_output(heads_[h], outs[h]); !s.ok()) return s.error();
   }
-  const auto t2 = Clock::now();
+  const auto t2 = monotonic_ns();
   auto views = post_->run(outs[0], outs[1], outs[2], outs[3]);
   if (!views.ok()) return views.error();
-  const auto t3 = Clock::now();
+  const auto t3 = monotonic_ns();
   times_.preprocess_ms = ms_between(t0, t1);
   times_.network_ms = ms_between(t1, t2);
   times_.postprocess_ms = ms_between(t2, t3);
@@ -118,7 +112,7 @@ Result<std::vector<nn::PoseNetView>> PoseDetector::run_vulkan(std::span<const nn
 
 Result<std::vector<nn::PoseNetView>> PoseDetector::run_cpu(std::span<const nn::FrameView> frames,
                                                            std::vector<nn::Letterbox>& boxes) {
-  const auto t0 = Clock::now();
+  const auto t0 = monotonic_ns();
   const int S = options_.input_size_px;
   nn::Tensor input({static_cast<int>(frames.size()), S, S, 3});
   for (std::size_t i = 0; i < frames.size(); ++i) {
@@ -126,20 +120,20 @@ Result<std::vector<nn::PoseNetView>> PoseDetector::run_cpu(std::span<const nn::F
     if (!lb.ok()) return lb.error().with_context("frame " + std::to_string(i));
     boxes.push_back(*lb);
   }
-  const auto t1 = Clock::now();
+  const auto t1 = monotonic_ns();
   auto values = nn::run_model_cpu(model_, input);
   if (!values.ok()) return values.error();
   const nn::Tensor* outs[4];
   for (int h = 0; h < 4; ++h) {
     outs[h] = &(*values)[static_cast<std::size_t>(model_.outputs[heads_[h]].value)];
   }
-  const auto t2 = Clock::now();
+  const auto t2 = monotonic_ns();
   auto views = nn::posenet_postprocess_cpu(*outs[0], *outs[1], *outs[2], *outs[3],
                                            nn::posenet_displacement_edges(), options_.post);
   if (!views.ok()) return views.error();
   times_.preprocess_ms = ms_between(t0, t1);
   times_.network_ms = ms_between(t1, t2);
-  times_.postprocess_ms = ms_between(t2, Clock::now());
+  times_.postprocess_ms = ms_between(t2, monotonic_ns());
   return views;
 }
 
@@ -155,7 +149,7 @@ Result<DetectionSet> PoseDetector::detect(std::span<const nn::FrameView> frames,
   if (std::set<int>(view_ids.begin(), view_ids.end()).size() != view_ids.size()) {
     return invalid("view ids must be unique");
   }
-  const auto t0 = Clock::now();
+  const auto t0 = monotonic_ns();
   std::vector<nn::Letterbox> boxes;
   auto views =
       options_.backend == PoseBackend::kVulkan ? run_vulkan(frames, boxes) : run_cpu(frames, boxes);
@@ -172,7 +166,7 @@ Result<DetectionSet> PoseDetector::detect(std::span<const nn::FrameView> frames,
                                                view_ids[i], frames[i].width_px,
                                                frames[i].height_px));
   }
-  times_.total_ms = ms_between(t0, Clock::now());
+  times_.total_ms = ms_between(t0, monotonic_ns());
   if (Status s = set.validate(); !s.ok()) {
     return Error(ErrorCode::kInternal,
                  "pose detector produced an invalid detection set: " + s.error().message());
@@ -187,8 +181,7 @@ Result<DetectionSet> PoseDetector::detect(const FrameSet& frame_set) {
     if (!f.buffer) {
       return invalid("view " + std::to_string(f.view_id) + ": frame has no buffer");
     }
-    frames.push_back(
-        nn::FrameView{f.buffer->bytes(), f.width_px, f.height_px, f.stride_bytes, f.format});
+    frames.push_back(nn::frame_view(f));
     ids.push_back(f.view_id);
   }
   return detect(frames, ids, frame_set.frame_id, frame_set.timestamp_ns);

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "runtime/core/error.h"
+#include "runtime/gpu/cnn_options.h"
 #include "runtime/gpu/context.h"
 #include "runtime/gpu/network.h"
 #include "runtime/gpu/pose_kernels.h"
@@ -30,8 +31,9 @@ enum class PoseBackend { kVulkan, kCpu };
 
 struct PoseDetectorOptions {
   PoseBackend backend = PoseBackend::kVulkan;
-  // Network input height and width, in [17, 1025]; PoseNet sizes are 16k + 1 (257, 353, 513).
-  int input_size_px = 353;
+  // Network input height and width, in [kMinInputSizePx, kMaxInputSizePx]; PoseNet sizes are
+  // 16k + 1 (257, 353, 513).
+  int input_size_px = kDefaultInputSizePx;
   // Views per frame (the network batch), in [1, 16].
   int max_views = 1;
   nn::PostprocessOptions post;

@@ -1,17 +1,14 @@
 #include "runtime/gpu/pose_kernels.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cstring>
 #include <string>
+
+#include "runtime/core/clock.h"
 
 namespace mocap::gpu {
 
 namespace {
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // Compute writes visible to later compute reads and to the host.
 void compute_barrier(VkCommandBuffer cb) {
@@ -224,7 +221,7 @@ Result<std::vector<nn::Letterbox>> FramePreprocessor::run(std::span<const nn::Fr
   for (int k = 0; k < 3; ++k) {
     if (used[k]) kernels_[k]->bind(bufs);
   }
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = monotonic_ns();
   Status s = ctx_.run_once([&](VkCommandBuffer cb) {
     for (std::size_t i = 0; i < frames.size(); ++i) {
       kernels_[format_index(frames[i].format)]->record(cb, &pushes[i],
@@ -346,7 +343,7 @@ Result<std::vector<nn::PoseNetView>> PoseNetPostprocessor::run(const nn::Tensor&
       views_, h_, w_, joints_, options_.threshold_logit(), options_.output_stride_px};
   const float s_px = options_.affinity_sigma_strides * options_.output_stride_px;
   const AffinityPush ap{views_, h_ * w_, joints_, E, 1.f / (2.f * s_px * s_px)};
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = monotonic_ns();
   Status st = ctx_.run_once([&](VkCommandBuffer cb) {
     peaks_->record(cb, &pp, u32(static_cast<long>(views_) * joints_));
     compute_barrier(cb);

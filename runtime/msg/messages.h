@@ -37,8 +37,11 @@ struct Frame {
   std::int64_t timestamp_ns = 0;  // kernel capture timestamp
   int width_px = 0;
   int height_px = 0;
-  int stride_bytes = 0;  // bytes per row of the first plane
+  int stride_bytes = 0;  // bytes per row of the first plane (driver / decoder padding included)
   PixelFormat format = PixelFormat::kRGB24;
+  // NV12: byte offset of the interleaved U, V plane in the buffer; 0 = right after the Y plane
+  // (stride_bytes * height_px, V4L2 single-planar NV12). libcamera planes can be padded apart.
+  std::size_t uv_offset_bytes = 0;
   std::shared_ptr<const FrameBuffer> buffer;
 };
 

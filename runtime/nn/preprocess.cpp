@@ -62,6 +62,17 @@ LetterboxGrid letterbox_grid(int width_px, int height_px, int out_w_px, int out_
   return g;
 }
 
+FrameView frame_view(const Frame& frame) {
+  FrameView v;
+  if (frame.buffer) v.bytes = frame.buffer->bytes();
+  v.width_px = frame.width_px;
+  v.height_px = frame.height_px;
+  v.stride_bytes = frame.stride_bytes;
+  v.format = frame.format;
+  v.uv_offset_bytes = frame.uv_offset_bytes;
+  return v;
+}
+
 int frame_stride_bytes(const FrameView& frame) {
   return frame.stride_bytes != 0 ? frame.stride_bytes : packed_stride(frame.format, frame.width_px);
 }

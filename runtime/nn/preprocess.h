@@ -59,6 +59,12 @@ struct FrameView {
   std::size_t uv_offset_bytes = 0;
 };
 
+// The view of a captured frame (runtime/msg): its buffer, size, row stride, format and NV12
+// plane offset, as the capture backend or the decoder described them. The one place a Frame's
+// geometry becomes what pre-processing reads; a frame without a buffer gives an empty view,
+// which validate_frame rejects.
+FrameView frame_view(const Frame& frame);
+
 // The row stride a frame uses (stride_bytes, or the packed stride when 0) and the UV-plane
 // offset (NV12), after validate_frame succeeded.
 int frame_stride_bytes(const FrameView& frame);

@@ -23,7 +23,7 @@ class NoVulkanTest : public ::testing::Test {
 
 TEST_F(NoVulkanTest, AutoFallsBackToCpuAndSaysWhy) {
   ::testing::internal::CaptureStderr();
-  auto b = choose_backend("auto", GpuOptions{});
+  auto b = choose_backend(BackendRequest::kAuto, GpuOptions{});
   const std::string log = ::testing::internal::GetCapturedStderr();
   ASSERT_TRUE(b.ok()) << b.error().message();
   EXPECT_EQ(b->backend, PoseBackend::kCpu);
@@ -34,16 +34,22 @@ TEST_F(NoVulkanTest, AutoFallsBackToCpuAndSaysWhy) {
 }
 
 TEST_F(NoVulkanTest, ForcedVulkanIsAClearError) {
-  auto b = choose_backend("vulkan", GpuOptions{});
+  auto b = choose_backend(BackendRequest::kVulkan, GpuOptions{});
   ASSERT_FALSE(b.ok());
   EXPECT_NE(b.error().message().find("Vulkan"), std::string::npos) << b.error().message();
 }
 
 TEST_F(NoVulkanTest, CpuAndUnknownNames) {
-  auto cpu = choose_backend("cpu", GpuOptions{});
+  auto cpu = choose_backend(BackendRequest::kCpu, GpuOptions{});
   ASSERT_TRUE(cpu.ok());
   EXPECT_EQ(cpu->backend, PoseBackend::kCpu);
-  auto bad = choose_backend("opencl", GpuOptions{});
+  // Names are parsed once, at the config boundary; each round-trips.
+  for (BackendRequest r : {BackendRequest::kAuto, BackendRequest::kVulkan, BackendRequest::kCpu}) {
+    auto parsed = parse_backend_request(to_string(r));
+    ASSERT_TRUE(parsed.ok());
+    EXPECT_EQ(*parsed, r);
+  }
+  auto bad = parse_backend_request("opencl");
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().message().find("opencl"), std::string::npos);
 }

@@ -17,6 +17,7 @@
 #include "runtime/nn/postprocess.h"
 #include "runtime/nn/preprocess.h"
 #include "tests/support/data.h"
+#include "tests/support/frames.h"
 
 namespace mocap::gpu {
 namespace {
@@ -92,6 +93,20 @@ TEST_F(PoseKernelsTest, PreprocessMatchesCpuForEveryFormatInOneBatch) {
       EXPECT_LT(err, 2e-3) << "frame " << i << " at " << size;
     }
   }
+}
+
+// Padded rows and a UV plane at a padded offset (libcamera) read on the GPU as on the CPU.
+TEST_F(PoseKernelsTest, PreprocessReadsThePaddedNv12PlaneOffset) {
+  const auto [packed, padded] = testing::nv12_packed_and_padded(64, 36, 64, 8192, 5);
+  auto pre = FramePreprocessor::create(*ctx_, 33, 2);
+  ASSERT_TRUE(pre.ok()) << pre.error().message();
+  const nn::FrameView views[2] = {nn::frame_view(packed), nn::frame_view(padded)};
+  ASSERT_TRUE((*pre)->run(views).ok());
+  nn::Tensor ref({1, 33, 33, 3});
+  ASSERT_TRUE(nn::letterbox_frame(views[0], ref).ok());
+  const std::size_t item = 33u * 33u * 3u;
+  EXPECT_LT(max_abs_diff((*pre)->output().subspan(0, item), ref.data), 2e-3);
+  EXPECT_LT(max_abs_diff((*pre)->output().subspan(item, item), ref.data), 2e-3);
 }
 
 TEST_F(PoseKernelsTest, PreprocessRejectsBadFrames) {

@@ -1,16 +1,20 @@
 // hal::VideoDecoder (hal/replay/video_decoder.h): bad inputs are Errors naming the file, never
 // crashes (missing file, a directory, a text file named .mp4, an audio-only WAV, a truncated
 // and a damaged copy of a real video, all written to a temp dir at test time), and the
-// pose2sim_multi recording decodes to 100 RGB frames of 1088x1920 at 60 fps.
+// pose2sim_multi recording decodes to 100 RGB frames of 1088x1920 at 60 fps; frames whose rows
+// are not whole SIMD blocks (1080, 638, 641 px wide; H.264, MJPEG, VP9) decode inside their rows.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "hal/camera_source.h"
+#include "hal/replay/recorder.h"
 #include "hal/replay/video_decoder.h"
 #include "tests/support/data.h"
 #include "tests/support/temp_dir.h"
@@ -161,7 +165,8 @@ TEST_F(VideoDecoderTest, DecodesTheRealRecording) {
     EXPECT_EQ(f.index, static_cast<std::int64_t>(means.size()));
     EXPECT_EQ(f.width_px, 1088);
     EXPECT_EQ(f.height_px, 1920);
-    EXPECT_EQ(f.stride_bytes, 1088 * 3);
+    EXPECT_EQ(f.stride_bytes, video_rgb_stride_bytes(1088));
+    EXPECT_EQ(f.stride_bytes, 1088 * 3);  // 1088 px rows are already whole 32-pixel blocks
     ASSERT_EQ(f.rgb.size(), 1088u * 1920u * 3u);
     EXPECT_GT(f.timestamp_ns, last_ts);
     last_ts = f.timestamp_ns;
@@ -234,6 +239,82 @@ TEST_F(VideoDecoderTest, CorruptDataMidStreamIsAnError) {
   EXPECT_NE(err.find(p.string()), std::string::npos) << err;
   EXPECT_GT(frames, 10) << "the frames before the damage decode";
   EXPECT_LT(frames, 100);
+}
+
+// libswscale's SIMD YUV -> RGB24 converters write whole 16-pixel blocks (24 bytes past the last
+// row of a 1080-wide frame, 6 past a 638-wide one: measured with a guard after the buffer). The
+// decoder's stride keeps every block inside its own row.
+TEST(VideoRgbStride, CoversTheConvertersBlocksForEveryWidth) {
+  for (int w = 1; w <= 4096; ++w) {
+    const int s = video_rgb_stride_bytes(w);
+    ASSERT_EQ(s % 64, 0) << w;
+    ASSERT_GE(s, (w + 15) / 16 * 16 * 3) << w;
+    ASSERT_LT(s, w * 3 + 32 * 3 + 64) << w;
+  }
+  EXPECT_EQ(video_rgb_stride_bytes(1080), 3264);
+}
+
+// Widths whose rows are not whole SIMD blocks (1080: the portrait 1080p of phones; 638; odd 641)
+// in the codecs that allow them decode without error, every pixel inside its row, the last
+// column as recorded.
+TEST_F(VideoDecoderTest, AwkwardWidthsDecodeWithinTheirRows) {
+  struct Case {
+    int w, h;
+    VideoCodec codec;
+  };
+  const Case cases[] = {{1080, 32, VideoCodec::kH264},
+                        {638, 24, VideoCodec::kMJPEG},
+                        {641, 19, VideoCodec::kVP9},
+                        {1100, 20, VideoCodec::kVP9}};
+  int n = 0;
+  for (const Case& c : cases) {
+    const fs::path dir = file("rec" + std::to_string(n++));
+    RecorderOptions o;
+    o.dir = dir;
+    o.views = 1;
+    o.codecs = {c.codec};
+    auto rec = Recorder::create(o);
+    ASSERT_TRUE(rec.ok()) << rec.error().message();
+    // A horizontal ramp: column x has grey level 40 + 160 x / w.
+    std::vector<std::uint8_t> px(static_cast<std::size_t>(c.w) * c.h * 3);
+    for (int y = 0; y < c.h; ++y) {
+      for (int x = 0; x < c.w; ++x) {
+        const auto g = static_cast<std::uint8_t>(40 + 160 * x / c.w);
+        for (int k = 0; k < 3; ++k) px[(static_cast<std::size_t>(y) * c.w + x) * 3 + k] = g;
+      }
+    }
+    for (int k = 0; k < 3; ++k) {
+      FrameSet set;
+      set.timestamp_ns = k * 16'666'667LL;
+      Frame f;
+      f.view_id = 0;
+      f.width_px = c.w;
+      f.height_px = c.h;
+      f.stride_bytes = c.w * 3;
+      f.buffer = std::make_shared<OwnedFrameBuffer>(px);
+      set.frames.push_back(f);
+      ASSERT_TRUE((*rec)->write(set).ok());
+    }
+    ASSERT_TRUE((*rec)->finish().ok());
+    auto d = VideoDecoder::open(dir / "videos" / "0.mp4");
+    ASSERT_TRUE(d.ok()) << d.error().message();
+    EXPECT_EQ((*d)->info().width_px, c.w);
+    EXPECT_EQ((*d)->info().height_px, c.h);
+    VideoFrame f;
+    int frames = 0;
+    while (true) {
+      auto more = (*d)->next(f);
+      ASSERT_TRUE(more.ok()) << c.w << "x" << c.h << ": " << more.error().message();
+      if (!*more) break;
+      ++frames;
+      EXPECT_EQ(f.stride_bytes, video_rgb_stride_bytes(c.w));
+      ASSERT_EQ(f.rgb.size(), static_cast<std::size_t>(f.stride_bytes) * c.h);
+      const std::size_t row = static_cast<std::size_t>(c.h / 2) * f.stride_bytes;
+      EXPECT_NEAR(f.rgb[row], 40, 12) << c.w;
+      EXPECT_NEAR(f.rgb[row + (c.w - 1) * 3], 40 + 160 * (c.w - 1) / c.w, 12) << c.w;
+    }
+    EXPECT_EQ(frames, 3) << c.w << "x" << c.h;
+  }
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include "runtime/nn/postprocess.h"
 #include "runtime/nn/preprocess.h"
 #include "runtime/skeleton/topology.h"
+#include "tests/support/frames.h"
 
 namespace mocap::nn {
 namespace {
@@ -30,6 +31,25 @@ TEST(PreprocessTest, Rgb24IdentityHonoursStride) {
   EXPECT_FLOAT_EQ(out.at(0, 0, 1, 2), norm(60));
   EXPECT_FLOAT_EQ(out.at(0, 1, 0, 1), norm(80));
   EXPECT_FLOAT_EQ(out.at(0, 1, 1, 2), norm(120));
+}
+
+// A Frame's geometry reaches pre-processing whole (nn::frame_view): padded rows and an NV12 UV
+// plane at a padded offset, as libcamera hands them out, give the picture the packed frame
+// gives; the same frame read with the default UV offset (what the pipeline did before frames
+// carried it) does not.
+TEST(PreprocessTest, FrameViewCarriesStrideAndUvPlaneOffset) {
+  const auto [packed, padded] = testing::nv12_packed_and_padded(38, 26, 10, 4096, 3);
+  Tensor a({1, 33, 33, 3}), b({1, 33, 33, 3}), c({1, 33, 33, 3});
+  ASSERT_TRUE(letterbox_frame(frame_view(packed), a).ok());
+  auto lb = letterbox_frame(frame_view(padded), b);
+  ASSERT_TRUE(lb.ok()) << lb.error().message();
+  EXPECT_EQ(a.data, b.data);
+  Frame guessed = padded;
+  guessed.uv_offset_bytes = 0;  // the UV plane assumed right after the Y plane
+  ASSERT_TRUE(letterbox_frame(frame_view(guessed), c).ok());
+  EXPECT_NE(a.data, c.data);
+  Frame empty;
+  EXPECT_FALSE(validate_frame(frame_view(empty)).ok());
 }
 
 TEST(PreprocessTest, LetterboxBordersAndMapping) {

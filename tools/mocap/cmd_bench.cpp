@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "runtime/core/data_dir.h"
+#include "runtime/core/stats.h"
 #include "runtime/eval/shelf_sequence.h"
 #include "runtime/sim/simulator.h"
 #include "runtime/skeleton/topology.h"
@@ -19,18 +20,12 @@ struct Percentiles {
   double median = 0, p90 = 0, p99 = 0, max = 0;
 };
 
-Percentiles percentiles(std::vector<double> v) {
+Percentiles percentiles(const std::vector<double>& v) {
   Percentiles p;
-  if (v.empty()) return p;
-  std::sort(v.begin(), v.end());
-  auto at = [&](double q) {
-    const std::size_t i = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
-    return v[std::min(i, v.size() - 1)];
-  };
-  p.median = at(0.5);
-  p.p90 = at(0.9);
-  p.p99 = at(0.99);
-  p.max = v.back();
+  p.median = median(v);
+  p.p90 = percentile(v, 0.9);
+  p.p99 = percentile(v, 0.99);
+  p.max = percentile(v, 1.0);
   return p;
 }
 

@@ -9,12 +9,14 @@
 #include <string_view>
 #include <vector>
 
+#include "hal/cameras.h"
 #include "hal/capture_rig.h"
 #include "hal/gpio/trigger_line.h"
 #include "hal/libcamera/libcamera_camera.h"
 #include "hal/reconnecting_camera.h"
 #include "hal/replay/recorder.h"
 #include "hal/v4l2/v4l2_camera.h"
+#include "runtime/core/stats.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
 
@@ -102,35 +104,19 @@ struct CameraArgs {
   Result<hal::CameraFactory> factory(const std::string& device, int view) const {
     Result<hal::CameraRequest> req = parse_request(format, size, fps);
     if (!req) return req.error();
-    if (backend == "v4l2") {
-      if (device.empty())
-        return Error(ErrorCode::kInvalidArgument, "--device is required with --backend v4l2");
-      hal::V4l2CameraOptions o;
-      o.device = device;
-      o.view_id = view;
-      o.request = *req;
-      o.buffer_count = buffers;
-      o.external_trigger = external_trigger;
-      return hal::CameraFactory([o]() -> Result<std::unique_ptr<hal::CameraSource>> {
-        auto c = hal::V4l2Camera::open(o);
-        if (!c) return c.error();
-        return std::unique_ptr<hal::CameraSource>(std::move(*c));
-      });
+    Result<hal::CameraBackend> b = hal::parse_camera_backend(backend);
+    if (!b) return b.error().with_context("--backend");
+    if (*b == hal::CameraBackend::kV4l2 && device.empty()) {
+      return Error(ErrorCode::kInvalidArgument, "--device is required with --backend v4l2");
     }
-    if (backend == "libcamera") {
-      hal::LibcameraCameraOptions o;
-      o.camera_id = device;
-      o.view_id = view;
-      o.request = *req;
-      o.buffer_count = buffers;
-      return hal::CameraFactory([o]() -> Result<std::unique_ptr<hal::CameraSource>> {
-        auto c = hal::LibcameraCamera::open(o);
-        if (!c) return c.error();
-        return std::unique_ptr<hal::CameraSource>(std::move(*c));
-      });
-    }
-    return Error(ErrorCode::kInvalidArgument,
-                 "--backend '" + backend + "': expected v4l2 or libcamera");
+    hal::CameraSpec spec;
+    spec.backend = *b;
+    spec.id = device;
+    spec.view_id = view;
+    spec.request = *req;
+    spec.buffer_count = buffers;
+    spec.external_trigger = external_trigger;
+    return hal::camera_factory(spec);
   }
 
   std::vector<std::string> device_list() const {
@@ -311,7 +297,7 @@ int run_capture(Args args) {
   // another is read.
   const std::size_t n = sources.size();
   std::vector<std::vector<Frame>> got(n);
-  std::vector<std::int64_t> silent_since(n, hal::monotonic_ns());
+  std::vector<std::int64_t> silent_since(n, monotonic_ns());
   std::vector<std::uint64_t> gaps(n, 0);
   std::vector<bool> done(n, false);
   bool failed = false;
@@ -327,8 +313,7 @@ int run_capture(Args args) {
         continue;
       }
       if (c->status != hal::CaptureStatus::kFrame) {
-        if (hal::monotonic_ns() - silent_since[i] >
-            static_cast<std::int64_t>(timeout_ms) * 1'000'000) {
+        if (monotonic_ns() - silent_since[i] > static_cast<std::int64_t>(timeout_ms) * 1'000'000) {
           std::fprintf(stderr, "error: camera %s: no frame for %d ms\n",
                        sources[i]->description().id.c_str(), timeout_ms);
           failed = true;
@@ -336,7 +321,7 @@ int run_capture(Args args) {
         }
         continue;
       }
-      silent_since[i] = hal::monotonic_ns();
+      silent_since[i] = monotonic_ns();
       if (!got[i].empty() && c->frame.sequence > got[i].back().sequence + 1) {
         gaps[i] += c->frame.sequence - got[i].back().sequence - 1;
       }
@@ -353,13 +338,9 @@ int run_capture(Args args) {
       dt_ms.push_back(static_cast<double>(got[i][k].timestamp_ns - got[i][k - 1].timestamp_ns) /
                       1e6);
     }
-    double median = 0, jitter = 0;
-    if (!dt_ms.empty()) {
-      std::vector<double> sorted = dt_ms;
-      std::sort(sorted.begin(), sorted.end());
-      median = sorted[sorted.size() / 2];
-      for (double d : dt_ms) jitter = std::max(jitter, std::abs(d - median));
-    }
+    const double median = sample_median(dt_ms);
+    double jitter = 0;
+    for (double d : dt_ms) jitter = std::max(jitter, std::abs(d - median));
     std::printf(
         "camera %zu: frames=%zu first_seq=%llu sequence_gaps=%llu interval_median_ms=%.3f "
         "fps=%.2f interval_jitter_max_ms=%.3f\n",
@@ -517,13 +498,12 @@ int run_sync(Args args) {
   Result<std::unique_ptr<hal::CaptureRig>> rig = hal::CaptureRig::create(std::move(sources), opt);
   if (!rig) return fail(rig.error());
   if (Status s = (*rig)->start(); !s.ok()) return fail(s.error());
-  std::int64_t next_report =
-      hal::monotonic_ns() + static_cast<std::int64_t>(report_s) * 1'000'000'000;
+  std::int64_t next_report = monotonic_ns() + static_cast<std::int64_t>(report_s) * 1'000'000'000;
   std::uint64_t got = 0;
   while (!g_interrupted && (sets == 0 || got < static_cast<std::uint64_t>(sets))) {
     std::optional<FrameSet> set = (*rig)->next_set(100);
     if (set) ++got;
-    if (report_s > 0 && hal::monotonic_ns() >= next_report) {
+    if (report_s > 0 && monotonic_ns() >= next_report) {
       print_sync(**rig);
       next_report += static_cast<std::int64_t>(report_s) * 1'000'000'000;
     }

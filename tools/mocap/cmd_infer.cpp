@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "runtime/core/stats.h"
 #include "runtime/gpu/backend.h"
 #include "runtime/gpu/context.h"
 #include "runtime/gpu/network.h"
@@ -84,7 +85,9 @@ struct Runner {
     shape = s;
     gpu::GpuOptions go;
     go.device = device;
-    auto b = gpu::choose_backend(backend, go);
+    auto request = gpu::parse_backend_request(backend);
+    if (!request.ok()) return request.error().with_context("--backend");
+    auto b = gpu::choose_backend(*request, go);
     if (!b.ok()) return b.error();
     std::fprintf(stderr, "backend: %s\n", b->description.c_str());
     if (b->backend == gpu::PoseBackend::kCpu) {
@@ -136,8 +139,10 @@ int infer_image(const std::string& model_path, const std::string& image_path, in
   if (out.empty()) {
     return fail(Error(ErrorCode::kInvalidArgument, "--image needs --detections-out FILE"));
   }
-  if (size < 17 || size > 1025) {
-    return fail(Error(ErrorCode::kInvalidArgument, "--size must be in [17, 1025] with --image"));
+  if (size < gpu::kMinInputSizePx || size > gpu::kMaxInputSizePx) {
+    return fail(Error(ErrorCode::kInvalidArgument,
+                      "--size must be in [" + std::to_string(gpu::kMinInputSizePx) + ", " +
+                          std::to_string(gpu::kMaxInputSizePx) + "] with --image"));
   }
   auto model = nn::load_model(model_path);
   if (!model.ok()) return fail(model.error());
@@ -147,7 +152,9 @@ int infer_image(const std::string& model_path, const std::string& image_path, in
   o.input_size_px = size;
   gpu::GpuOptions go;
   go.device = device;
-  auto b = gpu::choose_backend(backend, go);
+  auto request = gpu::parse_backend_request(backend);
+  if (!request.ok()) return fail(request.error().with_context("--backend"));
+  auto b = gpu::choose_backend(*request, go);
   if (!b.ok()) return fail(b.error());
   std::fprintf(stderr, "backend: %s\n", b->description.c_str());
   o.backend = b->backend;
@@ -312,18 +319,6 @@ int layer_debug(Runner& r, const nn::Model& model, const std::vector<float>& inp
                 worst_layer.c_str(), worst);
   }
   return 0;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
 }
 
 }  // namespace

@@ -80,21 +80,42 @@ OptionSpec bool_opt(std::string key, std::string help, bool DaemonConfig::*field
   return o;
 }
 
-// `choices` empty: any string (a path, a name); otherwise one of them.
+// Any string without NUL bytes (a path, a name).
 OptionSpec string_opt(std::string key, std::string unit, std::string help,
-                      std::string DaemonConfig::*field, std::vector<std::string> choices = {}) {
+                      std::string DaemonConfig::*field) {
   OptionSpec o{std::move(key), OptionType::kString, std::move(unit), std::move(help), nullptr,
                nullptr};
   o.show = [field](const DaemonConfig& c) { return c.*field; };
-  o.set = [field, choices](DaemonConfig& c, std::string_view t) -> Status {
-    if (!choices.empty() && std::find(choices.begin(), choices.end(), t) == choices.end()) {
-      std::string list;
-      for (const auto& ch : choices) list += (list.empty() ? "" : ", ") + ch;
-      return bad("one of " + list, t);
-    }
+  o.set = [field](DaemonConfig& c, std::string_view t) -> Status {
     if (t.find('\0') != std::string_view::npos) return bad("text without NUL bytes", "\\0");
     c.*field = std::string(t);
     return {};
+  };
+  return o;
+}
+
+// One of `choices` (name, value) into an enum field; shown and written as its name.
+template <typename E>
+OptionSpec enum_opt(std::string key, std::string unit, std::string help, E DaemonConfig::*field,
+                    std::vector<std::pair<std::string, E>> choices) {
+  OptionSpec o{std::move(key), OptionType::kString, std::move(unit), std::move(help), nullptr,
+               nullptr};
+  o.show = [field, choices](const DaemonConfig& c) {
+    for (const auto& [name, value] : choices) {
+      if (value == c.*field) return name;
+    }
+    return std::string("?");
+  };
+  o.set = [field, choices](DaemonConfig& c, std::string_view t) -> Status {
+    std::string list;
+    for (const auto& [name, value] : choices) {
+      if (name == t) {
+        c.*field = value;
+        return {};
+      }
+      list += (list.empty() ? "" : ", ") + name;
+    }
+    return bad("one of " + list, t);
   };
   return o;
 }
@@ -158,11 +179,16 @@ std::vector<OptionSpec> make_options() {
                          &DaemonConfig::model));
   v.push_back(int_opt("input_size_px", "px",
                       "network input height and width (PoseNet: 16k+1, e.g. 257, 353, 513)",
-                      &DaemonConfig::input_size_px, 17, 1025));
-  v.push_back(string_opt("gpu", "backend",
-                         "auto (Vulkan, the CPU with a warning when no device opens), vulkan "
-                         "(fail without one) or cpu",
-                         &DaemonConfig::gpu, {"auto", "vulkan", "cpu"}));
+                      &DaemonConfig::input_size_px, gpu::kMinInputSizePx, gpu::kMaxInputSizePx));
+  using gpu::BackendRequest;
+  v.push_back(enum_opt(
+      "gpu", "backend",
+      "auto (Vulkan, the CPU with a warning when no device opens), vulkan "
+      "(fail without one) or cpu",
+      &DaemonConfig::gpu,
+      std::vector<std::pair<std::string, BackendRequest>>{{"auto", BackendRequest::kAuto},
+                                                          {"vulkan", BackendRequest::kVulkan},
+                                                          {"cpu", BackendRequest::kCpu}}));
   v.push_back(string_opt("gpu_device", "name",
                          "Vulkan device index or name substring; empty = the board's preferred "
                          "GPU, else the best one",
@@ -171,11 +197,15 @@ std::vector<OptionSpec> make_options() {
   v.push_back(int_opt("queue_depth", "frames",
                       "frames waiting between two stages (CNN, association) at most",
                       &DaemonConfig::queue_depth, 1, 64));
-  v.push_back(string_opt("drop_policy", "policy",
-                         "when a stage queue is full: drop-oldest (live: latency stays bounded, "
-                         "drops are counted), block (every frame is processed), auto (block for "
-                         "a replay at full speed, drop-oldest otherwise)",
-                         &DaemonConfig::drop_policy, {"auto", "drop-oldest", "block"}));
+  v.push_back(enum_opt("drop_policy", "policy",
+                       "when a stage queue is full: drop-oldest (live: latency stays bounded, "
+                       "drops are counted), block (every frame is processed), auto (block for "
+                       "a replay at full speed, drop-oldest otherwise)",
+                       &DaemonConfig::drop_policy,
+                       std::vector<std::pair<std::string, DropPolicyChoice>>{
+                           {"auto", DropPolicyChoice::kAuto},
+                           {"drop-oldest", DropPolicyChoice::kDropOldest},
+                           {"block", DropPolicyChoice::kBlock}}));
   v.push_back(int_opt("realtime_priority", "SCHED_FIFO",
                       "real-time priority of the pipeline threads (1-99; needs CAP_SYS_NICE or "
                       "LimitRTPRIO); 0 = normal scheduling",

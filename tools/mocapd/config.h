@@ -12,11 +12,16 @@
 #include <vector>
 
 #include "runtime/core/error.h"
+#include "runtime/gpu/cnn_options.h"
 
 namespace mocap::daemon {
 
 inline constexpr const char* kDaemonVersion = "0.2.0";
 inline constexpr const char* kDefaultStateDir = "/var/lib/mocap";
+
+// When a stage queue is full: kAuto blocks for a replay at full speed (every frame processed)
+// and drops the oldest frame otherwise (live: latency stays bounded).
+enum class DropPolicyChoice { kAuto, kDropOldest, kBlock };
 
 struct DaemonConfig {
   // Network
@@ -38,12 +43,12 @@ struct DaemonConfig {
   double frame_rate_hz = 0;  // 0 = the board's
   // CNN
   std::string model;  // empty = the installed models/posenet.mcnn
-  int input_size_px = 353;
-  std::string gpu = "auto";
+  int input_size_px = gpu::kDefaultInputSizePx;
+  gpu::BackendRequest gpu = gpu::BackendRequest::kAuto;
   std::string gpu_device;  // empty = the board's preferred GPU, else the best one
   // Pipeline
   int queue_depth = 2;
-  std::string drop_policy = "auto";
+  DropPolicyChoice drop_policy = DropPolicyChoice::kAuto;
   int realtime_priority = 0;
   int max_frames = -1;
   // Simulator (no camera)

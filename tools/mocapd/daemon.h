@@ -1,5 +1,6 @@
-// mocapd assembled: configuration -> source (replay, cameras of a board, or the simulator)
-// -> GPU pose detector -> association engine -> skeleton stream, with the status endpoint.
+// mocapd composed: configuration -> a source (a recording, the cameras of a board, or the
+// simulator) -> the pose CNN -> the association engine -> the stream, in the real-time
+// pipeline (runtime/pipeline), with the status endpoint.
 //
 //   auto d = daemon::Daemon::create(config);      // finds cameras, calibration, GPU, model
 //   d->start();                                   // binds the ports, starts the pipeline
@@ -15,36 +16,37 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
-#include <mutex>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "runtime/core/error.h"
 #include "runtime/geometry/calibration.h"
+#include "runtime/pipeline/pipeline.h"
+#include "runtime/pipeline/sinks.h"
 #include "tools/mocapd/config.h"
-#include "tools/mocapd/pipeline.h"
 
 namespace mocap::net {
 class StreamServer;
 }
 namespace mocap::gpu {
-class PoseDetector;
-struct BackendChoice;
-}  // namespace mocap::gpu
+class CnnDetector;
+}
 namespace mocap::hal {
 class TriggerMaster;
-}
+struct Discovery;
+}  // namespace mocap::hal
 
 namespace mocap::daemon {
 
 // Test and bench hooks: called on the association thread after a frame was published.
 struct DaemonHooks {
-  std::function<void(const PipelineFrame&)> on_frame;
+  std::function<void(const pipeline::PipelineFrame&)> on_frame;
 };
 
-// Where the installed (or source-tree) data lives: <exe>/../share/mocap-box/<sub> when it
-// exists, else the source tree's <sub>.
-std::filesystem::path share_path(const std::string& sub);
+enum class CalibrationState { kOk, kMissing, kInvalid, kMismatch };
+std::string_view to_string(CalibrationState state);  // "ok", "missing", ...
 
 class Daemon {
  public:
@@ -66,23 +68,34 @@ class Daemon {
   std::string health_json() const;
   int stream_port() const;
   int http_port() const;
-  PipelineMetrics metrics() const;
+  pipeline::PipelineMetrics metrics() const;
   const std::vector<std::string>& problems() const { return problems_; }
   bool calibrated() const { return engine_ != nullptr; }
   // The calibrated views (empty when not calibrated), in the engine's view order.
   const std::vector<Camera>& cameras() const { return cameras_; }
-  std::string source_kind() const { return source_kind_; }
+  const std::string& source_kind() const { return source_kind_; }
   const std::string& gpu_description() const { return gpu_description_; }
 
  private:
   Daemon() = default;
-  void sink(const PipelineFrame& frame);
+  Status open_replay();
+  Status open_board(const std::filesystem::path& board_dir);
+  Status open_simulator(double rate_hz);
+  Status open_cameras(hal::Discovery& disc, const std::filesystem::path& board_dir, double rate_hz);
+  std::optional<Calibration> choose_calibration(hal::Discovery& disc,
+                                                const std::filesystem::path& board_dir,
+                                                Status& error);
+  Status open_trigger(const hal::Discovery& disc, double rate_hz);
+  Status open_cnn(int views, const std::string& preferred_gpu);
+  Status make_engine(const SkeletonTopology& topology, const Calibration& calibration,
+                     const assoc::AssociationOptions& options);
+  void log_status() const;
 
   DaemonConfig config_;
   DaemonHooks hooks_;
   std::string source_kind_;
   std::string board_name_;
-  std::string calibration_state_ = "missing";  // ok, missing, invalid, mismatch, not needed
+  CalibrationState calibration_state_ = CalibrationState::kMissing;
   std::string calibration_file_;
   std::vector<std::string> problems_;  // what is degraded and how to fix it
   std::vector<std::string> notes_;     // discovery notes (skipped nodes, ...)
@@ -91,14 +104,16 @@ class Daemon {
   std::int64_t unix_offset_ns_ = 0;
   std::int64_t started_ns_ = 0;
   std::vector<Camera> cameras_;
-  std::unique_ptr<gpu::BackendChoice> backend_;
-  std::unique_ptr<gpu::PoseDetector> detector_;
+  std::unique_ptr<gpu::CnnDetector> detector_;
   std::unique_ptr<assoc::Engine> engine_;
-  std::unique_ptr<FrameSource> pending_source_;  // until start() hands it to the pipeline
+  std::unique_ptr<pipeline::FrameSource> pending_source_;  // until start() hands it over
   std::unique_ptr<hal::TriggerMaster> trigger_;
   std::unique_ptr<net::StreamServer> server_;
   std::atomic<const net::StreamServer*> server_view_{nullptr};  // for health_json()
-  std::unique_ptr<Pipeline> pipeline_;
+  std::unique_ptr<pipeline::StreamSink> stream_sink_;
+  std::unique_ptr<pipeline::CallbackSink> hook_sink_;
+  std::unique_ptr<pipeline::Pipeline> pipeline_;
+  std::atomic<const pipeline::Pipeline*> pipeline_view_{nullptr};  // for health_json()
   std::atomic<bool> stopped_{false};
 };
 

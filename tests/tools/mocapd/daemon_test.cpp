@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "hal/camera_source.h"
-#include "tests/mocapd/line_client.h"
+#include "tests/support/line_client.h"
 #include "tests/support/temp_dir.h"
 #include "tools/mocapd/daemon.h"
 
@@ -131,7 +131,7 @@ TEST(DaemonSimulator, MisbehavingClientsNeitherStallThePipelineNorCostOthersMess
   std::vector<std::uint64_t> published;  // frame ids, in publishing order
   std::vector<std::int64_t> source_ns;
   DaemonHooks hooks;
-  hooks.on_frame = [&](const PipelineFrame& f) {
+  hooks.on_frame = [&](const pipeline::PipelineFrame& f) {
     std::lock_guard<std::mutex> lock(mu);
     published.push_back(f.detections.frame_id);
     source_ns.push_back(f.source_ns);

@@ -21,11 +21,13 @@
 #include <mutex>
 #include <vector>
 
+#include "runtime/core/stats.h"
+#include "runtime/eval/replay_stats.h"
 #include "runtime/gpu/context.h"
-#include "tests/mocapd/line_client.h"
 #include "tests/support/data.h"
+#include "tests/support/line_client.h"
+#include "tests/support/pose2sim_scene.h"
 #include "tools/mocapd/daemon.h"
-#include "tools/replay/replay.h"
 
 namespace mocap::daemon {
 namespace {
@@ -33,14 +35,9 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-bool on_belt(const Eigen::Vector3d& c) {
-  return c.x() > -2.4 && c.x() < -0.45 && std::abs(c.y()) < 0.8;
-}
-bool at_woman(const Eigen::Vector3d& c) {
-  return (c.head<2>() - Eigen::Vector2d(0.15, -0.4)).norm() < 0.45;
-}
-// As replay_e2e_test.cpp: ~2x the measured median (18 px at input size 353 on lavapipe).
-constexpr double kMaxMedianReprojectionPx = 36.0;
+using testing::at_woman;
+using testing::kMaxMedianReprojectionPx;
+using testing::on_belt;
 constexpr int kFrames = 100;
 
 // person_center() of a streamed person: the mean of its joints with confidence >= 0.2.
@@ -71,25 +68,18 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
   DaemonConfig c;
   c.replay = data.string();
   c.model = model.string();
-  c.gpu = "vulkan";
+  c.gpu = gpu::BackendRequest::kVulkan;
   c.bind_address = "127.0.0.1";
   c.stream_port = 0;
   c.http_port = 0;
   c.status_log_interval_s = 0;
 
   std::mutex mu;
-  std::map<std::uint64_t, replay::ReplayFrame> frames;  // what the engine output, by frame id
+  std::map<std::uint64_t, pipeline::PipelineFrame> frames;  // what the engine output, by id
   DaemonHooks hooks;
-  hooks.on_frame = [&](const PipelineFrame& f) {
-    replay::ReplayFrame r;
-    r.frame_id = f.detections.frame_id;
-    r.detections = f.detections;
-    r.result = *f.result;
-    r.decode_ms = f.source_ms;
-    r.detect_ms = f.cnn_ms;
-    r.associate_ms = f.assoc_ms;
+  hooks.on_frame = [&](const pipeline::PipelineFrame& f) {
     std::lock_guard<std::mutex> lock(mu);
-    frames.emplace(r.frame_id, std::move(r));
+    frames.emplace(f.detections.frame_id, f);
   };
   auto d = Daemon::create(c, hooks);
   ASSERT_TRUE(d.ok()) << d.error().message();
@@ -111,7 +101,7 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
     msgs.push_back(std::move(m));
   }
   EXPECT_EQ((*d)->run(nullptr), 0);
-  const PipelineMetrics pm = (*d)->metrics();
+  const pipeline::PipelineMetrics pm = (*d)->metrics();
   EXPECT_TRUE(pm.ended);
   EXPECT_EQ(pm.frames_out, static_cast<std::uint64_t>(kFrames));
   EXPECT_EQ(pm.dropped_cnn_queue + pm.dropped_assoc_queue, 0u);
@@ -123,7 +113,7 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
     const json& m = msgs[static_cast<std::size_t>(i)];
     ASSERT_EQ(m["frame_id"].get<int>(), i) << "frames arrive in order, none missing";
     // The message is the engine's output (to the 0.1 mm the stream writes).
-    const auto& persons = frames.at(static_cast<std::uint64_t>(i)).result.skeletons.persons;
+    const auto& persons = frames.at(static_cast<std::uint64_t>(i)).result->skeletons.persons;
     ASSERT_EQ(m["persons"].size(), persons.size());
     for (std::size_t p = 0; p < persons.size(); ++p) {
       const json& mp = m["persons"][p];
@@ -154,18 +144,18 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
   EXPECT_EQ(man_ids.count(woman_id), 0u) << "swap: the woman's id at the man's place";
   EXPECT_EQ(woman_ids.count(man_id), 0u) << "swap: the man's id at the woman's place";
 
-  replay::ReplayStats stats((*d)->cameras());
+  eval::ReplayStats stats((*d)->cameras());
   for (const auto& [id, f] : frames) stats.add(f);
-  const replay::ReplaySummary& sum = stats.finish();
+  const eval::ReplaySummary& sum = stats.finish();
   const std::vector<double> errors = sum.reprojection_px();
   ASSERT_GT(errors.size(), 2000u) << "evidence for ~2 persons x 17 joints x 2+ views x 100 frames";
-  const double med = replay::median(errors);
+  const double med = median(errors);
   EXPECT_LT(med, kMaxMedianReprojectionPx);
   std::printf(
       "mocapd e2e: %d frames streamed; man id %d (%d frames), woman id %d (%d frames); "
       "reprojection median %.2f px p90 %.2f px; per frame (median/p99 ms): decode %.1f/%.1f, "
       "cnn %.1f/%.1f, assoc %.1f/%.1f, end-to-end %.1f/%.1f\n",
-      kFrames, man_id, man_frames, woman_id, woman_frames, med, replay::percentile(errors, 0.9),
+      kFrames, man_id, man_frames, woman_id, woman_frames, med, percentile(errors, 0.9),
       pm.source.median_ms, pm.source.p99_ms, pm.cnn.median_ms, pm.cnn.p99_ms, pm.assoc.median_ms,
       pm.assoc.p99_ms, pm.end_to_end.median_ms, pm.end_to_end.p99_ms);
 }

@@ -34,7 +34,9 @@ TEST(DaemonConfig, DefaultsAreTheDocumentedPorts) {
   ASSERT_TRUE(c.ok()) << c.error().message();
   EXPECT_EQ(c->stream_port, 9870);
   EXPECT_EQ(c->http_port, 9871);
-  EXPECT_EQ(c->gpu, "auto");
+  EXPECT_EQ(c->gpu, gpu::BackendRequest::kAuto);
+  EXPECT_EQ(c->drop_policy, DropPolicyChoice::kAuto);
+  EXPECT_EQ(c->input_size_px, gpu::kDefaultInputSizePx);
   EXPECT_TRUE(c->replay.empty());
 }
 
@@ -81,6 +83,27 @@ TEST(DaemonConfig, BadValuesNameTheSourceAndTheKey) {
                {"stream_port and http_port", "9000"});
   expect_error(load({"--loop"}), {"loop needs replay"});
   expect_error(load({"--log", "Net:loud"}), {"log", "loud"});
+}
+
+TEST(DaemonConfig, ChoicesBecomeEnumsAtTheBoundary) {
+  auto c = load({"--gpu", "cpu", "--drop-policy=block"}, {"MOCAPD_INPUT_SIZE_PX=513"});
+  ASSERT_TRUE(c.ok()) << c.error().message();
+  EXPECT_EQ(c->gpu, gpu::BackendRequest::kCpu);
+  EXPECT_EQ(c->drop_policy, DropPolicyChoice::kBlock);
+  EXPECT_EQ(c->input_size_px, 513);
+  auto d = load({"--gpu", "vulkan", "--drop-policy", "drop-oldest"});
+  ASSERT_TRUE(d.ok()) << d.error().message();
+  EXPECT_EQ(d->gpu, gpu::BackendRequest::kVulkan);
+  EXPECT_EQ(d->drop_policy, DropPolicyChoice::kDropOldest);
+  // Shown (and printed by --print-config) by name.
+  EXPECT_NE(config_to_json(*d).find("\"drop_policy\": \"drop-oldest\""), std::string::npos);
+  auto bad = load({"--drop-policy", "newest"});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message().find("auto, drop-oldest, block"), std::string::npos)
+      << bad.error().message();
+  auto small = load({"--input-size-px", "16"});
+  ASSERT_FALSE(small.ok());
+  EXPECT_NE(small.error().message().find("[17, 1025]"), std::string::npos);
 }
 
 TEST(DaemonConfig, BooleanFlagsAndPrintConfigRoundTrip) {

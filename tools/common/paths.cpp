@@ -1,0 +1,23 @@
+#include "tools/common/paths.h"
+
+#ifndef MOCAP_SOURCE_DIR
+#error "MOCAP_SOURCE_DIR must be defined by the build"
+#endif
+
+namespace mocap::tools {
+
+namespace fs = std::filesystem;
+
+fs::path share_path(const std::string& sub) {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path installed = exe.parent_path().parent_path() / "share" / "mocap-box" / sub;
+    if (fs::exists(installed, ec)) return installed;
+  }
+  return fs::path(MOCAP_SOURCE_DIR) / sub;
+}
+
+fs::path default_model_path() { return share_path("models") / "posenet.mcnn"; }
+
+}  // namespace mocap::tools

@@ -1,0 +1,39 @@
+// A recording opened for the pipeline, the one way every tool does it (`mocapd --replay`,
+// `mocap replay`, `mocap bench pipeline`): the replay source, the pose CNN batched over its
+// views, and the association engine on its calibration (COCO-17, the PoseNet preset).
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "hal/replay/replay_source.h"
+#include "runtime/assoc/engine.h"
+#include "runtime/assoc/options.h"
+#include "runtime/core/error.h"
+#include "runtime/gpu/cnn_detector.h"
+#include "runtime/pipeline/pipeline.h"
+
+namespace mocap::tools {
+
+struct ReplayPartsOptions {
+  hal::ReplaySourceOptions source;
+  gpu::CnnOptions cnn;  // max_views is set from the recording
+  assoc::AssociationOptions assoc = assoc::posenet_coco17_options();
+};
+
+struct ReplayParts {
+  std::unique_ptr<hal::ReplaySource> source;  // moved into the pipeline
+  std::vector<Camera> cameras;                // the recording's calibrated views
+  std::unique_ptr<gpu::CnnDetector> detector;
+  std::unique_ptr<assoc::Engine> engine;
+  // The pipeline's parts (moves the source out); the sinks are the caller's.
+  pipeline::PipelineParts pipeline_parts(std::vector<pipeline::Sink*> sinks);
+};
+
+Result<ReplayParts> open_replay(const ReplayPartsOptions& options);
+
+// Replays go at full speed unless realtime: every frame is processed (block), else, like
+// cameras, the newest wins (drop oldest).
+pipeline::DropPolicy replay_drop_policy(const hal::ReplaySourceOptions& source);
+
+}  // namespace mocap::tools
