@@ -687,6 +687,260 @@ bool near_track(const FrameGraph& graph, const Limb& L, int t, std::span<const L
   return true;
 }
 
+// Per-thread scratch of track_first_bundles, reused across calls (no allocation per limb type
+// once warmed up).
+struct TrackFirstScratch {
+  std::vector<int> assigned;  // [e] the track the 2D limb went to, or -1
+  std::vector<int> to_track;  // the 2D limbs assigned to a track, ascending
+  std::vector<char> removed;  // [e] left out by the consistency test
+  std::vector<double> merit;  // [e] clique-score share of a consistent 2D limb
+  // [t * V + v] the one 2D limb of view v that went to track t; -1 none, -2 ambiguous.
+  std::vector<int> pick;
+  std::vector<int> owner_a, owner_b;  // [k] track whose picked limb uses candidate k; -2 two
+  std::vector<int> core;              // [t * V + v] unambiguous picks of the first pass
+  // A track's clique: its members and what their pairs have.
+  std::vector<int> members;
+  std::vector<int> dropped;
+  std::vector<int> ends;
+  std::vector<float> match_a, match_b;  // [i * m + j], i < j
+  std::vector<char> fail;               // [i * m + j] members i, j not joined
+  std::vector<int> fails;               // [i] missing edges of member i; -1 dropped
+  std::vector<double> evidence;         // [i] summed matching edges of member i
+  std::vector<double> pair_w;           // [i * m + j] pair_match of members i, j
+  std::vector<char> used_a, used_b;     // [k] candidate in a taken 2D limb
+};
+
+// Each 2D limb goes to the track closest to both its endpoints (the larger of the smaller
+// tracking probabilities; two tracks can lie near one camera ray when one person hides the
+// other): sc.assigned, and the limbs that went to one in sc.to_track.
+void assign_to_tracks(const FrameGraph& graph, const Limb& L, std::span<const LimbEdge> edges,
+                      TrackFirstScratch& sc) {
+  const int T = graph.track_count();
+  sc.assigned.assign(edges.size(), -1);
+  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+    const LimbEdge& x = edges[ix(e)];
+    const int deg_a = graph.tracks_of_candidate(L.joint_a, x.ka);
+    const int deg_b = graph.tracks_of_candidate(L.joint_b, x.kb);
+    if ((deg_a | deg_b) <= 1) {
+      // At most one track near each end (the common case): it is the choice if it is the same
+      // one at both. A candidate near no track has sole track -1, so this needs no branch on
+      // the data (which would be mispredicted often).
+      const int ta = graph.sole_track_of_candidate(L.joint_a, x.ka);
+      sc.assigned[ix(e)] = ta == graph.sole_track_of_candidate(L.joint_b, x.kb) ? ta : -1;
+      continue;
+    }
+    if (deg_a == 0 || deg_b == 0) continue;
+    int best = -1;
+    float best_p = 0.f;
+    for (int t = 0; t < T; ++t) {
+      const float p = std::min(graph.track(L.joint_a, t, x.ka), graph.track(L.joint_b, t, x.kb));
+      if (p > best_p) {
+        best_p = p;
+        best = t;
+      }
+    }
+    sc.assigned[ix(e)] = best;
+  }
+  sc.to_track.resize(edges.size());
+  std::size_t n_to_track = 0;
+  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+    sc.to_track[n_to_track] = e;
+    n_to_track += sc.assigned[ix(e)] >= 0 ? 1 : 0;
+  }
+  sc.to_track.resize(n_to_track);
+}
+
+// Per track and view the one 2D limb assigned to it (sc.pick), with the ambiguities marked
+// (-2): two 2D limbs went to the track (unless their merits tell them apart), or a candidate of
+// its 2D limb is also in another track's 2D limb. Limbs sc.removed are left out. Returns
+// whether any pick is ambiguous.
+bool make_picks(const FrameGraph& graph, const Limb& L, std::span<const LimbEdge> edges,
+                TrackFirstScratch& sc) {
+  const int V = graph.view_count();
+  sc.pick.assign(ix(graph.track_count() * V), -1);
+  sc.owner_a.assign(ix(graph.candidate_count(L.joint_a)), -1);
+  sc.owner_b.assign(ix(graph.candidate_count(L.joint_b)), -1);
+  const std::vector<double>& merit = sc.merit;
+  for (const int e : sc.to_track) {
+    const int best = sc.assigned[ix(e)];
+    if (sc.removed[ix(e)]) continue;
+    const LimbEdge& x = edges[ix(e)];
+    int& slot = sc.pick[ix(best * V + x.view)];
+    if (slot == -1) {
+      slot = e;
+    } else if (slot >= 0 && merit[ix(e)] > 0.0 && merit[ix(slot)] > 0.0 &&
+               merit[ix(e)] != merit[ix(slot)]) {
+      // Two 2D limbs of one view both fit the track's clique: the one the clique score
+      // prefers (the same other views, so only its own terms differ).
+      if (merit[ix(e)] > merit[ix(slot)]) slot = e;
+    } else {
+      slot = -2;
+    }
+    for (int* o : {&sc.owner_a[ix(x.ka)], &sc.owner_b[ix(x.kb)]})
+      *o = (*o == -1 || *o == best) ? best : -2;
+  }
+  // A pick whose candidate is also in another track's 2D limb is ambiguous (branch-free:
+  // which views have a pick is data).
+  bool any_ambiguous = false;
+  for (int& e : sc.pick) {
+    const bool live = e >= 0;
+    const LimbEdge& x = edges[ix(live ? e : 0)];
+    const bool shared = (sc.owner_a[ix(x.ka)] < 0) | (sc.owner_b[ix(x.kb)] < 0);
+    e = live & shared ? -2 : e;
+    any_ambiguous |= e == -2;
+  }
+  return any_ambiguous;
+}
+
+// Most ambiguities come from a spurious 2D limb joining two people (a stray affinity between
+// candidates whose rays both pass near one track): it lands in a view of a track next to that
+// track's own 2D limb, or shares a candidate with another track's. A 2D limb in an ambiguous
+// view that is not joined by matching edges at both ends to every unambiguous 2D limb of its
+// track (at least 2 of them) cannot be in a limb clique with them, so it is left out of its
+// track's choice (sc.removed; it stays in the graph for the clique search). One that is gets
+// its share of the clique score (sc.merit), which make_picks uses to choose between two.
+void set_aside_inconsistent(FrameGraph& graph, const Limb& L, std::span<const LimbEdge> edges,
+                            const CliqueOptions& options, TrackFirstScratch& sc) {
+  const int V = graph.view_count();
+  sc.core = sc.pick;
+  for (const int e : sc.to_track) {
+    const int t = sc.assigned[ix(e)];
+    const LimbEdge& x = edges[ix(e)];
+    if (sc.core[ix(t * V + x.view)] != -2) {
+      // Its view is unambiguous, unless a candidate is shared with another track's limb.
+      if (sc.owner_a[ix(x.ka)] >= 0 && sc.owner_b[ix(x.kb)] >= 0) continue;
+    }
+    int core_size = 0;
+    bool consistent = true;
+    double match_sum = 0;
+    for (int v = 0; v < V && consistent; ++v) {
+      const int c = sc.core[ix(t * V + v)];
+      if (c < 0 || v == x.view) continue;
+      ++core_size;
+      const LimbEdge& y = edges[ix(c)];
+      const float wa = graph.ensure_match(L.joint_a, x.ka, y.ka);
+      const float wb = wa > 0.f ? graph.ensure_match(L.joint_b, x.kb, y.kb) : 0.f;
+      consistent = wa > 0.f && wb > 0.f;
+      match_sum += 0.5 * static_cast<double>(wa + wb);
+    }
+    if (!consistent || core_size < 2) {
+      sc.removed[ix(e)] = 1;
+      continue;
+    }
+    // Its terms in the clique score of the core plus it (n 2D limbs): pairwise matching over
+    // the n(n-1)/2 pairs, tracking and parsing over n.
+    const double n = core_size + 1;
+    sc.merit[ix(e)] =
+        options.w_match * match_sum / (0.5 * n * (n - 1)) +
+        (options.w_track * static_cast<double>(std::min(graph.track(L.joint_a, t, x.ka),
+                                                        graph.track(L.joint_b, t, x.kb))) +
+         options.w_paf * static_cast<double>(x.p)) /
+            n;
+  }
+}
+
+// A limb clique: every two of its 2D limbs are joined by matching edges at both ends. A 2D limb
+// of sc.members that is not (an occluded or displaced detection, a stray limb) is dropped, the
+// one with most missing edges first (ties: the least matching evidence), until the rest is a
+// clique: the largest maximal clique of these limbs and the track, which is what the clique
+// search would score. Dropped 2D limbs stay in the graph for the search. Leaves the kept
+// members' Scorer::pair_match in sc.pair_w (row-major, in their order).
+void keep_limb_clique(FrameGraph& graph, const Limb& L, std::span<const LimbEdge> edges,
+                      TrackFirstScratch& sc) {
+  std::vector<int>& members = sc.members;
+  std::vector<char>& fail = sc.fail;
+  std::vector<int>& fails = sc.fails;
+  std::vector<double>& evidence = sc.evidence;
+  std::vector<double>& pair_w = sc.pair_w;
+  const std::size_t m = members.size();
+  // Every matching edge among the members' candidates, at both ends, in one batch each.
+  sc.match_a.resize(m * m);
+  sc.match_b.resize(m * m);
+  for (int end = 0; end < 2; ++end) {
+    sc.ends.clear();
+    for (const int e : members) sc.ends.push_back(end == 0 ? edges[ix(e)].ka : edges[ix(e)].kb);
+    graph.ensure_matches(end == 0 ? L.joint_a : L.joint_b, sc.ends,
+                         end == 0 ? sc.match_a : sc.match_b);
+  }
+  fail.assign(m * m, 0);
+  pair_w.assign(m * m, 0.0);
+  fails.assign(m, 0);
+  evidence.assign(m, 0.0);
+  int total = 0;
+  for (std::size_t i = 0; i < m; ++i) {
+    for (std::size_t j = i + 1; j < m; ++j) {
+      // The members are in different views: their candidates are distinct at both ends.
+      const float wa = sc.match_a[i * m + j];
+      const float wb = wa > 0.f ? sc.match_b[i * m + j] : 0.f;
+      if (wa > 0.f && wb > 0.f) {
+        evidence[i] += static_cast<double>(wa + wb);
+        evidence[j] += static_cast<double>(wa + wb);
+        // Scorer::pair_match, for prune_clique.
+        pair_w[i * m + j] = pair_w[j * m + i] =
+            0.5 * (static_cast<double>(wa) + static_cast<double>(wb));
+      } else {
+        fail[i * m + j] = fail[j * m + i] = 1;
+        ++fails[i];
+        ++fails[j];
+        ++total;
+      }
+    }
+  }
+  while (total > 0) {
+    std::size_t worst = m;
+    for (std::size_t i = 0; i < m; ++i) {
+      if (fails[i] <= 0) continue;
+      if (worst == m || fails[i] > fails[worst] ||
+          (fails[i] == fails[worst] && evidence[i] < evidence[worst])) {
+        worst = i;
+      }
+    }
+    for (std::size_t j = 0; j < m; ++j) {
+      if (fail[worst * m + j]) {
+        fail[worst * m + j] = fail[j * m + worst] = 0;
+        --fails[j];
+        --total;
+      }
+    }
+    fails[worst] = -1;  // dropped
+  }
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < m; ++i) {
+    if (fails[i] < 0) continue;
+    members[kept] = members[i];
+    fails[kept++] = static_cast<int>(i);  // old index of the kept member
+  }
+  members.resize(kept);
+  // The kept members' pair weights, compacted in place (row-major, new order); nothing to move
+  // when every member was kept.
+  if (kept < m) {
+    for (std::size_t i = 0; i < kept; ++i) {
+      for (std::size_t j = 0; j < kept; ++j) {
+        pair_w[i * kept + j] = pair_w[ix(fails[i]) * m + ix(fails[j])];
+      }
+    }
+    pair_w.resize(kept * kept);
+  }
+}
+
+// 2D limbs sharing a candidate with one of the bundles taken (out[first..]) are gone for the
+// clique search (at most one limb of a type per candidate).
+void exclude_shared_candidates(const FrameGraph& graph, const Limb& L,
+                               std::span<const LimbEdge> edges, std::span<const Bundle> taken,
+                               LimbExclusions& exclusions, TrackFirstScratch& sc) {
+  sc.used_a.assign(ix(graph.candidate_count(L.joint_a)), 0);
+  sc.used_b.assign(ix(graph.candidate_count(L.joint_b)), 0);
+  for (const Bundle& b : taken) {
+    for (int m : b.edges) {
+      sc.used_a[ix(edges[ix(m)].ka)] = 1;
+      sc.used_b[ix(edges[ix(m)].kb)] = 1;
+    }
+  }
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (sc.used_a[ix(edges[e].ka)] || sc.used_b[ix(edges[e].kb)]) exclusions.edge_dead[e] = 1;
+  }
+}
+
 }  // namespace
 
 void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, int limb,
@@ -701,246 +955,46 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
   exclusions.track_dead.assign(ix(T), 0);
   if (T == 0 || edges.empty()) return;
 
-  // Each 2D limb goes to the track closest to both its endpoints (the larger of the smaller
-  // tracking probabilities; two tracks can lie near one camera ray when one person hides the
-  // other). Per track and view: the one 2D limb that went to it (-1 none; -2 ambiguous: two
-  // 2D limbs went to it, or a candidate of its 2D limb is also in another track's 2D limb).
-  thread_local std::vector<int> pick;
-  thread_local std::vector<int> owner_a, owner_b;  // [k] track whose picked limb uses k; -2 two
-  thread_local std::vector<int> assigned;          // [e] the track the 2D limb went to, or -1
-  thread_local std::vector<char> removed;          // [e] left out by the consistency test
-  thread_local std::vector<int> to_track;          // the 2D limbs assigned to a track, ascending
-  assigned.assign(edges.size(), -1);
-  removed.assign(edges.size(), 0);
-  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
-    const LimbEdge& x = edges[ix(e)];
-    const int deg_a = graph.tracks_of_candidate(L.joint_a, x.ka);
-    const int deg_b = graph.tracks_of_candidate(L.joint_b, x.kb);
-    if ((deg_a | deg_b) <= 1) {
-      // At most one track near each end (the common case): it is the choice if it is the same
-      // one at both. A candidate near no track has sole track -1, so this needs no branch on
-      // the data (which would be mispredicted often).
-      const int ta = graph.sole_track_of_candidate(L.joint_a, x.ka);
-      assigned[ix(e)] = ta == graph.sole_track_of_candidate(L.joint_b, x.kb) ? ta : -1;
-      continue;
-    }
-    if (deg_a == 0 || deg_b == 0) continue;
-    int best = -1;
-    float best_p = 0.f;
-    for (int t = 0; t < T; ++t) {
-      const float p = std::min(graph.track(L.joint_a, t, x.ka), graph.track(L.joint_b, t, x.kb));
-      if (p > best_p) {
-        best_p = p;
-        best = t;
-      }
-    }
-    assigned[ix(e)] = best;
-  }
-  to_track.resize(edges.size());
-  std::size_t n_to_track = 0;
-  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
-    to_track[n_to_track] = e;
-    n_to_track += assigned[ix(e)] >= 0 ? 1 : 0;
-  }
-  to_track.resize(n_to_track);
-  // Per track and view the one 2D limb assigned to it, with the ambiguities marked (-2).
-  thread_local std::vector<double> merit;  // [e] clique-score share of a consistent 2D limb
-  merit.assign(edges.size(), 0.0);
-  const auto make_picks = [&] {
-    pick.assign(ix(T * V), -1);
-    owner_a.assign(ix(graph.candidate_count(L.joint_a)), -1);
-    owner_b.assign(ix(graph.candidate_count(L.joint_b)), -1);
-    for (const int e : to_track) {
-      const int best = assigned[ix(e)];
-      if (removed[ix(e)]) continue;
-      const LimbEdge& x = edges[ix(e)];
-      int& slot = pick[ix(best * V + x.view)];
-      if (slot == -1) {
-        slot = e;
-      } else if (slot >= 0 && merit[ix(e)] > 0.0 && merit[ix(slot)] > 0.0 &&
-                 merit[ix(e)] != merit[ix(slot)]) {
-        // Two 2D limbs of one view both fit the track's clique: the one the clique score
-        // prefers (the same other views, so only its own terms differ).
-        if (merit[ix(e)] > merit[ix(slot)]) slot = e;
-      } else {
-        slot = -2;
-      }
-      for (int* o : {&owner_a[ix(x.ka)], &owner_b[ix(x.kb)]})
-        *o = (*o == -1 || *o == best) ? best : -2;
-    }
-    // A pick whose candidate is also in another track's 2D limb is ambiguous (branch-free:
-    // which views have a pick is data).
-    bool any_ambiguous = false;
-    for (int& e : pick) {
-      const bool live = e >= 0;
-      const LimbEdge& x = edges[ix(live ? e : 0)];
-      const bool shared = (owner_a[ix(x.ka)] < 0) | (owner_b[ix(x.kb)] < 0);
-      e = live & shared ? -2 : e;
-      any_ambiguous |= e == -2;
-    }
-    return any_ambiguous;
-  };
-  if (make_picks()) {
-    // Most ambiguities come from a spurious 2D limb joining two people (a stray affinity between
-    // candidates whose rays both pass near one track): it lands in a view of a track next to
-    // that track's own 2D limb, or shares a candidate with another track's. A 2D limb in an
-    // ambiguous view that is not joined by matching edges at both ends to every unambiguous 2D
-    // limb of its track (at least 2 of them) cannot be in a limb clique with them, so it is left
-    // out of its track's choice (it stays in the graph for the clique search); the picks are
-    // then made again without it. 2D limbs that pass stay ambiguous if two of them remain.
-    thread_local std::vector<int> core;  // [t * V + v] unambiguous picks of the first pass
-    core = pick;
-    for (const int e : to_track) {
-      const int t = assigned[ix(e)];
-      const LimbEdge& x = edges[ix(e)];
-      if (core[ix(t * V + x.view)] != -2) {
-        // Its view is unambiguous, unless a candidate is shared with another track's limb.
-        if (owner_a[ix(x.ka)] >= 0 && owner_b[ix(x.kb)] >= 0) continue;
-      }
-      int core_size = 0;
-      bool consistent = true;
-      double match_sum = 0;
-      for (int v = 0; v < V && consistent; ++v) {
-        const int c = core[ix(t * V + v)];
-        if (c < 0 || v == x.view) continue;
-        ++core_size;
-        const LimbEdge& y = edges[ix(c)];
-        const float wa = graph.ensure_match(L.joint_a, x.ka, y.ka);
-        const float wb = wa > 0.f ? graph.ensure_match(L.joint_b, x.kb, y.kb) : 0.f;
-        consistent = wa > 0.f && wb > 0.f;
-        match_sum += 0.5 * static_cast<double>(wa + wb);
-      }
-      if (!consistent || core_size < 2) {
-        removed[ix(e)] = 1;
-        continue;
-      }
-      // Its terms in the clique score of the core plus it (n 2D limbs): pairwise matching over
-      // the n(n-1)/2 pairs, tracking and parsing over n.
-      const double n = core_size + 1;
-      merit[ix(e)] =
-          options.w_match * match_sum / (0.5 * n * (n - 1)) +
-          (options.w_track * static_cast<double>(std::min(graph.track(L.joint_a, t, x.ka),
-                                                          graph.track(L.joint_b, t, x.kb))) +
-           options.w_paf * static_cast<double>(x.p)) /
-              n;
-    }
-    make_picks();
+  thread_local TrackFirstScratch sc;
+  assign_to_tracks(graph, L, edges, sc);
+  sc.removed.assign(edges.size(), 0);
+  sc.merit.assign(edges.size(), 0.0);
+  if (make_picks(graph, L, edges, sc)) {
+    // Picks made again without the 2D limbs set aside; those that pass stay ambiguous if two
+    // of them remain.
+    set_aside_inconsistent(graph, L, edges, options, sc);
+    make_picks(graph, L, edges, sc);
   }
 
   const Scorer scorer = make_scorer(graph, topology, limb, hierarchy_weight, options);
-  thread_local std::vector<int> members;
-  thread_local std::vector<int> dropped;
-  thread_local std::vector<char> fail;        // [i * m + j] members i, j not joined
-  thread_local std::vector<int> fails;        // [i] missing edges of member i; -1 dropped
-  thread_local std::vector<double> evidence;  // [i] summed matching edges of member i
-  thread_local std::vector<double> pair_w;    // [i * m + j] pair_match of members i, j
   const std::size_t first = out.size();
   for (int t = 0; t < T; ++t) {
     if (!graph.track_has_joint(t, L.joint_a) || !graph.track_has_joint(t, L.joint_b)) continue;
     // Views where the track's 2D limb is ambiguous stay out of its bundle (the clique search
     // and assembling place their 2D limbs).
+    std::vector<int>& members = sc.members;
     members.resize(ix(V));
-    bool ambiguous = false;
     std::size_t n_members = 0;
     for (int v = 0; v < V; ++v) {
-      const int e = pick[ix(t * V + v)];
+      const int e = sc.pick[ix(t * V + v)];
       members[n_members] = e;
       n_members += e >= 0 ? 1 : 0;
     }
     members.resize(n_members);
     if (members.empty()) continue;
-    // A limb clique: every two of its 2D limbs are joined by matching edges at both ends. A 2D
-    // limb that is not (an occluded or displaced detection, a stray limb) is dropped, the one
-    // with most missing edges first (ties: the least matching evidence), until the rest is a
-    // clique: the largest maximal clique of these limbs and the track, which is what the clique
-    // search would score. Dropped 2D limbs stay in the graph for the search.
-    {
-      const std::size_t m = members.size();
-      // Every matching edge among the members' candidates, at both ends, in one batch each.
-      thread_local std::vector<int> ends;
-      thread_local std::vector<float> match_a, match_b;  // [i * m + j], i < j
-      match_a.resize(m * m);
-      match_b.resize(m * m);
-      for (int end = 0; end < 2; ++end) {
-        ends.clear();
-        for (const int e : members) ends.push_back(end == 0 ? edges[ix(e)].ka : edges[ix(e)].kb);
-        graph.ensure_matches(end == 0 ? L.joint_a : L.joint_b, ends, end == 0 ? match_a : match_b);
-      }
-      fail.assign(m * m, 0);
-      pair_w.assign(m * m, 0.0);
-      fails.assign(m, 0);
-      evidence.assign(m, 0.0);
-      int total = 0;
-      for (std::size_t i = 0; i < m; ++i) {
-        for (std::size_t j = i + 1; j < m; ++j) {
-          // The members are in different views: their candidates are distinct at both ends.
-          const float wa = match_a[i * m + j];
-          const float wb = wa > 0.f ? match_b[i * m + j] : 0.f;
-          if (wa > 0.f && wb > 0.f) {
-            evidence[i] += static_cast<double>(wa + wb);
-            evidence[j] += static_cast<double>(wa + wb);
-            // Scorer::pair_match, for prune_clique below.
-            pair_w[i * m + j] = pair_w[j * m + i] =
-                0.5 * (static_cast<double>(wa) + static_cast<double>(wb));
-          } else {
-            fail[i * m + j] = fail[j * m + i] = 1;
-            ++fails[i];
-            ++fails[j];
-            ++total;
-          }
-        }
-      }
-      while (total > 0) {
-        std::size_t worst = m;
-        for (std::size_t i = 0; i < m; ++i) {
-          if (fails[i] <= 0) continue;
-          if (worst == m || fails[i] > fails[worst] ||
-              (fails[i] == fails[worst] && evidence[i] < evidence[worst])) {
-            worst = i;
-          }
-        }
-        for (std::size_t j = 0; j < m; ++j) {
-          if (fail[worst * m + j]) {
-            fail[worst * m + j] = fail[j * m + worst] = 0;
-            --fails[j];
-            --total;
-          }
-        }
-        fails[worst] = -1;  // dropped
-      }
-      std::size_t kept = 0;
-      for (std::size_t i = 0; i < m; ++i) {
-        if (fails[i] < 0) continue;
-        members[kept] = members[i];
-        fails[kept++] = static_cast<int>(i);  // old index of the kept member
-      }
-      members.resize(kept);
-      // The kept members' pair weights, compacted in place (row-major, new order); nothing to
-      // move when every member was kept.
-      if (kept < m) {
-        for (std::size_t i = 0; i < kept; ++i) {
-          for (std::size_t j = 0; j < kept; ++j) {
-            pair_w[i * kept + j] = pair_w[ix(fails[i]) * m + ix(fails[j])];
-          }
-        }
-        pair_w.resize(kept * kept);
-      }
-    }
+    keep_limb_clique(graph, L, edges, sc);
     int track = t;
-    dropped.clear();
+    sc.dropped.clear();
     RayNormalSums sums;
-    const double score =
-        ambiguous ? 0.0 : prune_clique(scorer, track, members, dropped, pair_w, &sums);
+    const double score = prune_clique(scorer, track, members, sc.dropped, sc.pair_w, &sums);
     // Pruning that gives up the track says the clique is not clear-cut, and so does a clique
     // whose 2D limbs, triangulated, are not where the track was (rays of a person who moved
     // far can pass near the old joints in the views looking along the motion), or that has a
     // single view to triangulate from: the clique search decides those instead. 2D limbs
     // pruned away stay in the graph for the search (they share no candidate with the kept
     // ones: one per view).
-    if (!ambiguous && track >= 0) {
-      ambiguous = members.size() < 2 || !near_track(graph, L, t, edges, members, sums);
-    }
-    if (ambiguous || track < 0 || score < options.min_bundle_score) {
+    if (track < 0 || members.size() < 2 || !near_track(graph, L, t, edges, members, sums) ||
+        score < options.min_bundle_score) {
       ++stats.track_first_deferred;
       continue;
     }
@@ -948,21 +1002,9 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     ++stats.track_first_bundles;
     out.push_back(Bundle{limb, t, members, score});
   }
-  // 2D limbs sharing a candidate with a taken one are gone for the clique search (at most one
-  // limb of a type per candidate). Limb edges are sorted by view, so this is a scan per view.
   if (out.size() == first) return;
-  thread_local std::vector<char> used_a, used_b;
-  used_a.assign(ix(graph.candidate_count(L.joint_a)), 0);
-  used_b.assign(ix(graph.candidate_count(L.joint_b)), 0);
-  for (std::size_t i = first; i < out.size(); ++i) {
-    for (int m : out[i].edges) {
-      used_a[ix(edges[ix(m)].ka)] = 1;
-      used_b[ix(edges[ix(m)].kb)] = 1;
-    }
-  }
-  for (std::size_t e = 0; e < edges.size(); ++e) {
-    if (used_a[ix(edges[e].ka)] || used_b[ix(edges[e].kb)]) exclusions.edge_dead[e] = 1;
-  }
+  exclude_shared_candidates(graph, L, edges, std::span<const Bundle>(out).subspan(first),
+                            exclusions, sc);
 }
 
 void unneeded_candidates(const FrameGraph& graph, const SkeletonTopology& topology,
