@@ -460,24 +460,27 @@ double score_bundle(const FrameGraph& graph, const SkeletonTopology& topology, i
   return make_scorer(graph, topology, limb, hierarchy_weight, options, false).score(track, edges);
 }
 
-void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
-                        double hierarchy_weight, const CliqueOptions& options,
-                        std::vector<Bundle>& out, ParsingStats& stats,
-                        const LimbExclusions* exclusions) {
-  const Limb& L = topology.limb(limb);
-  const std::span<const LimbEdge> edges = graph.limb_edges(limb);
+namespace {
+
+// Per-thread scratch of parse_limb_bundles, reused across calls (no allocation per limb type
+// once warmed up).
+struct ParseScratch {
+  std::vector<int> node_edge;  // clique-graph node i (< n2d) is 2D limb node_edge[i]
+  std::vector<int> edge_node;  // [e] its node, or -1 for a 2D limb excluded
+  CliqueGraph cg;
+  std::vector<std::vector<int>> by_ka, by_kb;  // [k] live 2D limbs (edge indices) by candidate
+  std::vector<char> dead, track_dead;          // taken while taking bundles
+};
+
+// The clique graph of one limb type: its live 2D limbs (node i is edge sc.node_edge[i]), then
+// the tracks holding both its joints; two nodes are joined when they are compatible (two 2D
+// limbs: matching edges at both ends; a 2D limb and a track: tracking edges at both ends).
+// Returns the number of nodes; 0 when no 2D limb is live.
+int build_clique_graph(const FrameGraph& graph, const Limb& L, std::span<const LimbEdge> edges,
+                       const LimbExclusions* exclusions, ParseScratch& sc) {
   const auto edge_dead = [&](int e) {
     return exclusions && !exclusions->edge_dead.empty() && exclusions->edge_dead[ix(e)];
   };
-  // Per-thread scratch, reused across calls (no allocation per limb once warmed up).
-  struct Scratch {
-    std::vector<int> node_edge, edge_node;
-    CliqueGraph cg;
-    std::vector<std::vector<int>> by_ka, by_kb;
-    std::vector<char> dead, track_dead;
-  };
-  thread_local Scratch sc;
-  // Clique-graph nodes: the live 2D limbs (node i is edge node_edge[i]), then the tracks.
   std::vector<int>& node_edge = sc.node_edge;
   std::vector<int>& edge_node = sc.edge_node;
   node_edge.clear();
@@ -488,7 +491,7 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     node_edge.push_back(e);
   }
   const int n2d = static_cast<int>(node_edge.size());
-  if (n2d == 0) return;
+  if (n2d == 0) return 0;
 
   CliqueGraph& cg = sc.cg;
   cg.n2d = n2d;
@@ -504,17 +507,15 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   for (int i = 0; i < n; ++i) cg.adj[ix(i)].reset(n);
   // Live 2D limbs (edge indices) by candidate, so compatibility only visits matching neighbours
   // (sparse) and taking a bundle only visits the limbs sharing its candidates.
-  std::vector<std::vector<int>>& by_ka = sc.by_ka;
-  std::vector<std::vector<int>>& by_kb = sc.by_kb;
   const auto reset_lists = [](std::vector<std::vector<int>>& lists, int count) {
     if (lists.size() < ix(count)) lists.resize(ix(count));
     for (int i = 0; i < count; ++i) lists[ix(i)].clear();
   };
-  reset_lists(by_ka, graph.candidate_count(L.joint_a));
-  reset_lists(by_kb, graph.candidate_count(L.joint_b));
+  reset_lists(sc.by_ka, graph.candidate_count(L.joint_a));
+  reset_lists(sc.by_kb, graph.candidate_count(L.joint_b));
   for (int e : node_edge) {
-    by_ka[ix(edges[ix(e)].ka)].push_back(e);
-    by_kb[ix(edges[ix(e)].kb)].push_back(e);
+    sc.by_ka[ix(edges[ix(e)].ka)].push_back(e);
+    sc.by_kb[ix(edges[ix(e)].kb)].push_back(e);
   }
   // Limb edges come sorted by ka and matching neighbours sorted ascending (FrameGraph), and
   // matching edges join different views only: the pairs y > x are exactly those through
@@ -523,7 +524,7 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     const LimbEdge& ex = edges[ix(node_edge[ix(x)])];
     const std::span<const int> nbrs = graph.match_neighbors(L.joint_a, ex.ka);
     for (auto it = std::upper_bound(nbrs.begin(), nbrs.end(), ex.ka); it != nbrs.end(); ++it) {
-      for (int ye : by_ka[ix(*it)]) {
+      for (int ye : sc.by_ka[ix(*it)]) {
         if (graph.match(L.joint_b, ex.kb, edges[ix(ye)].kb) <= 0.f) continue;
         const int y = edge_node[ix(ye)];
         cg.adj[ix(x)].set(y);
@@ -538,104 +539,105 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
       cg.adj[ix(n2d + ti)].set(x);
     }
   }
+  return n;
+}
 
-  const Scorer scorer = make_scorer(graph, topology, limb, hierarchy_weight, options);
-
-  std::vector<std::vector<int>> maximal;
-  thread_local BronKerboschScratch bk_scratch;
-  BronKerbosch bk{cg, options.max_cliques_per_limb, maximal, bk_scratch, {}, false};
-  bk.run_all(n);
-  stats.cliques_enumerated += static_cast<long>(maximal.size());
-  if (bk.capped) {
-    // Too many maximal cliques to enumerate (dense compatibility: many views and people):
-    // grow one clique greedily from every 2D limb instead, adding at each step the compatible
-    // node with the largest summed edge weight to the clique so far.
-    ++stats.clique_cap_hits;
-    MOCAP_LOG(Assoc, Debug) << "limb " << limb << ": more than " << options.max_cliques_per_limb
-                            << " maximal cliques (" << n << " nodes); greedy clique growth";
-    maximal.clear();
-    auto weight = [&](int a, int b) {
-      const auto edge_of = [&](int node) -> const LimbEdge& {
-        return edges[ix(node_edge[ix(node)])];
-      };
-      if (a >= n2d) return scorer.track_match(cg.track_of_node[ix(a - n2d)], edge_of(b));
-      if (b >= n2d) return scorer.track_match(cg.track_of_node[ix(b - n2d)], edge_of(a));
-      return scorer.pair_match(edge_of(a), edge_of(b));
-    };
-    std::vector<double> acc(ix(n), 0.0);
-    // Seeds by parsing score; a seed already inside a grown clique would mostly regrow it.
-    std::vector<int> seeds(ix(n2d));
-    for (int i = 0; i < n2d; ++i) seeds[ix(i)] = i;
-    std::sort(seeds.begin(), seeds.end(), [&](int a, int b) {
-      return edges[ix(node_edge[ix(a)])].p > edges[ix(node_edge[ix(b)])].p;
-    });
-    std::vector<char> covered(ix(n2d), 0);
-    for (int seed : seeds) {
-      if (covered[ix(seed)]) continue;
-      std::vector<int> members{seed};
-      Bits cand = cg.adj[ix(seed)];
-      for_each_bit(cand, [&](int y) { acc[ix(y)] = weight(seed, y); });
-      while (!cand.empty()) {
-        int best = -1;
-        for_each_bit(cand, [&](int y) {
-          if (best < 0 || acc[ix(y)] > acc[ix(best)]) best = y;
-        });
-        members.push_back(best);
-        const auto& nb = cg.adj[ix(best)].words();
-        for (std::size_t i = 0; i < nb.size(); ++i) cand.words()[i] &= nb[i];
-        for_each_bit(cand, [&](int y) { acc[ix(y)] += weight(best, y); });
-      }
-      for (int m : members) {
-        if (m < n2d) covered[ix(m)] = 1;
-      }
-      maximal.push_back(std::move(members));
-    }
-  }
-
-  // Candidate bundles: each maximal clique split into (track, 2D members), pruned.
-  struct Cand {
-    double score;
-    int track;
-    std::vector<int> members;
+// Past the enumeration cap (dense compatibility: many views and people): one clique grown
+// greedily from every 2D limb instead, adding at each step the compatible node with the largest
+// summed edge weight to the clique so far. Appends the cliques (node lists) to `cliques`.
+void grow_cliques(const ParseScratch& sc, std::span<const LimbEdge> edges, const Scorer& scorer,
+                  std::vector<std::vector<int>>& cliques) {
+  const CliqueGraph& cg = sc.cg;
+  const int n2d = cg.n2d;
+  const int n = n2d + static_cast<int>(cg.track_of_node.size());
+  const auto edge_of = [&](int node) -> const LimbEdge& {
+    return edges[ix(sc.node_edge[ix(node)])];
   };
+  auto weight = [&](int a, int b) {
+    if (a >= n2d) return scorer.track_match(cg.track_of_node[ix(a - n2d)], edge_of(b));
+    if (b >= n2d) return scorer.track_match(cg.track_of_node[ix(b - n2d)], edge_of(a));
+    return scorer.pair_match(edge_of(a), edge_of(b));
+  };
+  std::vector<double> acc(ix(n), 0.0);
+  // Seeds by parsing score; a seed already inside a grown clique would mostly regrow it.
+  std::vector<int> seeds(ix(n2d));
+  for (int i = 0; i < n2d; ++i) seeds[ix(i)] = i;
+  std::sort(seeds.begin(), seeds.end(), [&](int a, int b) { return edge_of(a).p > edge_of(b).p; });
+  std::vector<char> covered(ix(n2d), 0);
+  for (int seed : seeds) {
+    if (covered[ix(seed)]) continue;
+    std::vector<int> members{seed};
+    Bits cand = cg.adj[ix(seed)];
+    for_each_bit(cand, [&](int y) { acc[ix(y)] = weight(seed, y); });
+    while (!cand.empty()) {
+      int best = -1;
+      for_each_bit(cand, [&](int y) {
+        if (best < 0 || acc[ix(y)] > acc[ix(best)]) best = y;
+      });
+      members.push_back(best);
+      const auto& nb = cg.adj[ix(best)].words();
+      for (std::size_t i = 0; i < nb.size(); ++i) cand.words()[i] &= nb[i];
+      for_each_bit(cand, [&](int y) { acc[ix(y)] += weight(best, y); });
+    }
+    for (int m : members) {
+      if (m < n2d) covered[ix(m)] = 1;
+    }
+    cliques.push_back(std::move(members));
+  }
+}
+
+// A candidate bundle: a clique split into its track and 2D members (edge indices), pruned.
+struct CandidateBundle {
+  double score;
+  int track;
+  std::vector<int> members;
+};
+
+// The bundles of one limb type from its maximal cliques: each clique is pruned (what pruning
+// drops is offered as a clique of its own) and the best is taken repeatedly; taking one removes
+// every 2D limb sharing a candidate with it, and its track, from the rest (which are pruned
+// again when they lose members). Stops below min_bundle_score.
+void take_bundles(int limb, int track_count, std::span<const LimbEdge> edges, const Scorer& scorer,
+                  const CliqueOptions& options, std::vector<std::vector<int>>& maximal,
+                  ParseScratch& sc, std::vector<Bundle>& out) {
+  const int n2d = sc.cg.n2d;
   // The clique's node list becomes the members list in place (no new storage).
   auto make = [&](std::vector<int> nodes) {
-    Cand c{0, -1, std::move(nodes)};
+    CandidateBundle c{0, -1, std::move(nodes)};
     std::size_t kept = 0;
     for (std::size_t i = 0; i < c.members.size(); ++i) {
       const int v = c.members[i];
       if (v < n2d) {
-        c.members[kept++] = node_edge[ix(v)];
+        c.members[kept++] = sc.node_edge[ix(v)];
       } else {
-        c.track = cg.track_of_node[ix(v - n2d)];
+        c.track = sc.cg.track_of_node[ix(v - n2d)];
       }
     }
     c.members.resize(kept);
     return c;
   };
   // Max-heap by score; candidates are moved out of it, not copied.
-  auto cmp = [](const Cand& a, const Cand& b) { return a.score < b.score; };
-  std::vector<Cand> queue;
+  auto cmp = [](const CandidateBundle& a, const CandidateBundle& b) { return a.score < b.score; };
+  std::vector<CandidateBundle> queue;
   // Prunes and queues a candidate, and queues what pruning removed as candidates of their own.
-  auto push_pruned = [&](Cand c) {
+  auto push_pruned = [&](CandidateBundle c) {
     while (!c.members.empty()) {
       std::vector<int> dropped;
       c.score = prune_clique(scorer, c.track, c.members, dropped);
       queue.push_back(std::move(c));
       std::push_heap(queue.begin(), queue.end(), cmp);
-      c = Cand{0, -1, std::move(dropped)};
+      c = CandidateBundle{0, -1, std::move(dropped)};
     }
   };
   for (auto& m : maximal) push_pruned(make(std::move(m)));
 
-  // Take the best; removing its limbs kills every 2D limb sharing a candidate, and its track.
   std::vector<char>& dead = sc.dead;
   std::vector<char>& track_dead = sc.track_dead;
   dead.assign(edges.size(), 0);
-  track_dead.assign(ix(graph.track_count()), 0);
+  track_dead.assign(ix(track_count), 0);
   while (!queue.empty()) {
     std::pop_heap(queue.begin(), queue.end(), cmp);
-    Cand c = std::move(queue.back());
+    CandidateBundle c = std::move(queue.back());
     queue.pop_back();
     bool stale = c.track >= 0 && track_dead[ix(c.track)];
     for (int m : c.members) stale = stale || dead[ix(m)];
@@ -648,12 +650,39 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     if (c.score < options.min_bundle_score) break;
     for (int m : c.members) {
       const LimbEdge& e = edges[ix(m)];
-      for (int y : by_ka[ix(e.ka)]) dead[ix(y)] = 1;  // same candidate => same view
-      for (int y : by_kb[ix(e.kb)]) dead[ix(y)] = 1;
+      for (int y : sc.by_ka[ix(e.ka)]) dead[ix(y)] = 1;  // same candidate => same view
+      for (int y : sc.by_kb[ix(e.kb)]) dead[ix(y)] = 1;
     }
     if (c.track >= 0) track_dead[ix(c.track)] = 1;
     out.push_back(Bundle{limb, c.track, std::move(c.members), c.score});
   }
+}
+
+}  // namespace
+
+void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
+                        double hierarchy_weight, const CliqueOptions& options,
+                        std::vector<Bundle>& out, ParsingStats& stats,
+                        const LimbExclusions* exclusions) {
+  const std::span<const LimbEdge> edges = graph.limb_edges(limb);
+  thread_local ParseScratch sc;
+  const int n = build_clique_graph(graph, topology.limb(limb), edges, exclusions, sc);
+  if (n == 0) return;
+  const Scorer scorer = make_scorer(graph, topology, limb, hierarchy_weight, options);
+
+  std::vector<std::vector<int>> maximal;
+  thread_local BronKerboschScratch bk_scratch;
+  BronKerbosch bk{sc.cg, options.max_cliques_per_limb, maximal, bk_scratch, {}, false};
+  bk.run_all(n);
+  stats.cliques_enumerated += static_cast<long>(maximal.size());
+  if (bk.capped) {
+    ++stats.clique_cap_hits;
+    MOCAP_LOG(Assoc, Debug) << "limb " << limb << ": more than " << options.max_cliques_per_limb
+                            << " maximal cliques (" << n << " nodes); greedy clique growth";
+    maximal.clear();
+    grow_cliques(sc, edges, scorer, maximal);
+  }
+  take_bundles(limb, graph.track_count(), edges, scorer, options, maximal, sc, out);
 }
 
 namespace {
