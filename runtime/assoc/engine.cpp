@@ -275,7 +275,9 @@ void Engine::add_output(const PersonAssignment& person, const PersonPoints& poin
   outputs_.push_back(std::move(o));
 }
 
-// The output skeletons in track id order, with their 2D evidence.
+// The output skeletons in track id order, with their 2D evidence. Joints never seen are placed
+// at their nearest seen ancestor (Tracker::skeleton) and held joints at their last position,
+// both with confidence 0.
 void Engine::write_outputs(const DetectionSet& det, FrameResult& res) {
   res.skeletons.frame_id = det.frame_id;
   res.skeletons.timestamp_ns = det.timestamp_ns;

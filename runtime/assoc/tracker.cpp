@@ -1,6 +1,7 @@
 #include "runtime/assoc/tracker.h"
 
 #include <algorithm>
+#include <cassert>
 
 #include "runtime/core/log.h"
 #include "runtime/skeleton/topology.h"
@@ -114,6 +115,7 @@ int Tracker::start_track() {
 
 int Tracker::assign(int attached, std::span<const TriangulatedPoint> joints,
                     std::span<const Camera> cameras) {
+  assert(attached < static_cast<int>(old_tracks_));  // a graph track: alive at begin_frame()
   int t = attached >= 0 && !claimed_[ix(attached)] ? attached : nearest_unclaimed(joints);
   if (t < 0) {
     if (valid_count(joints) < options_.min_joints_new_track) return -1;
