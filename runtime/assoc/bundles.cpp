@@ -460,24 +460,27 @@ double score_bundle(const FrameGraph& graph, const SkeletonTopology& topology, i
   return make_scorer(graph, topology, limb, hierarchy_weight, options, false).score(track, edges);
 }
 
-void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
-                        double hierarchy_weight, const CliqueOptions& options,
-                        std::vector<Bundle>& out, ParsingStats& stats,
-                        const LimbExclusions* exclusions) {
-  const Limb& L = topology.limb(limb);
-  const std::span<const LimbEdge> edges = graph.limb_edges(limb);
+namespace {
+
+// Per-thread scratch of parse_limb_bundles, reused across calls (no allocation per limb type
+// once warmed up).
+struct ParseScratch {
+  std::vector<int> node_edge;  // clique-graph node i (< n2d) is 2D limb node_edge[i]
+  std::vector<int> edge_node;  // [e] its node, or -1 for a 2D limb excluded
+  CliqueGraph cg;
+  std::vector<std::vector<int>> by_ka, by_kb;  // [k] live 2D limbs (edge indices) by candidate
+  std::vector<char> dead, track_dead;          // taken while taking bundles
+};
+
+// The clique graph of one limb type: its live 2D limbs (node i is edge sc.node_edge[i]), then
+// the tracks holding both its joints; two nodes are joined when they are compatible (two 2D
+// limbs: matching edges at both ends; a 2D limb and a track: tracking edges at both ends).
+// Returns the number of nodes; 0 when no 2D limb is live.
+int build_clique_graph(const FrameGraph& graph, const Limb& L, std::span<const LimbEdge> edges,
+                       const LimbExclusions* exclusions, ParseScratch& sc) {
   const auto edge_dead = [&](int e) {
     return exclusions && !exclusions->edge_dead.empty() && exclusions->edge_dead[ix(e)];
   };
-  // Per-thread scratch, reused across calls (no allocation per limb once warmed up).
-  struct Scratch {
-    std::vector<int> node_edge, edge_node;
-    CliqueGraph cg;
-    std::vector<std::vector<int>> by_ka, by_kb;
-    std::vector<char> dead, track_dead;
-  };
-  thread_local Scratch sc;
-  // Clique-graph nodes: the live 2D limbs (node i is edge node_edge[i]), then the tracks.
   std::vector<int>& node_edge = sc.node_edge;
   std::vector<int>& edge_node = sc.edge_node;
   node_edge.clear();
@@ -488,7 +491,7 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     node_edge.push_back(e);
   }
   const int n2d = static_cast<int>(node_edge.size());
-  if (n2d == 0) return;
+  if (n2d == 0) return 0;
 
   CliqueGraph& cg = sc.cg;
   cg.n2d = n2d;
@@ -504,17 +507,15 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
   for (int i = 0; i < n; ++i) cg.adj[ix(i)].reset(n);
   // Live 2D limbs (edge indices) by candidate, so compatibility only visits matching neighbours
   // (sparse) and taking a bundle only visits the limbs sharing its candidates.
-  std::vector<std::vector<int>>& by_ka = sc.by_ka;
-  std::vector<std::vector<int>>& by_kb = sc.by_kb;
   const auto reset_lists = [](std::vector<std::vector<int>>& lists, int count) {
     if (lists.size() < ix(count)) lists.resize(ix(count));
     for (int i = 0; i < count; ++i) lists[ix(i)].clear();
   };
-  reset_lists(by_ka, graph.candidate_count(L.joint_a));
-  reset_lists(by_kb, graph.candidate_count(L.joint_b));
+  reset_lists(sc.by_ka, graph.candidate_count(L.joint_a));
+  reset_lists(sc.by_kb, graph.candidate_count(L.joint_b));
   for (int e : node_edge) {
-    by_ka[ix(edges[ix(e)].ka)].push_back(e);
-    by_kb[ix(edges[ix(e)].kb)].push_back(e);
+    sc.by_ka[ix(edges[ix(e)].ka)].push_back(e);
+    sc.by_kb[ix(edges[ix(e)].kb)].push_back(e);
   }
   // Limb edges come sorted by ka and matching neighbours sorted ascending (FrameGraph), and
   // matching edges join different views only: the pairs y > x are exactly those through
@@ -523,7 +524,7 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     const LimbEdge& ex = edges[ix(node_edge[ix(x)])];
     const std::span<const int> nbrs = graph.match_neighbors(L.joint_a, ex.ka);
     for (auto it = std::upper_bound(nbrs.begin(), nbrs.end(), ex.ka); it != nbrs.end(); ++it) {
-      for (int ye : by_ka[ix(*it)]) {
+      for (int ye : sc.by_ka[ix(*it)]) {
         if (graph.match(L.joint_b, ex.kb, edges[ix(ye)].kb) <= 0.f) continue;
         const int y = edge_node[ix(ye)];
         cg.adj[ix(x)].set(y);
@@ -538,104 +539,105 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
       cg.adj[ix(n2d + ti)].set(x);
     }
   }
+  return n;
+}
 
-  const Scorer scorer = make_scorer(graph, topology, limb, hierarchy_weight, options);
-
-  std::vector<std::vector<int>> maximal;
-  thread_local BronKerboschScratch bk_scratch;
-  BronKerbosch bk{cg, options.max_cliques_per_limb, maximal, bk_scratch, {}, false};
-  bk.run_all(n);
-  stats.cliques_enumerated += static_cast<long>(maximal.size());
-  if (bk.capped) {
-    // Too many maximal cliques to enumerate (dense compatibility: many views and people):
-    // grow one clique greedily from every 2D limb instead, adding at each step the compatible
-    // node with the largest summed edge weight to the clique so far.
-    ++stats.clique_cap_hits;
-    MOCAP_LOG(Assoc, Debug) << "limb " << limb << ": more than " << options.max_cliques_per_limb
-                            << " maximal cliques (" << n << " nodes); greedy clique growth";
-    maximal.clear();
-    auto weight = [&](int a, int b) {
-      const auto edge_of = [&](int node) -> const LimbEdge& {
-        return edges[ix(node_edge[ix(node)])];
-      };
-      if (a >= n2d) return scorer.track_match(cg.track_of_node[ix(a - n2d)], edge_of(b));
-      if (b >= n2d) return scorer.track_match(cg.track_of_node[ix(b - n2d)], edge_of(a));
-      return scorer.pair_match(edge_of(a), edge_of(b));
-    };
-    std::vector<double> acc(ix(n), 0.0);
-    // Seeds by parsing score; a seed already inside a grown clique would mostly regrow it.
-    std::vector<int> seeds(ix(n2d));
-    for (int i = 0; i < n2d; ++i) seeds[ix(i)] = i;
-    std::sort(seeds.begin(), seeds.end(), [&](int a, int b) {
-      return edges[ix(node_edge[ix(a)])].p > edges[ix(node_edge[ix(b)])].p;
-    });
-    std::vector<char> covered(ix(n2d), 0);
-    for (int seed : seeds) {
-      if (covered[ix(seed)]) continue;
-      std::vector<int> members{seed};
-      Bits cand = cg.adj[ix(seed)];
-      for_each_bit(cand, [&](int y) { acc[ix(y)] = weight(seed, y); });
-      while (!cand.empty()) {
-        int best = -1;
-        for_each_bit(cand, [&](int y) {
-          if (best < 0 || acc[ix(y)] > acc[ix(best)]) best = y;
-        });
-        members.push_back(best);
-        const auto& nb = cg.adj[ix(best)].words();
-        for (std::size_t i = 0; i < nb.size(); ++i) cand.words()[i] &= nb[i];
-        for_each_bit(cand, [&](int y) { acc[ix(y)] += weight(best, y); });
-      }
-      for (int m : members) {
-        if (m < n2d) covered[ix(m)] = 1;
-      }
-      maximal.push_back(std::move(members));
-    }
-  }
-
-  // Candidate bundles: each maximal clique split into (track, 2D members), pruned.
-  struct Cand {
-    double score;
-    int track;
-    std::vector<int> members;
+// Past the enumeration cap (dense compatibility: many views and people): one clique grown
+// greedily from every 2D limb instead, adding at each step the compatible node with the largest
+// summed edge weight to the clique so far. Appends the cliques (node lists) to `cliques`.
+void grow_cliques(const ParseScratch& sc, std::span<const LimbEdge> edges, const Scorer& scorer,
+                  std::vector<std::vector<int>>& cliques) {
+  const CliqueGraph& cg = sc.cg;
+  const int n2d = cg.n2d;
+  const int n = n2d + static_cast<int>(cg.track_of_node.size());
+  const auto edge_of = [&](int node) -> const LimbEdge& {
+    return edges[ix(sc.node_edge[ix(node)])];
   };
+  auto weight = [&](int a, int b) {
+    if (a >= n2d) return scorer.track_match(cg.track_of_node[ix(a - n2d)], edge_of(b));
+    if (b >= n2d) return scorer.track_match(cg.track_of_node[ix(b - n2d)], edge_of(a));
+    return scorer.pair_match(edge_of(a), edge_of(b));
+  };
+  std::vector<double> acc(ix(n), 0.0);
+  // Seeds by parsing score; a seed already inside a grown clique would mostly regrow it.
+  std::vector<int> seeds(ix(n2d));
+  for (int i = 0; i < n2d; ++i) seeds[ix(i)] = i;
+  std::sort(seeds.begin(), seeds.end(), [&](int a, int b) { return edge_of(a).p > edge_of(b).p; });
+  std::vector<char> covered(ix(n2d), 0);
+  for (int seed : seeds) {
+    if (covered[ix(seed)]) continue;
+    std::vector<int> members{seed};
+    Bits cand = cg.adj[ix(seed)];
+    for_each_bit(cand, [&](int y) { acc[ix(y)] = weight(seed, y); });
+    while (!cand.empty()) {
+      int best = -1;
+      for_each_bit(cand, [&](int y) {
+        if (best < 0 || acc[ix(y)] > acc[ix(best)]) best = y;
+      });
+      members.push_back(best);
+      const auto& nb = cg.adj[ix(best)].words();
+      for (std::size_t i = 0; i < nb.size(); ++i) cand.words()[i] &= nb[i];
+      for_each_bit(cand, [&](int y) { acc[ix(y)] += weight(best, y); });
+    }
+    for (int m : members) {
+      if (m < n2d) covered[ix(m)] = 1;
+    }
+    cliques.push_back(std::move(members));
+  }
+}
+
+// A candidate bundle: a clique split into its track and 2D members (edge indices), pruned.
+struct CandidateBundle {
+  double score;
+  int track;
+  std::vector<int> members;
+};
+
+// The bundles of one limb type from its maximal cliques: each clique is pruned (what pruning
+// drops is offered as a clique of its own) and the best is taken repeatedly; taking one removes
+// every 2D limb sharing a candidate with it, and its track, from the rest (which are pruned
+// again when they lose members). Stops below min_bundle_score.
+void take_bundles(int limb, int track_count, std::span<const LimbEdge> edges, const Scorer& scorer,
+                  const CliqueOptions& options, std::vector<std::vector<int>>& maximal,
+                  ParseScratch& sc, std::vector<Bundle>& out) {
+  const int n2d = sc.cg.n2d;
   // The clique's node list becomes the members list in place (no new storage).
   auto make = [&](std::vector<int> nodes) {
-    Cand c{0, -1, std::move(nodes)};
+    CandidateBundle c{0, -1, std::move(nodes)};
     std::size_t kept = 0;
     for (std::size_t i = 0; i < c.members.size(); ++i) {
       const int v = c.members[i];
       if (v < n2d) {
-        c.members[kept++] = node_edge[ix(v)];
+        c.members[kept++] = sc.node_edge[ix(v)];
       } else {
-        c.track = cg.track_of_node[ix(v - n2d)];
+        c.track = sc.cg.track_of_node[ix(v - n2d)];
       }
     }
     c.members.resize(kept);
     return c;
   };
   // Max-heap by score; candidates are moved out of it, not copied.
-  auto cmp = [](const Cand& a, const Cand& b) { return a.score < b.score; };
-  std::vector<Cand> queue;
+  auto cmp = [](const CandidateBundle& a, const CandidateBundle& b) { return a.score < b.score; };
+  std::vector<CandidateBundle> queue;
   // Prunes and queues a candidate, and queues what pruning removed as candidates of their own.
-  auto push_pruned = [&](Cand c) {
+  auto push_pruned = [&](CandidateBundle c) {
     while (!c.members.empty()) {
       std::vector<int> dropped;
       c.score = prune_clique(scorer, c.track, c.members, dropped);
       queue.push_back(std::move(c));
       std::push_heap(queue.begin(), queue.end(), cmp);
-      c = Cand{0, -1, std::move(dropped)};
+      c = CandidateBundle{0, -1, std::move(dropped)};
     }
   };
   for (auto& m : maximal) push_pruned(make(std::move(m)));
 
-  // Take the best; removing its limbs kills every 2D limb sharing a candidate, and its track.
   std::vector<char>& dead = sc.dead;
   std::vector<char>& track_dead = sc.track_dead;
   dead.assign(edges.size(), 0);
-  track_dead.assign(ix(graph.track_count()), 0);
+  track_dead.assign(ix(track_count), 0);
   while (!queue.empty()) {
     std::pop_heap(queue.begin(), queue.end(), cmp);
-    Cand c = std::move(queue.back());
+    CandidateBundle c = std::move(queue.back());
     queue.pop_back();
     bool stale = c.track >= 0 && track_dead[ix(c.track)];
     for (int m : c.members) stale = stale || dead[ix(m)];
@@ -648,12 +650,39 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
     if (c.score < options.min_bundle_score) break;
     for (int m : c.members) {
       const LimbEdge& e = edges[ix(m)];
-      for (int y : by_ka[ix(e.ka)]) dead[ix(y)] = 1;  // same candidate => same view
-      for (int y : by_kb[ix(e.kb)]) dead[ix(y)] = 1;
+      for (int y : sc.by_ka[ix(e.ka)]) dead[ix(y)] = 1;  // same candidate => same view
+      for (int y : sc.by_kb[ix(e.kb)]) dead[ix(y)] = 1;
     }
     if (c.track >= 0) track_dead[ix(c.track)] = 1;
     out.push_back(Bundle{limb, c.track, std::move(c.members), c.score});
   }
+}
+
+}  // namespace
+
+void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
+                        double hierarchy_weight, const CliqueOptions& options,
+                        std::vector<Bundle>& out, ParsingStats& stats,
+                        const LimbExclusions* exclusions) {
+  const std::span<const LimbEdge> edges = graph.limb_edges(limb);
+  thread_local ParseScratch sc;
+  const int n = build_clique_graph(graph, topology.limb(limb), edges, exclusions, sc);
+  if (n == 0) return;
+  const Scorer scorer = make_scorer(graph, topology, limb, hierarchy_weight, options);
+
+  std::vector<std::vector<int>> maximal;
+  thread_local BronKerboschScratch bk_scratch;
+  BronKerbosch bk{sc.cg, options.max_cliques_per_limb, maximal, bk_scratch, {}, false};
+  bk.run_all(n);
+  stats.cliques_enumerated += static_cast<long>(maximal.size());
+  if (bk.capped) {
+    ++stats.clique_cap_hits;
+    MOCAP_LOG(Assoc, Debug) << "limb " << limb << ": more than " << options.max_cliques_per_limb
+                            << " maximal cliques (" << n << " nodes); greedy clique growth";
+    maximal.clear();
+    grow_cliques(sc, edges, scorer, maximal);
+  }
+  take_bundles(limb, graph.track_count(), edges, scorer, options, maximal, sc, out);
 }
 
 namespace {
@@ -687,6 +716,260 @@ bool near_track(const FrameGraph& graph, const Limb& L, int t, std::span<const L
   return true;
 }
 
+// Per-thread scratch of track_first_bundles, reused across calls (no allocation per limb type
+// once warmed up).
+struct TrackFirstScratch {
+  std::vector<int> assigned;  // [e] the track the 2D limb went to, or -1
+  std::vector<int> to_track;  // the 2D limbs assigned to a track, ascending
+  std::vector<char> removed;  // [e] left out by the consistency test
+  std::vector<double> merit;  // [e] clique-score share of a consistent 2D limb
+  // [t * V + v] the one 2D limb of view v that went to track t; -1 none, -2 ambiguous.
+  std::vector<int> pick;
+  std::vector<int> owner_a, owner_b;  // [k] track whose picked limb uses candidate k; -2 two
+  std::vector<int> core;              // [t * V + v] unambiguous picks of the first pass
+  // A track's clique: its members and what their pairs have.
+  std::vector<int> members;
+  std::vector<int> dropped;
+  std::vector<int> ends;
+  std::vector<float> match_a, match_b;  // [i * m + j], i < j
+  std::vector<char> fail;               // [i * m + j] members i, j not joined
+  std::vector<int> fails;               // [i] missing edges of member i; -1 dropped
+  std::vector<double> evidence;         // [i] summed matching edges of member i
+  std::vector<double> pair_w;           // [i * m + j] pair_match of members i, j
+  std::vector<char> used_a, used_b;     // [k] candidate in a taken 2D limb
+};
+
+// Each 2D limb goes to the track closest to both its endpoints (the larger of the smaller
+// tracking probabilities; two tracks can lie near one camera ray when one person hides the
+// other): sc.assigned, and the limbs that went to one in sc.to_track.
+void assign_to_tracks(const FrameGraph& graph, const Limb& L, std::span<const LimbEdge> edges,
+                      TrackFirstScratch& sc) {
+  const int T = graph.track_count();
+  sc.assigned.assign(edges.size(), -1);
+  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+    const LimbEdge& x = edges[ix(e)];
+    const int deg_a = graph.tracks_of_candidate(L.joint_a, x.ka);
+    const int deg_b = graph.tracks_of_candidate(L.joint_b, x.kb);
+    if ((deg_a | deg_b) <= 1) {
+      // At most one track near each end (the common case): it is the choice if it is the same
+      // one at both. A candidate near no track has sole track -1, so this needs no branch on
+      // the data (which would be mispredicted often).
+      const int ta = graph.sole_track_of_candidate(L.joint_a, x.ka);
+      sc.assigned[ix(e)] = ta == graph.sole_track_of_candidate(L.joint_b, x.kb) ? ta : -1;
+      continue;
+    }
+    if (deg_a == 0 || deg_b == 0) continue;
+    int best = -1;
+    float best_p = 0.f;
+    for (int t = 0; t < T; ++t) {
+      const float p = std::min(graph.track(L.joint_a, t, x.ka), graph.track(L.joint_b, t, x.kb));
+      if (p > best_p) {
+        best_p = p;
+        best = t;
+      }
+    }
+    sc.assigned[ix(e)] = best;
+  }
+  sc.to_track.resize(edges.size());
+  std::size_t n_to_track = 0;
+  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
+    sc.to_track[n_to_track] = e;
+    n_to_track += sc.assigned[ix(e)] >= 0 ? 1 : 0;
+  }
+  sc.to_track.resize(n_to_track);
+}
+
+// Per track and view the one 2D limb assigned to it (sc.pick), with the ambiguities marked
+// (-2): two 2D limbs went to the track (unless their merits tell them apart), or a candidate of
+// its 2D limb is also in another track's 2D limb. Limbs sc.removed are left out. Returns
+// whether any pick is ambiguous.
+bool make_picks(const FrameGraph& graph, const Limb& L, std::span<const LimbEdge> edges,
+                TrackFirstScratch& sc) {
+  const int V = graph.view_count();
+  sc.pick.assign(ix(graph.track_count() * V), -1);
+  sc.owner_a.assign(ix(graph.candidate_count(L.joint_a)), -1);
+  sc.owner_b.assign(ix(graph.candidate_count(L.joint_b)), -1);
+  const std::vector<double>& merit = sc.merit;
+  for (const int e : sc.to_track) {
+    const int best = sc.assigned[ix(e)];
+    if (sc.removed[ix(e)]) continue;
+    const LimbEdge& x = edges[ix(e)];
+    int& slot = sc.pick[ix(best * V + x.view)];
+    if (slot == -1) {
+      slot = e;
+    } else if (slot >= 0 && merit[ix(e)] > 0.0 && merit[ix(slot)] > 0.0 &&
+               merit[ix(e)] != merit[ix(slot)]) {
+      // Two 2D limbs of one view both fit the track's clique: the one the clique score
+      // prefers (the same other views, so only its own terms differ).
+      if (merit[ix(e)] > merit[ix(slot)]) slot = e;
+    } else {
+      slot = -2;
+    }
+    for (int* o : {&sc.owner_a[ix(x.ka)], &sc.owner_b[ix(x.kb)]})
+      *o = (*o == -1 || *o == best) ? best : -2;
+  }
+  // A pick whose candidate is also in another track's 2D limb is ambiguous (branch-free:
+  // which views have a pick is data).
+  bool any_ambiguous = false;
+  for (int& e : sc.pick) {
+    const bool live = e >= 0;
+    const LimbEdge& x = edges[ix(live ? e : 0)];
+    const bool shared = (sc.owner_a[ix(x.ka)] < 0) | (sc.owner_b[ix(x.kb)] < 0);
+    e = live & shared ? -2 : e;
+    any_ambiguous |= e == -2;
+  }
+  return any_ambiguous;
+}
+
+// Most ambiguities come from a spurious 2D limb joining two people (a stray affinity between
+// candidates whose rays both pass near one track): it lands in a view of a track next to that
+// track's own 2D limb, or shares a candidate with another track's. A 2D limb in an ambiguous
+// view that is not joined by matching edges at both ends to every unambiguous 2D limb of its
+// track (at least 2 of them) cannot be in a limb clique with them, so it is left out of its
+// track's choice (sc.removed; it stays in the graph for the clique search). One that is gets
+// its share of the clique score (sc.merit), which make_picks uses to choose between two.
+void set_aside_inconsistent(FrameGraph& graph, const Limb& L, std::span<const LimbEdge> edges,
+                            const CliqueOptions& options, TrackFirstScratch& sc) {
+  const int V = graph.view_count();
+  sc.core = sc.pick;
+  for (const int e : sc.to_track) {
+    const int t = sc.assigned[ix(e)];
+    const LimbEdge& x = edges[ix(e)];
+    if (sc.core[ix(t * V + x.view)] != -2) {
+      // Its view is unambiguous, unless a candidate is shared with another track's limb.
+      if (sc.owner_a[ix(x.ka)] >= 0 && sc.owner_b[ix(x.kb)] >= 0) continue;
+    }
+    int core_size = 0;
+    bool consistent = true;
+    double match_sum = 0;
+    for (int v = 0; v < V && consistent; ++v) {
+      const int c = sc.core[ix(t * V + v)];
+      if (c < 0 || v == x.view) continue;
+      ++core_size;
+      const LimbEdge& y = edges[ix(c)];
+      const float wa = graph.ensure_match(L.joint_a, x.ka, y.ka);
+      const float wb = wa > 0.f ? graph.ensure_match(L.joint_b, x.kb, y.kb) : 0.f;
+      consistent = wa > 0.f && wb > 0.f;
+      match_sum += 0.5 * static_cast<double>(wa + wb);
+    }
+    if (!consistent || core_size < 2) {
+      sc.removed[ix(e)] = 1;
+      continue;
+    }
+    // Its terms in the clique score of the core plus it (n 2D limbs): pairwise matching over
+    // the n(n-1)/2 pairs, tracking and parsing over n.
+    const double n = core_size + 1;
+    sc.merit[ix(e)] =
+        options.w_match * match_sum / (0.5 * n * (n - 1)) +
+        (options.w_track * static_cast<double>(std::min(graph.track(L.joint_a, t, x.ka),
+                                                        graph.track(L.joint_b, t, x.kb))) +
+         options.w_paf * static_cast<double>(x.p)) /
+            n;
+  }
+}
+
+// A limb clique: every two of its 2D limbs are joined by matching edges at both ends. A 2D limb
+// of sc.members that is not (an occluded or displaced detection, a stray limb) is dropped, the
+// one with most missing edges first (ties: the least matching evidence), until the rest is a
+// clique: the largest maximal clique of these limbs and the track, which is what the clique
+// search would score. Dropped 2D limbs stay in the graph for the search. Leaves the kept
+// members' Scorer::pair_match in sc.pair_w (row-major, in their order).
+void keep_limb_clique(FrameGraph& graph, const Limb& L, std::span<const LimbEdge> edges,
+                      TrackFirstScratch& sc) {
+  std::vector<int>& members = sc.members;
+  std::vector<char>& fail = sc.fail;
+  std::vector<int>& fails = sc.fails;
+  std::vector<double>& evidence = sc.evidence;
+  std::vector<double>& pair_w = sc.pair_w;
+  const std::size_t m = members.size();
+  // Every matching edge among the members' candidates, at both ends, in one batch each.
+  sc.match_a.resize(m * m);
+  sc.match_b.resize(m * m);
+  for (int end = 0; end < 2; ++end) {
+    sc.ends.clear();
+    for (const int e : members) sc.ends.push_back(end == 0 ? edges[ix(e)].ka : edges[ix(e)].kb);
+    graph.ensure_matches(end == 0 ? L.joint_a : L.joint_b, sc.ends,
+                         end == 0 ? sc.match_a : sc.match_b);
+  }
+  fail.assign(m * m, 0);
+  pair_w.assign(m * m, 0.0);
+  fails.assign(m, 0);
+  evidence.assign(m, 0.0);
+  int total = 0;
+  for (std::size_t i = 0; i < m; ++i) {
+    for (std::size_t j = i + 1; j < m; ++j) {
+      // The members are in different views: their candidates are distinct at both ends.
+      const float wa = sc.match_a[i * m + j];
+      const float wb = wa > 0.f ? sc.match_b[i * m + j] : 0.f;
+      if (wa > 0.f && wb > 0.f) {
+        evidence[i] += static_cast<double>(wa + wb);
+        evidence[j] += static_cast<double>(wa + wb);
+        // Scorer::pair_match, for prune_clique.
+        pair_w[i * m + j] = pair_w[j * m + i] =
+            0.5 * (static_cast<double>(wa) + static_cast<double>(wb));
+      } else {
+        fail[i * m + j] = fail[j * m + i] = 1;
+        ++fails[i];
+        ++fails[j];
+        ++total;
+      }
+    }
+  }
+  while (total > 0) {
+    std::size_t worst = m;
+    for (std::size_t i = 0; i < m; ++i) {
+      if (fails[i] <= 0) continue;
+      if (worst == m || fails[i] > fails[worst] ||
+          (fails[i] == fails[worst] && evidence[i] < evidence[worst])) {
+        worst = i;
+      }
+    }
+    for (std::size_t j = 0; j < m; ++j) {
+      if (fail[worst * m + j]) {
+        fail[worst * m + j] = fail[j * m + worst] = 0;
+        --fails[j];
+        --total;
+      }
+    }
+    fails[worst] = -1;  // dropped
+  }
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < m; ++i) {
+    if (fails[i] < 0) continue;
+    members[kept] = members[i];
+    fails[kept++] = static_cast<int>(i);  // old index of the kept member
+  }
+  members.resize(kept);
+  // The kept members' pair weights, compacted in place (row-major, new order); nothing to move
+  // when every member was kept.
+  if (kept < m) {
+    for (std::size_t i = 0; i < kept; ++i) {
+      for (std::size_t j = 0; j < kept; ++j) {
+        pair_w[i * kept + j] = pair_w[ix(fails[i]) * m + ix(fails[j])];
+      }
+    }
+    pair_w.resize(kept * kept);
+  }
+}
+
+// 2D limbs sharing a candidate with one of the bundles taken (out[first..]) are gone for the
+// clique search (at most one limb of a type per candidate).
+void exclude_shared_candidates(const FrameGraph& graph, const Limb& L,
+                               std::span<const LimbEdge> edges, std::span<const Bundle> taken,
+                               LimbExclusions& exclusions, TrackFirstScratch& sc) {
+  sc.used_a.assign(ix(graph.candidate_count(L.joint_a)), 0);
+  sc.used_b.assign(ix(graph.candidate_count(L.joint_b)), 0);
+  for (const Bundle& b : taken) {
+    for (int m : b.edges) {
+      sc.used_a[ix(edges[ix(m)].ka)] = 1;
+      sc.used_b[ix(edges[ix(m)].kb)] = 1;
+    }
+  }
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (sc.used_a[ix(edges[e].ka)] || sc.used_b[ix(edges[e].kb)]) exclusions.edge_dead[e] = 1;
+  }
+}
+
 }  // namespace
 
 void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, int limb,
@@ -701,246 +984,46 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
   exclusions.track_dead.assign(ix(T), 0);
   if (T == 0 || edges.empty()) return;
 
-  // Each 2D limb goes to the track closest to both its endpoints (the larger of the smaller
-  // tracking probabilities; two tracks can lie near one camera ray when one person hides the
-  // other). Per track and view: the one 2D limb that went to it (-1 none; -2 ambiguous: two
-  // 2D limbs went to it, or a candidate of its 2D limb is also in another track's 2D limb).
-  thread_local std::vector<int> pick;
-  thread_local std::vector<int> owner_a, owner_b;  // [k] track whose picked limb uses k; -2 two
-  thread_local std::vector<int> assigned;          // [e] the track the 2D limb went to, or -1
-  thread_local std::vector<char> removed;          // [e] left out by the consistency test
-  thread_local std::vector<int> to_track;          // the 2D limbs assigned to a track, ascending
-  assigned.assign(edges.size(), -1);
-  removed.assign(edges.size(), 0);
-  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
-    const LimbEdge& x = edges[ix(e)];
-    const int deg_a = graph.tracks_of_candidate(L.joint_a, x.ka);
-    const int deg_b = graph.tracks_of_candidate(L.joint_b, x.kb);
-    if ((deg_a | deg_b) <= 1) {
-      // At most one track near each end (the common case): it is the choice if it is the same
-      // one at both. A candidate near no track has sole track -1, so this needs no branch on
-      // the data (which would be mispredicted often).
-      const int ta = graph.sole_track_of_candidate(L.joint_a, x.ka);
-      assigned[ix(e)] = ta == graph.sole_track_of_candidate(L.joint_b, x.kb) ? ta : -1;
-      continue;
-    }
-    if (deg_a == 0 || deg_b == 0) continue;
-    int best = -1;
-    float best_p = 0.f;
-    for (int t = 0; t < T; ++t) {
-      const float p = std::min(graph.track(L.joint_a, t, x.ka), graph.track(L.joint_b, t, x.kb));
-      if (p > best_p) {
-        best_p = p;
-        best = t;
-      }
-    }
-    assigned[ix(e)] = best;
-  }
-  to_track.resize(edges.size());
-  std::size_t n_to_track = 0;
-  for (int e = 0; e < static_cast<int>(edges.size()); ++e) {
-    to_track[n_to_track] = e;
-    n_to_track += assigned[ix(e)] >= 0 ? 1 : 0;
-  }
-  to_track.resize(n_to_track);
-  // Per track and view the one 2D limb assigned to it, with the ambiguities marked (-2).
-  thread_local std::vector<double> merit;  // [e] clique-score share of a consistent 2D limb
-  merit.assign(edges.size(), 0.0);
-  const auto make_picks = [&] {
-    pick.assign(ix(T * V), -1);
-    owner_a.assign(ix(graph.candidate_count(L.joint_a)), -1);
-    owner_b.assign(ix(graph.candidate_count(L.joint_b)), -1);
-    for (const int e : to_track) {
-      const int best = assigned[ix(e)];
-      if (removed[ix(e)]) continue;
-      const LimbEdge& x = edges[ix(e)];
-      int& slot = pick[ix(best * V + x.view)];
-      if (slot == -1) {
-        slot = e;
-      } else if (slot >= 0 && merit[ix(e)] > 0.0 && merit[ix(slot)] > 0.0 &&
-                 merit[ix(e)] != merit[ix(slot)]) {
-        // Two 2D limbs of one view both fit the track's clique: the one the clique score
-        // prefers (the same other views, so only its own terms differ).
-        if (merit[ix(e)] > merit[ix(slot)]) slot = e;
-      } else {
-        slot = -2;
-      }
-      for (int* o : {&owner_a[ix(x.ka)], &owner_b[ix(x.kb)]})
-        *o = (*o == -1 || *o == best) ? best : -2;
-    }
-    // A pick whose candidate is also in another track's 2D limb is ambiguous (branch-free:
-    // which views have a pick is data).
-    bool any_ambiguous = false;
-    for (int& e : pick) {
-      const bool live = e >= 0;
-      const LimbEdge& x = edges[ix(live ? e : 0)];
-      const bool shared = (owner_a[ix(x.ka)] < 0) | (owner_b[ix(x.kb)] < 0);
-      e = live & shared ? -2 : e;
-      any_ambiguous |= e == -2;
-    }
-    return any_ambiguous;
-  };
-  if (make_picks()) {
-    // Most ambiguities come from a spurious 2D limb joining two people (a stray affinity between
-    // candidates whose rays both pass near one track): it lands in a view of a track next to
-    // that track's own 2D limb, or shares a candidate with another track's. A 2D limb in an
-    // ambiguous view that is not joined by matching edges at both ends to every unambiguous 2D
-    // limb of its track (at least 2 of them) cannot be in a limb clique with them, so it is left
-    // out of its track's choice (it stays in the graph for the clique search); the picks are
-    // then made again without it. 2D limbs that pass stay ambiguous if two of them remain.
-    thread_local std::vector<int> core;  // [t * V + v] unambiguous picks of the first pass
-    core = pick;
-    for (const int e : to_track) {
-      const int t = assigned[ix(e)];
-      const LimbEdge& x = edges[ix(e)];
-      if (core[ix(t * V + x.view)] != -2) {
-        // Its view is unambiguous, unless a candidate is shared with another track's limb.
-        if (owner_a[ix(x.ka)] >= 0 && owner_b[ix(x.kb)] >= 0) continue;
-      }
-      int core_size = 0;
-      bool consistent = true;
-      double match_sum = 0;
-      for (int v = 0; v < V && consistent; ++v) {
-        const int c = core[ix(t * V + v)];
-        if (c < 0 || v == x.view) continue;
-        ++core_size;
-        const LimbEdge& y = edges[ix(c)];
-        const float wa = graph.ensure_match(L.joint_a, x.ka, y.ka);
-        const float wb = wa > 0.f ? graph.ensure_match(L.joint_b, x.kb, y.kb) : 0.f;
-        consistent = wa > 0.f && wb > 0.f;
-        match_sum += 0.5 * static_cast<double>(wa + wb);
-      }
-      if (!consistent || core_size < 2) {
-        removed[ix(e)] = 1;
-        continue;
-      }
-      // Its terms in the clique score of the core plus it (n 2D limbs): pairwise matching over
-      // the n(n-1)/2 pairs, tracking and parsing over n.
-      const double n = core_size + 1;
-      merit[ix(e)] =
-          options.w_match * match_sum / (0.5 * n * (n - 1)) +
-          (options.w_track * static_cast<double>(std::min(graph.track(L.joint_a, t, x.ka),
-                                                          graph.track(L.joint_b, t, x.kb))) +
-           options.w_paf * static_cast<double>(x.p)) /
-              n;
-    }
-    make_picks();
+  thread_local TrackFirstScratch sc;
+  assign_to_tracks(graph, L, edges, sc);
+  sc.removed.assign(edges.size(), 0);
+  sc.merit.assign(edges.size(), 0.0);
+  if (make_picks(graph, L, edges, sc)) {
+    // Picks made again without the 2D limbs set aside; those that pass stay ambiguous if two
+    // of them remain.
+    set_aside_inconsistent(graph, L, edges, options, sc);
+    make_picks(graph, L, edges, sc);
   }
 
   const Scorer scorer = make_scorer(graph, topology, limb, hierarchy_weight, options);
-  thread_local std::vector<int> members;
-  thread_local std::vector<int> dropped;
-  thread_local std::vector<char> fail;        // [i * m + j] members i, j not joined
-  thread_local std::vector<int> fails;        // [i] missing edges of member i; -1 dropped
-  thread_local std::vector<double> evidence;  // [i] summed matching edges of member i
-  thread_local std::vector<double> pair_w;    // [i * m + j] pair_match of members i, j
   const std::size_t first = out.size();
   for (int t = 0; t < T; ++t) {
     if (!graph.track_has_joint(t, L.joint_a) || !graph.track_has_joint(t, L.joint_b)) continue;
     // Views where the track's 2D limb is ambiguous stay out of its bundle (the clique search
     // and assembling place their 2D limbs).
+    std::vector<int>& members = sc.members;
     members.resize(ix(V));
-    bool ambiguous = false;
     std::size_t n_members = 0;
     for (int v = 0; v < V; ++v) {
-      const int e = pick[ix(t * V + v)];
+      const int e = sc.pick[ix(t * V + v)];
       members[n_members] = e;
       n_members += e >= 0 ? 1 : 0;
     }
     members.resize(n_members);
     if (members.empty()) continue;
-    // A limb clique: every two of its 2D limbs are joined by matching edges at both ends. A 2D
-    // limb that is not (an occluded or displaced detection, a stray limb) is dropped, the one
-    // with most missing edges first (ties: the least matching evidence), until the rest is a
-    // clique: the largest maximal clique of these limbs and the track, which is what the clique
-    // search would score. Dropped 2D limbs stay in the graph for the search.
-    {
-      const std::size_t m = members.size();
-      // Every matching edge among the members' candidates, at both ends, in one batch each.
-      thread_local std::vector<int> ends;
-      thread_local std::vector<float> match_a, match_b;  // [i * m + j], i < j
-      match_a.resize(m * m);
-      match_b.resize(m * m);
-      for (int end = 0; end < 2; ++end) {
-        ends.clear();
-        for (const int e : members) ends.push_back(end == 0 ? edges[ix(e)].ka : edges[ix(e)].kb);
-        graph.ensure_matches(end == 0 ? L.joint_a : L.joint_b, ends, end == 0 ? match_a : match_b);
-      }
-      fail.assign(m * m, 0);
-      pair_w.assign(m * m, 0.0);
-      fails.assign(m, 0);
-      evidence.assign(m, 0.0);
-      int total = 0;
-      for (std::size_t i = 0; i < m; ++i) {
-        for (std::size_t j = i + 1; j < m; ++j) {
-          // The members are in different views: their candidates are distinct at both ends.
-          const float wa = match_a[i * m + j];
-          const float wb = wa > 0.f ? match_b[i * m + j] : 0.f;
-          if (wa > 0.f && wb > 0.f) {
-            evidence[i] += static_cast<double>(wa + wb);
-            evidence[j] += static_cast<double>(wa + wb);
-            // Scorer::pair_match, for prune_clique below.
-            pair_w[i * m + j] = pair_w[j * m + i] =
-                0.5 * (static_cast<double>(wa) + static_cast<double>(wb));
-          } else {
-            fail[i * m + j] = fail[j * m + i] = 1;
-            ++fails[i];
-            ++fails[j];
-            ++total;
-          }
-        }
-      }
-      while (total > 0) {
-        std::size_t worst = m;
-        for (std::size_t i = 0; i < m; ++i) {
-          if (fails[i] <= 0) continue;
-          if (worst == m || fails[i] > fails[worst] ||
-              (fails[i] == fails[worst] && evidence[i] < evidence[worst])) {
-            worst = i;
-          }
-        }
-        for (std::size_t j = 0; j < m; ++j) {
-          if (fail[worst * m + j]) {
-            fail[worst * m + j] = fail[j * m + worst] = 0;
-            --fails[j];
-            --total;
-          }
-        }
-        fails[worst] = -1;  // dropped
-      }
-      std::size_t kept = 0;
-      for (std::size_t i = 0; i < m; ++i) {
-        if (fails[i] < 0) continue;
-        members[kept] = members[i];
-        fails[kept++] = static_cast<int>(i);  // old index of the kept member
-      }
-      members.resize(kept);
-      // The kept members' pair weights, compacted in place (row-major, new order); nothing to
-      // move when every member was kept.
-      if (kept < m) {
-        for (std::size_t i = 0; i < kept; ++i) {
-          for (std::size_t j = 0; j < kept; ++j) {
-            pair_w[i * kept + j] = pair_w[ix(fails[i]) * m + ix(fails[j])];
-          }
-        }
-        pair_w.resize(kept * kept);
-      }
-    }
+    keep_limb_clique(graph, L, edges, sc);
     int track = t;
-    dropped.clear();
+    sc.dropped.clear();
     RayNormalSums sums;
-    const double score =
-        ambiguous ? 0.0 : prune_clique(scorer, track, members, dropped, pair_w, &sums);
+    const double score = prune_clique(scorer, track, members, sc.dropped, sc.pair_w, &sums);
     // Pruning that gives up the track says the clique is not clear-cut, and so does a clique
     // whose 2D limbs, triangulated, are not where the track was (rays of a person who moved
     // far can pass near the old joints in the views looking along the motion), or that has a
     // single view to triangulate from: the clique search decides those instead. 2D limbs
     // pruned away stay in the graph for the search (they share no candidate with the kept
     // ones: one per view).
-    if (!ambiguous && track >= 0) {
-      ambiguous = members.size() < 2 || !near_track(graph, L, t, edges, members, sums);
-    }
-    if (ambiguous || track < 0 || score < options.min_bundle_score) {
+    if (track < 0 || members.size() < 2 || !near_track(graph, L, t, edges, members, sums) ||
+        score < options.min_bundle_score) {
       ++stats.track_first_deferred;
       continue;
     }
@@ -948,21 +1031,9 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
     ++stats.track_first_bundles;
     out.push_back(Bundle{limb, t, members, score});
   }
-  // 2D limbs sharing a candidate with a taken one are gone for the clique search (at most one
-  // limb of a type per candidate). Limb edges are sorted by view, so this is a scan per view.
   if (out.size() == first) return;
-  thread_local std::vector<char> used_a, used_b;
-  used_a.assign(ix(graph.candidate_count(L.joint_a)), 0);
-  used_b.assign(ix(graph.candidate_count(L.joint_b)), 0);
-  for (std::size_t i = first; i < out.size(); ++i) {
-    for (int m : out[i].edges) {
-      used_a[ix(edges[ix(m)].ka)] = 1;
-      used_b[ix(edges[ix(m)].kb)] = 1;
-    }
-  }
-  for (std::size_t e = 0; e < edges.size(); ++e) {
-    if (used_a[ix(edges[e].ka)] || used_b[ix(edges[e].kb)]) exclusions.edge_dead[e] = 1;
-  }
+  exclude_shared_candidates(graph, L, edges, std::span<const Bundle>(out).subspan(first),
+                            exclusions, sc);
 }
 
 void unneeded_candidates(const FrameGraph& graph, const SkeletonTopology& topology,

@@ -1,6 +1,8 @@
 // The association engine: per frame, builds the 4D graph from the detections and the
-// previous frame's skeletons, parses limb bundles, assembles persons, triangulates them and
-// keeps persistent tracks (birth, continuation, death after sustained absence).
+// previous frame's skeletons, parses limb bundles, assembles persons, triangulates them
+// (person_triangulation.h), merges persons that are one body (fragments.h), and keeps
+// persistent tracks (tracker.h: continuation, birth, death after sustained absence), fitting
+// each tracked person's skeleton. process() runs these stages in order and fills FrameStats.
 //
 // Skeleton-agnostic: it runs on any SkeletonTopology whose limbs carry the affinities of the
 // detections (body19 from BODY_25, COCO-17 from PoseNet).
@@ -8,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -15,6 +18,8 @@
 #include "runtime/assoc/bundles.h"
 #include "runtime/assoc/graph.h"
 #include "runtime/assoc/options.h"
+#include "runtime/assoc/person_triangulation.h"
+#include "runtime/assoc/tracker.h"
 #include "runtime/assoc/triangulate.h"
 #include "runtime/core/error.h"
 #include "runtime/fit/skeleton_fitter.h"
@@ -67,10 +72,16 @@ struct FrameResult {
 
 class Engine {
  public:
-  // `cameras` indexed by view id (DetectionSet::views[i].view_id is a camera index).
+  // `cameras` indexed by view id (DetectionSet::views[i].view_id is a camera index). With
+  // options.fit.enabled the topology must be a tree the skeleton fitter supports; the error
+  // names the topology and the fix.
   static Result<std::unique_ptr<Engine>> create(const SkeletonTopology& topology,
                                                 std::vector<Camera> cameras,
                                                 const AssociationOptions& options);
+
+  // The tracker and the fitter point into the engine: it stays where create() put it.
+  Engine(const Engine&) = delete;
+  Engine& operator=(const Engine&) = delete;
 
   // Processes one frame; detections must be in the engine's topology. Errors (bad shapes, a
   // view id without camera) name the frame and view; the track state is left unchanged then.
@@ -83,27 +94,37 @@ class Engine {
   const std::vector<Camera>& cameras() const { return cameras_; }
 
  private:
-  struct Track {
-    int id = -1;
-    std::vector<Eigen::Vector3d> joints_m;
-    std::vector<int> joint_age;  // frames since the joint was last triangulated (-1 = never)
-    int missed = 0;              // consecutive frames without observation
-    int observed_frames = 0;
-    fit::PersonFitState fit;
+  // One output person, until the outputs are sorted by track id.
+  struct Output {
+    int track = -1;
+    std::vector<int> candidate;   // PersonEvidence::candidate
+    std::vector<int> views_used;  // PersonEvidence::views_used
+    std::vector<float> confidence;
+    std::vector<Eigen::Quaterniond> rotations;
   };
 
   Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
-         const AssociationOptions& options);
+         const AssociationOptions& options, std::optional<fit::SkeletonFitter> fitter);
+
+  // The stages of process(), in order; each fills its part of `st`.
+  Status build_graph(const DetectionSet& detections, bool track_first, FrameStats& st);
+  void parse_bundles(bool track_first, FrameStats& st);
+  void triangulate_persons(std::uint64_t frame_id);
+  void merge_fragments(std::uint64_t frame_id, FrameStats& st);
+  void track_persons(FrameStats& st);
+  void fit_person(const PersonAssignment& person, PersonPoints& points, int track,
+                  std::vector<Eigen::Quaterniond>& rotations, FrameStats& st);
+  void add_output(const PersonAssignment& person, const PersonPoints& points, int track,
+                  std::vector<Eigen::Quaterniond> rotations);
+  void write_outputs(const DetectionSet& detections, FrameResult& result);
 
   const SkeletonTopology& topology_;
   std::vector<Camera> cameras_;
   AssociationOptions options_;
   std::vector<double> hierarchy_;
-  std::vector<int> parents_;
-  std::vector<double> limb_template_m_;  // per limb; 0 = no template length known
-  std::vector<Track> tracks_;
-  int next_track_id_ = 0;
-  std::optional<fit::SkeletonFitter> fitter_;  // empty: topology not a tree or fitting off
+  std::vector<double> limb_template_m_;        // per limb; 0 = no template length known
+  std::optional<fit::SkeletonFitter> fitter_;  // empty: fitting off
+  Tracker tracker_;
 
   // Per-frame scratch, reused (no per-frame growth once warmed up).
   FrameGraph graph_;
@@ -112,16 +133,14 @@ class Engine {
   std::vector<LimbExclusions> exclusions_;   // [limb] taken by track-first parsing
   std::vector<std::vector<char>> unneeded_;  // [joint][k] in no live 2D limb (unneeded_candidates)
   std::vector<PersonAssignment> persons_;
-  std::vector<std::vector<TriangulatedPoint>> person_pts_;
-  std::vector<std::vector<float>> person_conf_;
-  std::vector<char> claimed_;     // [track] observed this frame
-  std::vector<Observation> obs_;  // one joint's views, for triangulation
-  std::vector<Eigen::Vector3d> tri_X_;
+  std::vector<PersonPoints> person_points_;  // [person]
+  std::vector<char> merged_away_;            // [person] merged into another
+  std::vector<Observation> obs_;             // one joint's views, for triangulation
+  std::vector<Eigen::Vector3d> tri_X_;       // the fitter's view of a person's joints
   std::vector<bool> tri_valid_;
   std::vector<int> tri_views_;
   std::vector<fit::JointObservation> fit_obs_;
-  std::vector<int> person_valid_;  // [person] triangulated joints
-  std::vector<char> merged_away_;  // [person] merged into another
+  std::vector<Output> outputs_;
 };
 
 }  // namespace mocap::assoc

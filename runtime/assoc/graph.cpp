@@ -69,6 +69,26 @@ void pair_row(const double* __restrict ox, const double* __restrict oy, const do
   }
 }
 
+// The views of `detections` sorted by id (so candidates come grouped by view); an error naming
+// the frame when a view id has no camera.
+Status sorted_views(const DetectionSet& detections, int view_count,
+                    std::vector<const ViewDetections*>& views) {
+  views.reserve(detections.views.size());
+  for (const ViewDetections& v : detections.views) {
+    if (v.view_id < 0 || v.view_id >= view_count) {
+      return Error(ErrorCode::kInvalidArgument,
+                   "frame " + std::to_string(detections.frame_id) + ": detections of view " +
+                       std::to_string(v.view_id) + " but the calibration has " +
+                       std::to_string(view_count) + " views");
+    }
+    views.push_back(&v);
+  }
+  std::sort(views.begin(), views.end(), [](const ViewDetections* a, const ViewDetections* b) {
+    return a->view_id < b->view_id;
+  });
+  return Status::Ok();
+}
+
 }  // namespace
 
 Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera> cameras,
@@ -90,138 +110,142 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
   limb_edges_.resize(idx(topo.limb_count()));
   track_valid_.assign(idx(track_count_ * J), false);
   track_pos_.assign(idx(track_count_ * J), Eigen::Vector3d::Zero());
-
-  // Views sorted by id so candidates come grouped by view.
   std::vector<const ViewDetections*> views;
-  views.reserve(detections.views.size());
-  for (const ViewDetections& v : detections.views) {
-    if (v.view_id < 0 || v.view_id >= view_count_) {
-      return Error(ErrorCode::kInvalidArgument,
-                   "frame " + std::to_string(detections.frame_id) + ": detections of view " +
-                       std::to_string(v.view_id) + " but the calibration has " +
-                       std::to_string(view_count_) + " views");
-    }
-    views.push_back(&v);
-  }
-  std::sort(views.begin(), views.end(), [](const ViewDetections* a, const ViewDetections* b) {
-    return a->view_id < b->view_id;
-  });
-
-  // Nodes: candidates with their rays.
+  if (Status s = sorted_views(detections, view_count_, views); !s.ok()) return s;
   for (int j = 0; j < J; ++j) {
-    auto& cj = cands_[idx(j)];
-    cj.clear();
-    for (const ViewDetections* v : views) {
-      const Camera& cam = cameras[idx(v->view_id)];
-      const auto& list = v->candidates[idx(j)];
-      // Indices of the candidates kept: all, or the best max_candidates_per_view_joint.
-      order_scratch_.resize(list.size());
-      for (std::size_t i = 0; i < list.size(); ++i) order_scratch_[i] = static_cast<int>(i);
-      if (static_cast<int>(list.size()) > options.max_candidates_per_view_joint) {
-        const auto keep = static_cast<std::ptrdiff_t>(options.max_candidates_per_view_joint);
-        std::partial_sort(order_scratch_.begin(), order_scratch_.begin() + keep,
-                          order_scratch_.end(),
-                          [&](int a, int b) { return list[idx(a)].score > list[idx(b)].score; });
-        candidates_dropped_ +=
-            static_cast<int>(list.size()) - options.max_candidates_per_view_joint;
-        order_scratch_.resize(idx(options.max_candidates_per_view_joint));
-        std::sort(order_scratch_.begin(), order_scratch_.end());
-      }
-      for (int i : order_scratch_) {
-        const JointCandidate& c = list[idx(i)];
-        if (static_cast<double>(c.score) < options.min_candidate_score) continue;
-        GraphCandidate g;
-        g.view = v->view_id;
-        g.index = i;
-        g.score = c.score;
-        g.px = Eigen::Vector2d(c.x_px, c.y_px);
-        g.ray = cam.backproject(g.px);
-        cj.push_back(g);
-      }
+    add_candidates(j, views, cameras);
+    reset_edges(j);
+    add_tracking_edges(j, tracks);
+  }
+  add_limb_edges(topo, views);
+  if (matching) build_matching({});
+  return Status::Ok();
+}
+
+void FrameGraph::add_candidates(int j, std::span<const ViewDetections* const> views,
+                                std::span<const Camera> cameras) {
+  auto& cj = cands_[idx(j)];
+  cj.clear();
+  for (const ViewDetections* v : views) {
+    const Camera& cam = cameras[idx(v->view_id)];
+    const auto& list = v->candidates[idx(j)];
+    // Indices of the candidates kept: all, or the best max_candidates_per_view_joint.
+    order_scratch_.resize(list.size());
+    for (std::size_t i = 0; i < list.size(); ++i) order_scratch_[i] = static_cast<int>(i);
+    if (static_cast<int>(list.size()) > options_.max_candidates_per_view_joint) {
+      const auto keep = static_cast<std::ptrdiff_t>(options_.max_candidates_per_view_joint);
+      std::partial_sort(order_scratch_.begin(), order_scratch_.begin() + keep, order_scratch_.end(),
+                        [&](int a, int b) { return list[idx(a)].score > list[idx(b)].score; });
+      candidates_dropped_ += static_cast<int>(list.size()) - options_.max_candidates_per_view_joint;
+      order_scratch_.resize(idx(options_.max_candidates_per_view_joint));
+      std::sort(order_scratch_.begin(), order_scratch_.end());
     }
-    const int n = static_cast<int>(cj.size());
-    // Matching edges (below, or by the caller through build_matching / ensure_match).
-    auto& mj = match_[idx(j)];
-    auto& written = match_written_[idx(j)];
-    for (const int e : written) mj[idx(e)] = kNotComputed;
-    written.clear();
-    if (mj.size() < idx(n * n)) mj.resize(idx(n * n), kNotComputed);
-    auto& nb = nbr_[idx(j)];
-    if (nb.size() < idx(n)) nb.resize(idx(n));
-    for (int k = 0; k < n; ++k) nb[idx(k)].clear();  // keeps the rows' storage
-    // Tracking edges.
-    auto& tr = track_[idx(j)];
-    tr.assign(idx(track_count_ * n), 0.f);
-    auto& deg = track_deg_[idx(j)];
-    deg.assign(idx(n), 0);
-    auto& last = track_last_[idx(j)];
-    last.assign(idx(n), -1);
-    // point_ray_distance_m for unit directions (backproject normalises them):
-    // d² = |v|² − (v·d)² with v = X − origin. Candidates come grouped by view, whose rays share
-    // the camera centre as origin, so v and |v|² are computed once per view, and the directions
-    // are laid out by component so that the squared distances of a view's candidates are
-    // computed in one vectorisable loop; the few below the threshold are then taken.
-    dir_x_.resize(idx(n));
-    dir_y_.resize(idx(n));
-    dir_z_.resize(idx(n));
-    dist2_.resize(idx(n));
-    near_.resize(idx(n));
-    view_starts_.clear();
-    for (int k = 0; k < n; ++k) {
-      const Eigen::Vector3d& d = cj[idx(k)].ray.direction;
-      dir_x_[idx(k)] = d.x();
-      dir_y_[idx(k)] = d.y();
-      dir_z_[idx(k)] = d.z();
-      if (k == 0 || cj[idx(k)].view != cj[idx(k - 1)].view) view_starts_.push_back(k);
-    }
-    view_starts_.push_back(n);
-    const double T2 = options.max_track_dist_m * options.max_track_dist_m;
-    for (int t = 0; t < track_count_; ++t) {
-      const TrackPose& tp = tracks[idx(t)];
-      if (!tp.valid[idx(j)]) continue;
-      track_valid_[idx(t * J + j)] = true;
-      track_pos_[idx(t * J + j)] = tp.joints_m[idx(j)];
-      const Eigen::Vector3d& X = tp.joints_m[idx(j)];
-      for (std::size_t s = 0; s + 1 < view_starts_.size(); ++s) {
-        const int k0 = view_starts_[s];
-        const int k1 = view_starts_[s + 1];
-        const Eigen::Vector3d v = X - cj[idx(k0)].ray.origin_m;
-        const double vx = v.x(), vy = v.y(), vz = v.z();
-        const double vv = v.squaredNorm();
-        const double* dx = dir_x_.data();
-        const double* dy = dir_y_.data();
-        const double* dz = dir_z_.data();
-        double* d2 = dist2_.data();
-        for (int k = k0; k < k1; ++k) {
-          const double vd = vx * dx[k] + vy * dy[k] + vz * dz[k];
-          d2[k] = vv - vd * vd;
-        }
-      }
-      // The few candidates within reach, gathered without a branch per candidate (which of
-      // them pass is data, so a branch would be mispredicted often).
-      int near = 0;
-      for (int k = 0; k < n; ++k) {
-        near_[idx(near)] = k;
-        near += dist2_[idx(k)] < T2 ? 1 : 0;
-      }
-      for (int q = 0; q < near; ++q) {
-        const int k = near_[idx(q)];
-        const double d2 = std::max(0.0, dist2_[idx(k)]);
-        const double d = std::sqrt(d2);
-        if (d >= options.max_track_dist_m) continue;
-        tr[idx(t * n + k)] = static_cast<float>(1.0 - d / options.max_track_dist_m);
-        ++deg[idx(k)];
-        last[idx(k)] = t;
-      }
+    for (int i : order_scratch_) {
+      const JointCandidate& c = list[idx(i)];
+      if (static_cast<double>(c.score) < options_.min_candidate_score) continue;
+      GraphCandidate g;
+      g.view = v->view_id;
+      g.index = i;
+      g.score = c.score;
+      g.px = Eigen::Vector2d(c.x_px, c.y_px);
+      g.ray = cam.backproject(g.px);
+      cj.push_back(g);
     }
   }
+}
 
-  // Parsing edges (2D limbs). p = raw^e >= min_affinity <=> raw >= min_affinity^(1/e) (e > 0),
-  // so raw scores below that skip the pow; the test after the pow still decides.
+void FrameGraph::reset_edges(int j) {
+  const int n = candidate_count(j);
+  // Matching edges (build_matching, or the caller through build_matching / ensure_match).
+  auto& mj = match_[idx(j)];
+  auto& written = match_written_[idx(j)];
+  for (const int e : written) mj[idx(e)] = kNotComputed;
+  written.clear();
+  if (mj.size() < idx(n * n)) mj.resize(idx(n * n), kNotComputed);
+  auto& nb = nbr_[idx(j)];
+  if (nb.size() < idx(n)) nb.resize(idx(n));
+  for (int k = 0; k < n; ++k) nb[idx(k)].clear();  // keeps the rows' storage
+  // Tracking edges (add_tracking_edges).
+  track_[idx(j)].assign(idx(track_count_ * n), 0.f);
+  track_deg_[idx(j)].assign(idx(n), 0);
+  track_last_[idx(j)].assign(idx(n), -1);
+}
+
+// point_ray_distance_m for unit directions (backproject normalises them):
+// d² = |v|² − (v·d)² with v = X − origin. Candidates come grouped by view, whose rays share the
+// camera centre as origin, so v and |v|² are computed once per view, and the directions are
+// laid out by component so that the squared distances of a view's candidates are computed in
+// one vectorisable loop; the few below the threshold are then taken.
+void FrameGraph::add_tracking_edges(int j, std::span<const TrackPose> tracks) {
+  const int J = joint_count();
+  const auto& cj = cands_[idx(j)];
+  const int n = candidate_count(j);
+  auto& tr = track_[idx(j)];
+  auto& deg = track_deg_[idx(j)];
+  auto& last = track_last_[idx(j)];
+  dir_x_.resize(idx(n));
+  dir_y_.resize(idx(n));
+  dir_z_.resize(idx(n));
+  dist2_.resize(idx(n));
+  near_.resize(idx(n));
+  view_starts_.clear();
+  for (int k = 0; k < n; ++k) {
+    const Eigen::Vector3d& d = cj[idx(k)].ray.direction;
+    dir_x_[idx(k)] = d.x();
+    dir_y_[idx(k)] = d.y();
+    dir_z_[idx(k)] = d.z();
+    if (k == 0 || cj[idx(k)].view != cj[idx(k - 1)].view) view_starts_.push_back(k);
+  }
+  view_starts_.push_back(n);
+  const double T2 = options_.max_track_dist_m * options_.max_track_dist_m;
+  for (int t = 0; t < track_count_; ++t) {
+    const TrackPose& tp = tracks[idx(t)];
+    if (!tp.valid[idx(j)]) continue;
+    track_valid_[idx(t * J + j)] = true;
+    track_pos_[idx(t * J + j)] = tp.joints_m[idx(j)];
+    const Eigen::Vector3d& X = tp.joints_m[idx(j)];
+    for (std::size_t s = 0; s + 1 < view_starts_.size(); ++s) {
+      const int k0 = view_starts_[s];
+      const int k1 = view_starts_[s + 1];
+      const Eigen::Vector3d v = X - cj[idx(k0)].ray.origin_m;
+      const double vx = v.x(), vy = v.y(), vz = v.z();
+      const double vv = v.squaredNorm();
+      const double* dx = dir_x_.data();
+      const double* dy = dir_y_.data();
+      const double* dz = dir_z_.data();
+      double* d2 = dist2_.data();
+      for (int k = k0; k < k1; ++k) {
+        const double vd = vx * dx[k] + vy * dy[k] + vz * dz[k];
+        d2[k] = vv - vd * vd;
+      }
+    }
+    // The few candidates within reach, gathered without a branch per candidate (which of
+    // them pass is data, so a branch would be mispredicted often).
+    int near = 0;
+    for (int k = 0; k < n; ++k) {
+      near_[idx(near)] = k;
+      near += dist2_[idx(k)] < T2 ? 1 : 0;
+    }
+    for (int q = 0; q < near; ++q) {
+      const int k = near_[idx(q)];
+      const double d2 = std::max(0.0, dist2_[idx(k)]);
+      const double d = std::sqrt(d2);
+      if (d >= options_.max_track_dist_m) continue;
+      tr[idx(t * n + k)] = static_cast<float>(1.0 - d / options_.max_track_dist_m);
+      ++deg[idx(k)];
+      last[idx(k)] = t;
+    }
+  }
+}
+
+// Parsing edges (2D limbs). p = raw^e >= min_affinity <=> raw >= min_affinity^(1/e) (e > 0), so
+// raw scores below that skip the pow; the test after the pow still decides.
+void FrameGraph::add_limb_edges(const SkeletonTopology& topo,
+                                std::span<const ViewDetections* const> views) {
   const float raw_min =
-      static_cast<float>(0.999 * std::pow(options.min_affinity, 1.0 / options.affinity_exponent));
+      static_cast<float>(0.999 * std::pow(options_.min_affinity, 1.0 / options_.affinity_exponent));
   // Single precision: the result is stored as a float, and powf is several times cheaper.
-  const float exponent = static_cast<float>(options.affinity_exponent);
+  const float exponent = static_cast<float>(options_.affinity_exponent);
   for (int l = 0; l < topo.limb_count(); ++l) {
     const Limb& limb = topo.limb(l);
     auto& edges = limb_edges_[idx(l)];
@@ -252,15 +276,13 @@ Status FrameGraph::build(const DetectionSet& detections, std::span<const Camera>
       for (std::size_t q = 0; q < np; ++q) {
         const PairPass& c = pass_[q];
         const float p = std::pow(c.raw, exponent);
-        if (static_cast<double>(p) < options.min_affinity) continue;
+        if (static_cast<double>(p) < options_.min_affinity) continue;
         edges.push_back(LimbEdge{v->view_id, c.ia, c.ib, p});
       }
       a0 = a1;
       b0 = b1;
     }
   }
-  if (matching) build_matching({});
-  return Status::Ok();
 }
 
 void FrameGraph::matching_pair(int joint, int k1, int k2) {

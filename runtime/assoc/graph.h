@@ -19,6 +19,10 @@
 #include "runtime/geometry/camera.h"
 #include "runtime/msg/messages.h"
 
+namespace mocap {
+class SkeletonTopology;
+}
+
 namespace mocap::assoc {
 
 struct GraphCandidate {
@@ -128,6 +132,15 @@ class FrameGraph {
     return idx(std::min(k1, k2) * candidate_count(joint) + std::max(k1, k2));
   }
   static constexpr float kNotComputed = -1.f;  // any negative entry: not computed
+
+  // The stages of build() for joint j: its candidates with their rays (the best
+  // max_candidates_per_view_joint per view), its matching table and neighbour lists reset and
+  // its tracking tables cleared, its tracking edges; then the 2D limbs of every limb type.
+  void add_candidates(int j, std::span<const ViewDetections* const> views,
+                      std::span<const Camera> cameras);
+  void reset_edges(int j);
+  void add_tracking_edges(int j, std::span<const TrackPose> tracks);
+  void add_limb_edges(const SkeletonTopology& topo, std::span<const ViewDetections* const> views);
 
   // Computes and stores the matching edge of candidates k1 < k2 of `joint` (not yet computed).
   void matching_pair(int joint, int k1, int k2);

@@ -123,7 +123,7 @@ struct AssociationOptions {
   CliqueOptions clique;
   TrackingOptions tracking;
   TriangulationOptions triangulation;
-  fit::FitOptions fit;  // parametric skeleton fitting (needs a tree topology)
+  fit::FitOptions fit;  // parametric skeleton fitting (needs a tree topology while enabled)
 
   Status validate() const;
 };

@@ -403,239 +403,308 @@ FitResult SkeletonFitter::fit(PersonFitState& state, std::span<const Camera> cam
   return out;
 }
 
+namespace {
+
+using JointMats = std::array<Eigen::Matrix3d, kMaxFitJoints>;
+using JointVecs = std::array<Eigen::Vector3d, kMaxFitJoints>;
+
+// s·[v]×, element by element as the scalar-times-matrix product gives it (a comma-initialised
+// temporary cost more than the rest of the step's setup). s·(−[v]×) is (−s)·[v]×, exactly.
+inline Eigen::Matrix3d scaled_skew(double s, const Eigen::Vector3d& v) {
+  const double k[9] = {0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0};
+  Eigen::Matrix3d m;
+  for (int row = 0; row < 3; ++row) {
+    for (int col = 0; col < 3; ++col) m(row, col) = s * k[3 * row + col];
+  }
+  return m;
+}
+
+// The fast solver's problem for one person and frame (see SkeletonFitter::solve_fast): its
+// energy with the per-joint normal equations, and the Levenberg–Marquardt step by dynamic
+// programming on the skeleton tree. Its per-joint blocks (some 30 KB) live on the caller's
+// stack.
+class FastProblem {
+ public:
+  FastProblem(std::span<const int> parents, std::span<const int> order, const PersonFitState& state,
+              std::span<const Camera> cameras, std::span<const JointObservation> observations,
+              const FitOptions& options)
+      : parents_(parents),
+        order_(order),
+        state_(state),
+        cameras_(cameras),
+        observations_(observations),
+        options_(options),
+        J_(static_cast<int>(parents.size())),
+        a_(options.robust_loss_px),
+        wt_(state.has_previous ? options.temporal_weight_px_per_m : 0.0),
+        L_(state.bone_length_m),
+        touched_(ix(J_), 0),
+        X_(ix(J_)) {
+    // Bones and root with neither observation below them nor a temporal anchor stay fixed.
+    for (const JointObservation& o : observations) {
+      if (!usable(o)) continue;
+      for (int q = o.joint; q >= 0; q = parents_[ix(q)]) touched_[ix(q)] = 1;
+    }
+  }
+
+  // Whether anything can move: an observation below the root, or the temporal anchor.
+  bool has_free_parameters() const { return touched_[ix(order_.front())] || wt_ != 0; }
+
+  // The energy at (rr, uu) and, in the same pass over the observations, what the normal
+  // equations need there: per joint M_j = Σ w²J_pᵀJ_p and m_j = Σ w²J_pᵀres (J_p the
+  // projection Jacobian at X_j, w the IRLS weight of the Huber loss), into buffer `buf`. A trial
+  // step that is accepted has thus already been linearised, so each iteration projects every
+  // observation once.
+  double evaluate(const Eigen::Vector3d& rr, const std::vector<Eigen::Vector3d>& uu, int buf);
+
+  // The blocks of the step at (r, u), linearised in buffer `buf`: P_j, the temporal terms T_j,
+  // h_j and the damped diagonal blocks H(b, b).
+  void linearise(const Eigen::Vector3d& r, const std::vector<Eigen::Vector3d>& u, int buf);
+
+  // The Levenberg–Marquardt step for damping `lambda` (x: per joint, z: joint displacements);
+  // false when the damped system is not positive definite or the step is not finite.
+  bool solve_step(double lambda, int buf);
+
+  // The decrease the quadratic model in buffer `buf` predicts for the step: −(gᵀδ + ½δᵀHδ),
+  // with gᵀδ = Σ m_jᵀz_j + Σ h_bᵀδ_b and δᵀHδ = Σ z_jᵀM_j z_j + Σ δ_bᵀT_bδ_b (undamped).
+  double predicted_decrease(int buf) const;
+
+  // (r2, u2): (r, u) moved by the step.
+  void take_step(const Eigen::Vector3d& r, const std::vector<Eigen::Vector3d>& u,
+                 Eigen::Vector3d& r2, std::vector<Eigen::Vector3d>& u2) const;
+
+ private:
+  bool usable(const JointObservation& o) const {
+    return !(o.joint < 0 || o.joint >= J_ || o.view < 0 ||
+             o.view >= static_cast<int>(cameras_.size()));
+  }
+  double huber(double e2) const { return e2 <= a_ * a_ ? e2 : 2.0 * a_ * std::sqrt(e2) - a_ * a_; }
+
+  std::span<const int> parents_;
+  std::span<const int> order_;
+  const PersonFitState& state_;
+  std::span<const Camera> cameras_;
+  std::span<const JointObservation> observations_;
+  const FitOptions& options_;
+  int J_;
+  double a_;   // Huber scale
+  double wt_;  // temporal weight (0 without a previous pose)
+  const std::vector<double>& L_;
+  std::vector<char> touched_;
+  std::vector<Eigen::Vector3d> X_;  // joints by forward kinematics
+  JointMats S_buf_[2];              // M at the current point, and at the trial point
+  JointVecs G_buf_[2];              // m likewise
+  JointMats P_, Sub_, Hd_, Tt_, A_, AP_, Kinv_;
+  JointVecs ht_, b_, c_, z_, x_;
+};
+
+double FastProblem::evaluate(const Eigen::Vector3d& rr, const std::vector<Eigen::Vector3d>& uu,
+                             int buf) {
+  JointMats& M = S_buf_[buf];
+  JointVecs& m = G_buf_[buf];
+  for (int j : order_) {
+    const int p = parents_[ix(j)];
+    X_[ix(j)] = p < 0 ? rr : X_[ix(p)] + L_[ix(j)] * uu[ix(j)];
+  }
+  for (int j = 0; j < J_; ++j) {
+    M[ix(j)].setZero();
+    m[ix(j)].setZero();
+  }
+  double c = 0;
+  for (const JointObservation& o : observations_) {
+    if (!usable(o)) continue;
+    Eigen::Vector2d proj;
+    Eigen::Matrix<double, 2, 3> Jp;
+    project_with_jacobian(cameras_[ix(o.view)], X_[ix(o.joint)], proj, Jp);
+    const double rx = proj.x() - o.px.x();
+    const double ry = proj.y() - o.px.y();
+    double w = options_.reprojection_weight * o.score;
+    const double e2 = w * w * (rx * rx + ry * ry);
+    c += 0.5 * huber(e2);
+    if (e2 > a_ * a_) w *= std::sqrt(a_ / std::sqrt(e2));  // IRLS weight of the Huber loss
+    const double w2 = w * w;
+    // M += w²JᵀJ (symmetric) and m += w²Jᵀres, written out for the 2x3 Jacobian.
+    Eigen::Matrix3d& Mj = M[ix(o.joint)];
+    Eigen::Vector3d& mj = m[ix(o.joint)];
+    for (int q = 0; q < 3; ++q) {
+      const double a0 = w2 * Jp(0, q);
+      const double a1 = w2 * Jp(1, q);
+      for (int k = q; k < 3; ++k) Mj(q, k) += a0 * Jp(0, k) + a1 * Jp(1, k);
+      mj(q) += a0 * rx + a1 * ry;
+    }
+  }
+  for (int j = 0; j < J_; ++j) {
+    Eigen::Matrix3d& Mj = M[ix(j)];
+    Mj(1, 0) = Mj(0, 1);
+    Mj(2, 0) = Mj(0, 2);
+    Mj(2, 1) = Mj(1, 2);
+  }
+  if (wt_ > 0) {
+    c += 0.5 * wt_ * wt_ * (rr - state_.root_prev).squaredNorm();
+    for (int j = 0; j < J_; ++j) {
+      if (parents_[ix(j)] < 0) continue;
+      c += 0.5 * wt_ * wt_ * L_[ix(j)] * L_[ix(j)] *
+           (uu[ix(j)] - state_.dir_prev[ix(j)]).squaredNorm();
+    }
+  }
+  return c;
+}
+
+void FastProblem::linearise(const Eigen::Vector3d& r, const std::vector<Eigen::Vector3d>& u,
+                            int buf) {
+  const JointMats& S = S_buf_[buf];
+  for (int j = 0; j < J_; ++j) {
+    P_[ix(j)] =
+        parents_[ix(j)] < 0 ? Eigen::Matrix3d::Identity() : scaled_skew(-L_[ix(j)], u[ix(j)]);
+    Sub_[ix(j)] = S[ix(j)];
+    Tt_[ix(j)].setZero();
+    ht_[ix(j)].setZero();
+  }
+  // Subtree sums (children before parents), for the diagonal blocks the damping scales with.
+  for (auto it_j = order_.rbegin(); it_j != order_.rend(); ++it_j) {
+    const int p = parents_[ix(*it_j)];
+    if (p >= 0) Sub_[ix(p)] += Sub_[ix(*it_j)];
+  }
+  if (wt_ > 0) {
+    const int root = order_.front();
+    Tt_[ix(root)] = wt_ * wt_ * Eigen::Matrix3d::Identity();
+    ht_[ix(root)] = wt_ * wt_ * (r - state_.root_prev);
+    for (int j = 0; j < J_; ++j) {
+      if (parents_[ix(j)] < 0) continue;
+      const Eigen::Matrix3d Jt = scaled_skew(-(wt_ * L_[ix(j)]), u[ix(j)]);
+      const Eigen::Vector3d res = wt_ * L_[ix(j)] * (u[ix(j)] - state_.dir_prev[ix(j)]);
+      Tt_[ix(j)] = Jt.transpose() * Jt;
+      ht_[ix(j)] = Jt.transpose() * res;
+    }
+  } else {
+    // Untouched parameters (no observation below them, no temporal anchor) are fixed: an
+    // identity block with no gradient and nothing below them, so their step is zero.
+    for (int j = 0; j < J_; ++j) {
+      if (!touched_[ix(j)]) Tt_[ix(j)].setIdentity();
+    }
+  }
+  for (int j = 0; j < J_; ++j) {
+    Hd_[ix(j)] = P_[ix(j)].transpose() * Sub_[ix(j)] * P_[ix(j)] + Tt_[ix(j)];
+  }
+}
+
+bool FastProblem::solve_step(double lambda, int buf) {
+  const JointMats& S = S_buf_[buf];
+  const JointVecs& G = G_buf_[buf];
+  for (int j = 0; j < J_; ++j) {
+    A_[ix(j)] = S[ix(j)];
+    b_[ix(j)] = G[ix(j)];
+  }
+  // Leaves first: each joint's energy-to-go, minimised over its bone, goes to its parent.
+  for (auto it_k = order_.rbegin(); it_k != order_.rend(); ++it_k) {
+    const int k = *it_k;
+    Eigen::Matrix3d K = Tt_[ix(k)];
+    for (int q = 0; q < 3; ++q) K(q, q) += lambda * (Hd_[ix(k)](q, q) + 1e-6);
+    AP_[ix(k)].noalias() = A_[ix(k)] * P_[ix(k)];
+    K.noalias() += P_[ix(k)].transpose() * AP_[ix(k)];
+    c_[ix(k)] = ht_[ix(k)];
+    c_[ix(k)].noalias() += P_[ix(k)].transpose() * b_[ix(k)];
+    // K is symmetric positive definite when its leading minors are positive (Sylvester);
+    // then its closed-form inverse (inlined, unlike a 3x3 factorisation with matrix
+    // right-hand sides) serves both solves below.
+    const double m1 = K(0, 0) * K(1, 1) - K(0, 1) * K(0, 1);
+    const double det = K.determinant();
+    if (!(K(0, 0) > 0.0) || !(m1 > 0.0) || !(det > 0.0)) return false;
+    Kinv_[ix(k)] = K.inverse();
+    const int p = parents_[ix(k)];
+    if (p < 0) continue;
+    const Eigen::Matrix3d KiAPt = Kinv_[ix(k)] * AP_[ix(k)].transpose();  // K⁻¹(AP)ᵀ
+    A_[ix(p)] += A_[ix(k)];
+    A_[ix(p)].noalias() -= AP_[ix(k)] * KiAPt;
+    b_[ix(p)] += b_[ix(k)];
+    b_[ix(p)].noalias() -= KiAPt.transpose() * c_[ix(k)];
+  }
+  // Steps, root first.
+  bool finite = true;
+  for (int k : order_) {
+    const int p = parents_[ix(k)];
+    Eigen::Vector3d rhs = c_[ix(k)];
+    if (p >= 0) rhs.noalias() += AP_[ix(k)].transpose() * z_[ix(p)];
+    x_[ix(k)] = -(Kinv_[ix(k)] * rhs);
+    z_[ix(k)] = p >= 0 ? Eigen::Vector3d(z_[ix(p)] + P_[ix(k)] * x_[ix(k)]) : x_[ix(k)];
+    finite = finite && x_[ix(k)].allFinite();
+  }
+  return finite;
+}
+
+double FastProblem::predicted_decrease(int buf) const {
+  const JointMats& S = S_buf_[buf];
+  const JointVecs& G = G_buf_[buf];
+  double gd = 0;
+  double dHd = 0;
+  for (int j = 0; j < J_; ++j) {
+    gd += G[ix(j)].dot(z_[ix(j)]) + ht_[ix(j)].dot(x_[ix(j)]);
+    dHd += z_[ix(j)].dot(S[ix(j)] * z_[ix(j)]);
+    if (touched_[ix(j)] || wt_ > 0) dHd += x_[ix(j)].dot(Tt_[ix(j)] * x_[ix(j)]);
+  }
+  return -(gd + 0.5 * dHd);
+}
+
+void FastProblem::take_step(const Eigen::Vector3d& r, const std::vector<Eigen::Vector3d>& u,
+                            Eigen::Vector3d& r2, std::vector<Eigen::Vector3d>& u2) const {
+  r2 = r + x_[ix(order_.front())];
+  u2 = u;
+  for (int j = 0; j < J_; ++j) {
+    if (parents_[ix(j)] < 0) continue;
+    const Eigen::Vector3d d = x_[ix(j)];
+    const double angle = d.norm();
+    if (angle > 1e-12) u2[ix(j)] = (Eigen::AngleAxisd(angle, d / angle) * u[ix(j)]).normalized();
+  }
+}
+
+}  // namespace
+
 // Energy (same as the Ceres formulation): ½Σρ(‖w(π(X_j) − p)‖²) with Huber ρ of scale a, plus
 // ½‖w_t(r − r_prev)‖² + ½Σ‖w_t L_b (u_b − u_b_prev)‖². Parameters: root (3) and one rotation
 // vector per bone acting on its current direction (u ← exp(δ) u, ∂u/∂δ = −[u]×). Huber is
 // handled by iteratively reweighted least squares; steps by Levenberg–Marquardt.
+//
+// Gauss–Newton step by dynamic programming on the skeleton tree. With per-joint sums
+// M_j = Σ w²J_pᵀJ_p and m_j = Σ w²J_pᵀres (from evaluate), a step δ (root translation, one
+// rotation vector per bone) moves joint j by z_j = z_parent + P_j δ_j (P = I for the root,
+// −L[u]× for a bone), and the model energy is
+//   Σ_j ½ z_jᵀ M_j z_j + m_jᵀ z_j + Σ_b ½ δ_bᵀ T_b δ_b + h_bᵀ δ_b
+// (T, h: the temporal term and the Levenberg–Marquardt damping). Its minimiser is the
+// Gauss–Newton/LM step of the chain-rule normal equations (H(q, k) = P_qᵀ S_k P_k for k in the
+// subtree of q, S_k the subtree sum of M), found leaves first: a joint's energy-to-go is a
+// quadratic ½zᵀA z + bᵀz in its displacement; minimising over the bone to the parent gives the
+// parent's share, A − (AP)K⁻¹(AP)ᵀ and b − (AP)K⁻¹c with K = T + PᵀAP and c = h + Pᵀb. Then
+// δ_j = −K⁻¹(c + (AP)ᵀ z_parent) root first. One 3x3 inverse per joint: O(J).
+// The damping scales with the diagonal blocks H(b, b) = P_bᵀ S_b P_b + T_b^temporal, as in
+// Levenberg–Marquardt on the full system.
 SkeletonFitter::SolveStats SkeletonFitter::solve_fast(
     const PersonFitState& state, std::span<const Camera> cameras,
     std::span<const JointObservation> observations, Eigen::Vector3d& r,
     std::vector<Eigen::Vector3d>& u) const {
-  const int J = topology_->joint_count();
-  const double a = options_.robust_loss_px;
-  const double wt = state.has_previous ? options_.temporal_weight_px_per_m : 0.0;
-  const auto& L = state.bone_length_m;
-
-  // Bones and root with neither observation below them nor a temporal anchor stay fixed.
-  std::vector<char> touched(ix(J), 0);
-  for (const JointObservation& o : observations) {
-    if (o.joint < 0 || o.joint >= J || o.view < 0 || o.view >= static_cast<int>(cameras.size())) {
-      continue;
-    }
-    for (int q = o.joint; q >= 0; q = parents_[ix(q)]) touched[ix(q)] = 1;
-  }
-  if (!touched[ix(order_.front())] && wt == 0) return SolveStats{};
-
-  // s·[v]×, element by element as the scalar-times-matrix product gives it (a comma-initialised
-  // temporary cost more than the rest of the step's setup). s·(−[v]×) is (−s)·[v]×, exactly.
-  auto scaled_skew = [](double s, const Eigen::Vector3d& v) {
-    const double k[9] = {0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0};
-    Eigen::Matrix3d m;
-    for (int row = 0; row < 3; ++row) {
-      for (int col = 0; col < 3; ++col) m(row, col) = s * k[3 * row + col];
-    }
-    return m;
-  };
-  std::vector<Eigen::Vector3d> X(ix(J));
-  auto forward = [&](const Eigen::Vector3d& rr, const std::vector<Eigen::Vector3d>& uu) {
-    for (int j : order_) {
-      const int p = parents_[ix(j)];
-      X[ix(j)] = p < 0 ? rr : X[ix(p)] + L[ix(j)] * uu[ix(j)];
-    }
-  };
-  auto huber = [&](double e2) { return e2 <= a * a ? e2 : 2.0 * a * std::sqrt(e2) - a * a; };
-  // The energy at (rr, uu) and, in the same pass over the observations, what the normal
-  // equations need there: per joint M_j = Σ w²J_pᵀJ_p and m_j = Σ w²J_pᵀres (J_p the projection
-  // Jacobian at X_j, w the IRLS weight of the Huber loss). A trial step that is accepted has
-  // thus already been linearised, so each iteration projects every observation once.
-  using JointMats = std::array<Eigen::Matrix3d, kMaxFitJoints>;
-  using JointVecs = std::array<Eigen::Vector3d, kMaxFitJoints>;
-  auto evaluate = [&](const Eigen::Vector3d& rr, const std::vector<Eigen::Vector3d>& uu,
-                      JointMats& M, JointVecs& m) {
-    forward(rr, uu);
-    for (int j = 0; j < J; ++j) {
-      M[ix(j)].setZero();
-      m[ix(j)].setZero();
-    }
-    double c = 0;
-    for (const JointObservation& o : observations) {
-      if (o.joint < 0 || o.joint >= J || o.view < 0 || o.view >= static_cast<int>(cameras.size())) {
-        continue;
-      }
-      Eigen::Vector2d proj;
-      Eigen::Matrix<double, 2, 3> Jp;
-      project_with_jacobian(cameras[ix(o.view)], X[ix(o.joint)], proj, Jp);
-      const double rx = proj.x() - o.px.x();
-      const double ry = proj.y() - o.px.y();
-      double w = options_.reprojection_weight * o.score;
-      const double e2 = w * w * (rx * rx + ry * ry);
-      c += 0.5 * huber(e2);
-      if (e2 > a * a) w *= std::sqrt(a / std::sqrt(e2));  // IRLS weight of the Huber loss
-      const double w2 = w * w;
-      // M += w²JᵀJ (symmetric) and m += w²Jᵀres, written out for the 2x3 Jacobian.
-      Eigen::Matrix3d& Mj = M[ix(o.joint)];
-      Eigen::Vector3d& mj = m[ix(o.joint)];
-      for (int q = 0; q < 3; ++q) {
-        const double a0 = w2 * Jp(0, q);
-        const double a1 = w2 * Jp(1, q);
-        for (int k = q; k < 3; ++k) Mj(q, k) += a0 * Jp(0, k) + a1 * Jp(1, k);
-        mj(q) += a0 * rx + a1 * ry;
-      }
-    }
-    for (int j = 0; j < J; ++j) {
-      Eigen::Matrix3d& Mj = M[ix(j)];
-      Mj(1, 0) = Mj(0, 1);
-      Mj(2, 0) = Mj(0, 2);
-      Mj(2, 1) = Mj(1, 2);
-    }
-    if (wt > 0) {
-      c += 0.5 * wt * wt * (rr - state.root_prev).squaredNorm();
-      for (int j = 0; j < J; ++j) {
-        if (parents_[ix(j)] < 0) continue;
-        c +=
-            0.5 * wt * wt * L[ix(j)] * L[ix(j)] * (uu[ix(j)] - state.dir_prev[ix(j)]).squaredNorm();
-      }
-    }
-    return c;
-  };
-
-  // Gauss–Newton step by dynamic programming on the skeleton tree. With per-joint sums
-  // M_j = Σ w²J_pᵀJ_p and m_j = Σ w²J_pᵀres (from evaluate), a step δ (root translation, one
-  // rotation vector per bone) moves joint j by z_j = z_parent + P_j δ_j (P = I for the root,
-  // −L[u]× for a bone), and the model energy is
-  //   Σ_j ½ z_jᵀ M_j z_j + m_jᵀ z_j + Σ_b ½ δ_bᵀ T_b δ_b + h_bᵀ δ_b
-  // (T, h: the temporal term and the Levenberg–Marquardt damping). Its minimiser is the
-  // Gauss–Newton/LM step of the chain-rule normal equations (H(q, k) = P_qᵀ S_k P_k for k in the
-  // subtree of q, S_k the subtree sum of M), found leaves first: a joint's energy-to-go is a
-  // quadratic ½zᵀA z + bᵀz in its displacement; minimising over the bone to the parent gives the
-  // parent's share, A − (AP)K⁻¹(AP)ᵀ and b − (AP)K⁻¹c with K = T + PᵀAP and c = h + Pᵀb. Then
-  // δ_j = −K⁻¹(c + (AP)ᵀ z_parent) root first. One 3x3 inverse per joint: O(J).
-  // The damping scales with the diagonal blocks H(b, b) = P_bᵀ S_b P_b + T_b^temporal, as in
-  // Levenberg–Marquardt on the full system.
-  JointMats S_buf[2];  // M at the current point, and at the trial point
-  JointVecs G_buf[2];  // m likewise
-  int cur = 0;
-  JointMats P, Sub, Hd, Tt, A, AP;
-  JointVecs ht, b, c, z, x;
-  JointMats Kinv;
-  std::vector<Eigen::Vector3d> u2(ix(J));
-  const int root = order_.front();
+  FastProblem problem(parents_, order_, state, cameras, observations, options_);
+  if (!problem.has_free_parameters()) return SolveStats{};
+  std::vector<Eigen::Vector3d> u2(u.size());
+  Eigen::Vector3d r2;
+  int cur = 0;  // the buffer linearised at (r, u); the other takes the trial point
   double lambda = 1e-3;
-  double current = evaluate(r, u, S_buf[cur], G_buf[cur]);
+  double current = problem.evaluate(r, u, cur);
   int it = 0;
   for (; it < options_.max_iterations; ++it) {
-    const JointMats& S = S_buf[cur];
-    const JointVecs& G = G_buf[cur];
-    for (int j = 0; j < J; ++j) {
-      P[ix(j)] =
-          parents_[ix(j)] < 0 ? Eigen::Matrix3d::Identity() : scaled_skew(-L[ix(j)], u[ix(j)]);
-      Sub[ix(j)] = S[ix(j)];
-      Tt[ix(j)].setZero();
-      ht[ix(j)].setZero();
-    }
-    // Subtree sums (children before parents), for the diagonal blocks the damping scales with.
-    for (auto it_j = order_.rbegin(); it_j != order_.rend(); ++it_j) {
-      const int p = parents_[ix(*it_j)];
-      if (p >= 0) Sub[ix(p)] += Sub[ix(*it_j)];
-    }
-    if (wt > 0) {
-      Tt[ix(root)] = wt * wt * Eigen::Matrix3d::Identity();
-      ht[ix(root)] = wt * wt * (r - state.root_prev);
-      for (int j = 0; j < J; ++j) {
-        if (parents_[ix(j)] < 0) continue;
-        const Eigen::Matrix3d Jt = scaled_skew(-(wt * L[ix(j)]), u[ix(j)]);
-        const Eigen::Vector3d res = wt * L[ix(j)] * (u[ix(j)] - state.dir_prev[ix(j)]);
-        Tt[ix(j)] = Jt.transpose() * Jt;
-        ht[ix(j)] = Jt.transpose() * res;
-      }
-    } else {
-      // Untouched parameters (no observation below them, no temporal anchor) are fixed: an
-      // identity block with no gradient and nothing below them, so their step is zero.
-      for (int j = 0; j < J; ++j) {
-        if (!touched[ix(j)]) Tt[ix(j)].setIdentity();
-      }
-    }
-    for (int j = 0; j < J; ++j) {
-      Hd[ix(j)] = P[ix(j)].transpose() * Sub[ix(j)] * P[ix(j)] + Tt[ix(j)];
-    }
+    problem.linearise(r, u, cur);
     bool improved = false;
     for (int tries = 0; tries < 6 && !improved; ++tries) {
-      for (int j = 0; j < J; ++j) {
-        A[ix(j)] = S[ix(j)];
-        b[ix(j)] = G[ix(j)];
-      }
-      bool ok = true;
-      for (auto it_k = order_.rbegin(); it_k != order_.rend(); ++it_k) {
-        const int k = *it_k;
-        Eigen::Matrix3d K = Tt[ix(k)];
-        for (int q = 0; q < 3; ++q) K(q, q) += lambda * (Hd[ix(k)](q, q) + 1e-6);
-        AP[ix(k)].noalias() = A[ix(k)] * P[ix(k)];
-        K.noalias() += P[ix(k)].transpose() * AP[ix(k)];
-        c[ix(k)] = ht[ix(k)];
-        c[ix(k)].noalias() += P[ix(k)].transpose() * b[ix(k)];
-        // K is symmetric positive definite when its leading minors are positive (Sylvester);
-        // then its closed-form inverse (inlined, unlike a 3x3 factorisation with matrix
-        // right-hand sides) serves both solves below.
-        const double m1 = K(0, 0) * K(1, 1) - K(0, 1) * K(0, 1);
-        const double det = K.determinant();
-        if (!(K(0, 0) > 0.0) || !(m1 > 0.0) || !(det > 0.0)) {
-          ok = false;
-          break;
-        }
-        Kinv[ix(k)] = K.inverse();
-        const int p = parents_[ix(k)];
-        if (p < 0) continue;
-        const Eigen::Matrix3d KiAPt = Kinv[ix(k)] * AP[ix(k)].transpose();  // K⁻¹(AP)ᵀ
-        A[ix(p)] += A[ix(k)];
-        A[ix(p)].noalias() -= AP[ix(k)] * KiAPt;
-        b[ix(p)] += b[ix(k)];
-        b[ix(p)].noalias() -= KiAPt.transpose() * c[ix(k)];
-      }
-      if (!ok) {
+      if (!problem.solve_step(lambda, cur)) {
         lambda *= 10;
         continue;
       }
-      // Steps, root first.
-      bool finite = true;
-      for (int k : order_) {
-        const int p = parents_[ix(k)];
-        Eigen::Vector3d rhs = c[ix(k)];
-        if (p >= 0) rhs.noalias() += AP[ix(k)].transpose() * z[ix(p)];
-        x[ix(k)] = -(Kinv[ix(k)] * rhs);
-        z[ix(k)] = p >= 0 ? Eigen::Vector3d(z[ix(p)] + P[ix(k)] * x[ix(k)]) : x[ix(k)];
-        finite = finite && x[ix(k)].allFinite();
+      // A step predicted to gain less than the convergence fraction is not worth pricing.
+      if (it > 0 &&
+          problem.predicted_decrease(cur) < options_.converged_relative_decrease * current) {
+        it = options_.max_iterations;  // converged
+        break;
       }
-      if (!finite) {
-        lambda *= 10;
-        continue;
-      }
-      // Decrease the quadratic model predicts for this step: −(gᵀδ + ½δᵀHδ), with
-      // gᵀδ = Σ m_jᵀz_j + Σ h_bᵀδ_b and δᵀHδ = Σ z_jᵀM_j z_j + Σ δ_bᵀT_bδ_b (undamped). A step
-      // predicted to gain less than the convergence fraction is not worth pricing: stop here.
-      if (it > 0) {
-        double gd = 0;
-        double dHd = 0;
-        for (int j = 0; j < J; ++j) {
-          gd += G[ix(j)].dot(z[ix(j)]) + ht[ix(j)].dot(x[ix(j)]);
-          dHd += z[ix(j)].dot(S[ix(j)] * z[ix(j)]);
-          if (touched[ix(j)] || wt > 0) dHd += x[ix(j)].dot(Tt[ix(j)] * x[ix(j)]);
-        }
-        const double predicted = -(gd + 0.5 * dHd);
-        if (predicted < options_.converged_relative_decrease * current) {
-          it = options_.max_iterations;  // converged
-          break;
-        }
-      }
-      Eigen::Vector3d r2 = r + x[ix(order_.front())];
-      u2 = u;
-      for (int j = 0; j < J; ++j) {
-        if (parents_[ix(j)] < 0) continue;
-        const Eigen::Vector3d d = x[ix(j)];
-        const double angle = d.norm();
-        if (angle > 1e-12)
-          u2[ix(j)] = (Eigen::AngleAxisd(angle, d / angle) * u[ix(j)]).normalized();
-      }
-      const double c2 = evaluate(r2, u2, S_buf[1 - cur], G_buf[1 - cur]);
+      problem.take_step(r, u, r2, u2);
+      const double c2 = problem.evaluate(r2, u2, 1 - cur);
       if (c2 < current) {
         cur = 1 - cur;
         const double rel = (current - c2) / std::max(current, 1e-12);

@@ -158,6 +158,54 @@ std::filesystem::path default_cache_path() {
   return base / "mocap-box" / "vk-pipeline-cache.bin";
 }
 
+// Whether to run with the validation layer: asked for (options, or MOCAP_VULKAN_VALIDATION) and
+// installed; asked for but missing is a warning, not an error.
+bool validation_wanted(const GpuOptions& options) {
+  bool validation = options.validation;
+  if (const char* env = std::getenv("MOCAP_VULKAN_VALIDATION"); env && *env) {
+    validation = std::string(env) != "0";
+  }
+  if (validation && !(layer_available(kValidationLayer) &&
+                      instance_extension_available(VK_EXT_DEBUG_UTILS_EXTENSION_NAME))) {
+    MOCAP_LOG(Gpu, Warn) << "Vulkan validation requested but " << kValidationLayer
+                         << " is not installed (Debian: vulkan-validationlayers); running "
+                            "without it";
+    validation = false;
+  }
+  return validation;
+}
+
+// The pipeline cache file's contents when its header names this device and driver; else empty
+// (no file, unreadable, or another device's: then logged).
+std::vector<char> load_pipeline_cache(const std::filesystem::path& path,
+                                      VkPhysicalDevice physical) {
+  std::vector<char> blob;
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  constexpr std::uintmax_t kMaxCacheBytes = 256u << 20;
+  if (!ec && size > 0 && size < kMaxCacheBytes) {
+    std::ifstream f(path, std::ios::binary);
+    blob.resize(static_cast<std::size_t>(size));
+    if (!f.read(blob.data(), static_cast<std::streamsize>(size))) blob.clear();
+  }
+  VkPhysicalDeviceProperties props;
+  vkGetPhysicalDeviceProperties(physical, &props);
+  bool ok = blob.size() >= 16 + VK_UUID_SIZE;
+  if (ok) {
+    std::uint32_t h[4];
+    std::memcpy(h, blob.data(), sizeof h);
+    ok = h[0] >= 16 + VK_UUID_SIZE && h[1] == VK_PIPELINE_CACHE_HEADER_VERSION_ONE &&
+         h[2] == props.vendorID && h[3] == props.deviceID &&
+         std::memcmp(blob.data() + 16, props.pipelineCacheUUID, VK_UUID_SIZE) == 0;
+  }
+  if (!ok && !blob.empty()) {
+    MOCAP_LOG(Gpu, Info) << "pipeline cache " << path.string()
+                         << " is for another device or driver; starting a new one";
+  }
+  if (!ok) blob.clear();
+  return blob;
+}
+
 }  // namespace
 
 const char* vk_result_name(VkResult r) {
@@ -326,41 +374,44 @@ Result<std::unique_ptr<Context>> Context::create(const GpuOptions& options) {
   if (const char* env = std::getenv("MOCAP_VULKAN_DEVICE"); env && *env) {
     ctx->options_.device = env;
   }
-  bool validation = options.validation;
-  if (const char* env = std::getenv("MOCAP_VULKAN_VALIDATION"); env && *env) {
-    validation = std::string(env) != "0";
-  }
-  if (validation && !(layer_available(kValidationLayer) &&
-                      instance_extension_available(VK_EXT_DEBUG_UTILS_EXTENSION_NAME))) {
-    MOCAP_LOG(Gpu, Warn) << "Vulkan validation requested but " << kValidationLayer
-                         << " is not installed (Debian: vulkan-validationlayers); running "
-                            "without it";
-    validation = false;
-  }
+  const bool validation = validation_wanted(options);
   if (VkResult r = make_instance(validation, &ctx->instance_); r != VK_SUCCESS) {
     return vk_error(r,
                     "creating an instance (is a Vulkan driver installed? Debian: "
                     "mesa-vulkan-drivers)");
   }
-  if (validation) {
-    auto create_messenger = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
-        vkGetInstanceProcAddr(ctx->instance_, "vkCreateDebugUtilsMessengerEXT"));
-    if (create_messenger) {
-      VkDebugUtilsMessengerCreateInfoEXT mi{
-          VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
-      mi.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
-                           VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
-      mi.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
-                       VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
-                       VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
-      mi.pfnUserCallback = on_validation;
-      mi.pUserData = ctx->validation_error_count_.get();
-      create_messenger(ctx->instance_, &mi, nullptr, &ctx->messenger_);
-    }
+  if (validation) ctx->create_messenger();
+  if (Status s = ctx->choose_device(); !s.ok()) return s.error();
+  if (Status s = ctx->create_device(); !s.ok()) return s.error();
+  if (Status s = ctx->create_pipeline_cache(); !s.ok()) return s.error();
+  MOCAP_LOG(Gpu, Info) << "Vulkan device " << ctx->info_.index << ": " << ctx->info_.name << " ("
+                       << ctx->info_.type_name() << ")" << (validation ? ", validation on" : "");
+  if (ctx->info_.is_cpu()) {
+    MOCAP_LOG(Gpu, Info) << "running on a software Vulkan device (no GPU found or chosen)";
   }
+  return ctx;
+}
 
-  // Device selection.
-  const auto pds = physical_devices(ctx->instance_);
+// Validation messages (warnings and errors) to the log, errors counted.
+void Context::create_messenger() {
+  auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+      vkGetInstanceProcAddr(instance_, "vkCreateDebugUtilsMessengerEXT"));
+  if (!create) return;
+  VkDebugUtilsMessengerCreateInfoEXT mi{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+  mi.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
+                       VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+  mi.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
+                   VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                   VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+  mi.pfnUserCallback = on_validation;
+  mi.pUserData = validation_error_count_.get();
+  create(instance_, &mi, nullptr, &messenger_);
+}
+
+// The device options_.device names (an index or a substring of the name), else the best kind
+// (discrete, integrated, virtual, CPU) among those with a compute queue and Vulkan >= 1.1.
+Status Context::choose_device() {
+  const auto pds = physical_devices(instance_);
   std::vector<DeviceInfo> infos;
   std::string listing;
   for (std::size_t i = 0; i < pds.size(); ++i) {
@@ -369,7 +420,7 @@ Result<std::unique_ptr<Context>> Context::create(const GpuOptions& options) {
                infos.back().type_name() + ")";
   }
   int chosen = -1;
-  const std::string& want = ctx->options_.device;
+  const std::string& want = options_.device;
   for (std::size_t i = 0; i < pds.size(); ++i) {
     if (compute_family(pds[i], nullptr) < 0) continue;
     if (VK_API_VERSION_MAJOR(infos[i].api_version) == 1 &&
@@ -404,82 +455,62 @@ Result<std::unique_ptr<Context>> Context::create(const GpuOptions& options) {
                               : "no Vulkan device matches '" + want +
                                     "' (MOCAP_VULKAN_DEVICE / --device); devices:" + listing);
   }
-  ctx->physical_ = pds[static_cast<std::size_t>(chosen)];
-  ctx->info_ = infos[static_cast<std::size_t>(chosen)];
-  ctx->queue_family_ = static_cast<std::uint32_t>(compute_family(ctx->physical_, nullptr));
-  vkGetPhysicalDeviceMemoryProperties(ctx->physical_, &ctx->memory_);
+  physical_ = pds[static_cast<std::size_t>(chosen)];
+  info_ = infos[static_cast<std::size_t>(chosen)];
+  return Status::Ok();
+}
 
+// The logical device with one compute queue, its command pool and fence.
+Status Context::create_device() {
+  queue_family_ = static_cast<std::uint32_t>(compute_family(physical_, nullptr));
+  vkGetPhysicalDeviceMemoryProperties(physical_, &memory_);
   const float prio = 1.0f;
   VkDeviceQueueCreateInfo qi{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-  qi.queueFamilyIndex = ctx->queue_family_;
+  qi.queueFamilyIndex = queue_family_;
   qi.queueCount = 1;
   qi.pQueuePriorities = &prio;
   VkDeviceCreateInfo di{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
   di.queueCreateInfoCount = 1;
   di.pQueueCreateInfos = &qi;
-  if (VkResult r = vkCreateDevice(ctx->physical_, &di, nullptr, &ctx->device_); r != VK_SUCCESS) {
-    return vk_error(r, "creating the logical device on " + ctx->info_.name);
+  if (VkResult r = vkCreateDevice(physical_, &di, nullptr, &device_); r != VK_SUCCESS) {
+    return vk_error(r, "creating the logical device on " + info_.name);
   }
-  vkGetDeviceQueue(ctx->device_, ctx->queue_family_, 0, &ctx->queue_);
+  vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
   VkCommandPoolCreateInfo pi{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
   pi.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
-  pi.queueFamilyIndex = ctx->queue_family_;
-  if (VkResult r = vkCreateCommandPool(ctx->device_, &pi, nullptr, &ctx->pool_); r != VK_SUCCESS) {
+  pi.queueFamilyIndex = queue_family_;
+  if (VkResult r = vkCreateCommandPool(device_, &pi, nullptr, &pool_); r != VK_SUCCESS) {
     return vk_error(r, "creating a command pool");
   }
   VkFenceCreateInfo fi{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-  if (VkResult r = vkCreateFence(ctx->device_, &fi, nullptr, &ctx->fence_); r != VK_SUCCESS) {
+  if (VkResult r = vkCreateFence(device_, &fi, nullptr, &fence_); r != VK_SUCCESS) {
     return vk_error(r, "creating a fence");
   }
+  return Status::Ok();
+}
 
-  // Pipeline cache: reuse the file only when its header names this device and driver.
-  ctx->cache_path_ =
-      options.pipeline_cache_path.empty() ? default_cache_path() : options.pipeline_cache_path;
+// Pipeline cache: reuse the file only when its header names this device and driver.
+Status Context::create_pipeline_cache() {
+  cache_path_ =
+      options_.pipeline_cache_path.empty() ? default_cache_path() : options_.pipeline_cache_path;
   std::vector<char> blob;
-  if (options.persist_pipeline_cache && !ctx->cache_path_.empty()) {
-    std::error_code ec;
-    const auto size = std::filesystem::file_size(ctx->cache_path_, ec);
-    constexpr std::uintmax_t kMaxCacheBytes = 256u << 20;
-    if (!ec && size > 0 && size < kMaxCacheBytes) {
-      std::ifstream f(ctx->cache_path_, std::ios::binary);
-      blob.resize(static_cast<std::size_t>(size));
-      if (!f.read(blob.data(), static_cast<std::streamsize>(size))) blob.clear();
-    }
-    VkPhysicalDeviceProperties props;
-    vkGetPhysicalDeviceProperties(ctx->physical_, &props);
-    bool ok = blob.size() >= 16 + VK_UUID_SIZE;
-    if (ok) {
-      std::uint32_t h[4];
-      std::memcpy(h, blob.data(), sizeof h);
-      ok = h[0] >= 16 + VK_UUID_SIZE && h[1] == VK_PIPELINE_CACHE_HEADER_VERSION_ONE &&
-           h[2] == props.vendorID && h[3] == props.deviceID &&
-           std::memcmp(blob.data() + 16, props.pipelineCacheUUID, VK_UUID_SIZE) == 0;
-    }
-    if (!ok && !blob.empty()) {
-      MOCAP_LOG(Gpu, Info) << "pipeline cache " << ctx->cache_path_.string()
-                           << " is for another device or driver; starting a new one";
-    }
-    if (!ok) blob.clear();
+  if (options_.persist_pipeline_cache && !cache_path_.empty()) {
+    blob = load_pipeline_cache(cache_path_, physical_);
   }
   VkPipelineCacheCreateInfo ci{VK_STRUCTURE_TYPE_PIPELINE_CACHE_CREATE_INFO};
   ci.initialDataSize = blob.size();
   ci.pInitialData = blob.empty() ? nullptr : blob.data();
-  if (VkResult r = vkCreatePipelineCache(ctx->device_, &ci, nullptr, &ctx->pipeline_cache_);
+  if (VkResult r = vkCreatePipelineCache(device_, &ci, nullptr, &pipeline_cache_);
       r != VK_SUCCESS) {
     ci.initialDataSize = 0;
     ci.pInitialData = nullptr;
-    if (VkResult r2 = vkCreatePipelineCache(ctx->device_, &ci, nullptr, &ctx->pipeline_cache_);
+    if (VkResult r2 = vkCreatePipelineCache(device_, &ci, nullptr, &pipeline_cache_);
         r2 != VK_SUCCESS) {
       return vk_error(r2, "creating a pipeline cache");
     }
     (void)r;
   }
-  MOCAP_LOG(Gpu, Info) << "Vulkan device " << ctx->info_.index << ": " << ctx->info_.name << " ("
-                       << ctx->info_.type_name() << ")" << (validation ? ", validation on" : "");
-  if (ctx->info_.is_cpu()) {
-    MOCAP_LOG(Gpu, Info) << "running on a software Vulkan device (no GPU found or chosen)";
-  }
-  return ctx;
+  return Status::Ok();
 }
 
 Context::~Context() {

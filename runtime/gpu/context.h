@@ -174,6 +174,11 @@ class Context {
  private:
   Context() = default;
   struct Messenger;
+  // create()'s stages after the instance.
+  void create_messenger();
+  Status choose_device();
+  Status create_device();
+  Status create_pipeline_cache();
 
   GpuOptions options_;
   DeviceInfo info_;

@@ -45,13 +45,132 @@ bool is_pointwise(const nn::Layer& l) {
          l.stride_w == 1;
 }
 
-// A 1x1 conv fused with its sibling heads: group leader (layer index), first vec4 group and
-// groups per pixel in the leader's buffer.
-struct FusedHead {
-  int leader = -1;
-  int offset4 = 0;
-  int stride4 = 0;
+// constants_[kDummyConstant] is bound where a kernel has no PReLU slopes.
+constexpr std::size_t kDummyConstant = 0;
+
+// What a conv step runs: the kernel, its weights and bias laid out for it, push constants and
+// workgroups.
+struct ConvPlan {
+  Shader shader = Shader::kConv2D;
+  std::vector<float> w;
+  std::vector<float> bias;  // empty: zeros, bias_groups vec4 groups
+  int bias_groups = 0;
+  int conv_groups = 1;
+  std::vector<std::int32_t> push;
+  std::uint32_t groups = 0;
 };
+
+// The geometry of a conv step: input and output shapes, vec4 groups in and out, padding.
+struct ConvShape {
+  nn::Shape in, out;
+  int cin4 = 0;
+  int cout4 = 0;
+  int pad_top = 0;
+  int pad_left = 0;
+};
+
+// A pointwise conv, or a fused group of heads (`members`, member i's outputs from channel
+// first_channel[i] on): weights [cin4 * 4][cout4p * 4], bias [cout4p * 4].
+ConvPlan plan_pointwise(const nn::Model& model, std::span<const std::size_t> members,
+                        std::span<const int> first_channel, const ConvShape& g,
+                        std::uint32_t workgroup_size) {
+  ConvPlan p;
+  p.shader = Shader::kPointwiseConv2D;
+  const int cout4p = round_up(g.cout4, kPointwiseGroups);
+  p.bias_groups = cout4p;
+  p.w.assign(ix(static_cast<long>(g.cin4) * 4 * cout4p * 4), 0.f);
+  p.bias.assign(ix(static_cast<long>(p.bias_groups) * 4), 0.f);
+  for (std::size_t i = 0; i < members.size(); ++i) {
+    const nn::Layer& lm = model.layers[members[i]];
+    const int first = first_channel[i];
+    const nn::ConstTensor& wt = model.tensors[ix(lm.weights)];
+    const int cin = wt.shape[2];
+    const int cout = wt.shape[3];
+    for (int ci = 0; ci < cin; ++ci) {
+      for (int co = 0; co < cout; ++co) {
+        p.w[ix(static_cast<long>(ci) * cout4p * 4 + first + co)] =
+            wt.data[ix(static_cast<long>(ci) * cout + co)];
+      }
+    }
+    if (lm.bias >= 0) {
+      const auto& bt = model.tensors[ix(lm.bias)].data;
+      std::copy(bt.begin(), bt.end(), p.bias.begin() + first);
+    }
+  }
+  const long pixels = static_cast<long>(g.out.n) * g.out.h * g.out.w;
+  p.push = {static_cast<std::int32_t>(pixels), g.cin4, g.cin4, 0, g.cout4, cout4p, g.cout4, 0};
+  p.groups = div_up(div_up(pixels, kPointwisePixels) * (cout4p / kPointwiseGroups),
+                    static_cast<long>(workgroup_size));
+  return p;
+}
+
+// A general conv: weights [kernel][cin4 * 4][cout4p * 4], cout4p a multiple of the output
+// groups per invocation.
+ConvPlan plan_conv(const nn::Model& model, const nn::Layer& l, const ConvShape& g,
+                   std::uint32_t workgroup_size) {
+  ConvPlan p;
+  p.shader = Shader::kConv2D;
+  p.conv_groups = std::min(g.cout4, kConvGroupsMax);
+  const int cout4p = round_up(g.cout4, p.conv_groups);
+  p.bias_groups = cout4p;
+  const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
+  const int cin = wt.shape[2];
+  const int cout = wt.shape[3];
+  p.w.assign(ix(static_cast<long>(l.kernel_h) * l.kernel_w * g.cin4 * 4 * cout4p * 4), 0.f);
+  for (int k = 0; k < l.kernel_h * l.kernel_w; ++k) {
+    for (int ci = 0; ci < cin; ++ci) {
+      for (int co = 0; co < cout; ++co) {
+        p.w[ix((static_cast<long>(k) * g.cin4 * 4 + ci) * cout4p * 4 + co)] =
+            wt.data[ix((static_cast<long>(k) * cin + ci) * cout + co)];
+      }
+    }
+  }
+  const nn::Shape& is = g.in;
+  const nn::Shape& os = g.out;
+  const int x_blocks = (os.w + kConvPixels - 1) / kConvPixels;
+  p.push = {os.n,    is.h, is.w,       g.cin4,     g.cin4,    os.h,       os.w,     g.cout4,
+            g.cout4, 0,    l.stride_h, l.stride_w, g.pad_top, g.pad_left, x_blocks, cout4p};
+  p.groups = div_up(static_cast<long>(os.n) * os.h * x_blocks * (cout4p / p.conv_groups),
+                    static_cast<long>(workgroup_size));
+  return p;
+}
+
+// A depthwise conv: weights [kernel][cin4 * 4].
+ConvPlan plan_depthwise(const nn::Model& model, const nn::Layer& l, const ConvShape& g,
+                        std::uint32_t workgroup_size) {
+  ConvPlan p;
+  p.shader = Shader::kDepthwiseConv2D;
+  p.bias_groups = g.cout4;
+  const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
+  const int c = wt.shape[2];
+  p.w.assign(ix(static_cast<long>(l.kernel_h) * l.kernel_w * g.cin4 * 4), 0.f);
+  for (int k = 0; k < l.kernel_h * l.kernel_w; ++k) {
+    for (int ch = 0; ch < c; ++ch) {
+      p.w[ix(static_cast<long>(k) * g.cin4 * 4 + ch)] = wt.data[ix(static_cast<long>(k) * c + ch)];
+    }
+  }
+  const nn::Shape& is = g.in;
+  const nn::Shape& os = g.out;
+  const int x_blocks = (os.w + kDepthwisePixels - 1) / kDepthwisePixels;
+  p.push = {os.n,    is.h,       is.w,       g.cin4,    g.cin4,     os.h,    os.w,
+            g.cout4, l.stride_h, l.stride_w, g.pad_top, g.pad_left, x_blocks};
+  p.groups = div_up(static_cast<long>(os.n) * os.h * x_blocks * g.cout4,
+                    static_cast<long>(workgroup_size));
+  return p;
+}
+
+// Specialization constants of a conv kernel: the activation, then its tile.
+std::vector<std::int32_t> conv_spec(const ConvPlan& p, const nn::Layer& l) {
+  std::vector<std::int32_t> spec{static_cast<std::int32_t>(l.activation)};
+  if (p.shader == Shader::kPointwiseConv2D) {
+    spec.insert(spec.end(), {kPointwisePixels, kPointwiseGroups, kPointwiseBlock});
+  } else if (p.shader == Shader::kDepthwiseConv2D) {
+    spec.insert(spec.end(), {l.kernel_h, l.kernel_w, l.stride_w, kDepthwisePixels});
+  } else {
+    spec.insert(spec.end(), {l.kernel_h, l.kernel_w, l.stride_w, kConvPixels, p.conv_groups});
+  }
+  return spec;
+}
 
 }  // namespace
 
@@ -121,19 +240,11 @@ Status Network::flush_uploads() {
   return s;
 }
 
-Status Network::build(const nn::Model& model, const NetworkOptions& options) {
-  options_ = options;
-  input_channels_ = model.input_channels;
-  auto shapes = model.infer_shapes(
-      nn::Shape{options.batch, options.height_px, options.width_px, model.input_channels});
-  if (!shapes.ok()) return shapes.error();
-  shapes_ = std::move(*shapes);
-  const std::size_t V = shapes_.size();
-  for (const nn::Shape& s : shapes_) c4_.push_back(c4_of(s.c));
-
-  // Sibling output heads: 1x1 convs reading the same value, with the same activation, whose
-  // outputs only leave the network (PoseNet's four heads) run as one GEMM that writes them side
-  // by side into the leader's buffer: one dispatch instead of four small ones.
+// Sibling output heads: 1x1 convs reading the same value, with the same activation, whose
+// outputs only leave the network (PoseNet's four heads) run as one GEMM that writes them side
+// by side into the leader's buffer: one dispatch instead of four small ones.
+std::vector<Network::FusedHead> Network::fuse_output_heads(const nn::Model& model,
+                                                           const std::vector<int>& c4) {
   const std::size_t L = model.layers.size();
   std::vector<FusedHead> fused(L);
   auto only_output = [&](int v) {
@@ -164,11 +275,41 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
     int offset4 = 0;
     for (std::size_t m : group) {
       fused[m] = FusedHead{static_cast<int>(li), offset4, 0};
-      offset4 += c4_[m + 1];
+      offset4 += c4[m + 1];
     }
     for (std::size_t m : group) fused[m].stride4 = offset4;
   }
+  return fused;
+}
 
+Status Network::build(const nn::Model& model, const NetworkOptions& options) {
+  options_ = options;
+  input_channels_ = model.input_channels;
+  auto shapes = model.infer_shapes(
+      nn::Shape{options.batch, options.height_px, options.width_px, model.input_channels});
+  if (!shapes.ok()) return shapes.error();
+  shapes_ = std::move(*shapes);
+  for (const nn::Shape& s : shapes_) c4_.push_back(c4_of(s.c));
+  const std::vector<FusedHead> fused = fuse_output_heads(model, c4_);
+  if (Status s = allocate_buffers(model, fused); !s.ok()) return s;
+  if (Status s = create_descriptor_pool(model); !s.ok()) return s;
+  for (std::size_t li = 0; li < model.layers.size(); ++li) {
+    const nn::Layer& l = model.layers[li];
+    if (l.op != nn::OpType::kConv2D && l.op != nn::OpType::kDepthwiseConv2D) {
+      if (Status st = add_data_step(model, li); !st.ok()) return st;
+      continue;
+    }
+    // A fused head other than its group's leader is computed by the leader's step.
+    if (fused[li].leader >= 0 && fused[li].leader != static_cast<int>(li)) continue;
+    if (Status st = add_conv_step(model, li, fused); !st.ok()) return st;
+  }
+  // All weights in one submission.
+  if (Status s = flush_uploads(); !s.ok()) return s;
+  return record();
+}
+
+Status Network::allocate_buffers(const nn::Model& model, const std::vector<FusedHead>& fused) {
+  const std::size_t V = shapes_.size();
   for (std::size_t v = 0; v < V; ++v) {
     Slot slot{static_cast<int>(v), c4_[v], 0};
     if (v > 0 && fused[v - 1].leader >= 0) {
@@ -176,7 +317,6 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
     }
     slots_.push_back(slot);
   }
-
   // Activation buffers (vec4 channel groups).
   for (std::size_t v = 0; v < V; ++v) {
     const nn::Shape& s = shapes_[v];
@@ -199,12 +339,15 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
     outputs_.push_back(Output{o.name, o.value, shapes_[ix(o.value)], std::move(*st), slot.src,
                               slot.stride4, slot.offset4});
   }
+  // constants_[kDummyConstant]: bound where a kernel has no PReLU slopes.
   auto dummy = upload(std::vector<float>(4, 0.f));
   if (!dummy.ok()) return dummy.error();
   constants_.push_back(std::move(*dummy));
-  const std::size_t dummy_index = 0;
+  return Status::Ok();
+}
 
-  // One descriptor set per step: one per layer, one per input of a concat.
+// One descriptor set per step: one per layer, one per input of a concat.
+Status Network::create_descriptor_pool(const nn::Model& model) {
   std::uint32_t sets = 0;
   for (const nn::Layer& l : model.layers) {
     sets += l.op == nn::OpType::kConcat ? static_cast<std::uint32_t>(l.inputs.size()) : 1u;
@@ -218,146 +361,74 @@ Status Network::build(const nn::Model& model, const NetworkOptions& options) {
   if (VkResult r = vkCreateDescriptorPool(ctx_.device(), &pi, nullptr, &pool_); r != VK_SUCCESS) {
     return vk_error(r, "creating a descriptor pool");
   }
+  return Status::Ok();
+}
 
-  for (std::size_t li = 0; li < model.layers.size(); ++li) {
-    const nn::Layer& l = model.layers[li];
-    if (l.op != nn::OpType::kConv2D && l.op != nn::OpType::kDepthwiseConv2D) {
-      if (Status st = add_data_step(model, li); !st.ok()) return st;
-      continue;
-    }
-    // A fused head other than its group's leader is computed by the leader's step.
-    if (fused[li].leader >= 0 && fused[li].leader != static_cast<int>(li)) continue;
-    std::vector<std::size_t> members{li};
-    for (std::size_t lj = li + 1; lj < L && fused[li].leader >= 0; ++lj) {
-      if (fused[lj].leader == static_cast<int>(li)) members.push_back(lj);
-    }
-    const int in_v = l.inputs[0];
-    const nn::Shape& is = shapes_[ix(in_v)];
-    const nn::Shape& os = shapes_[li + 1];
-    const int cin4 = c4_[ix(in_v)];
-    const int cout4 = fused[li].leader >= 0 ? fused[li].stride4 : c4_[li + 1];
-    Step step;
-    step.name = l.name;
-    for (std::size_t k = 1; k < members.size(); ++k)
-      step.name += " + " + model.layers[members[k]].name;
-    int shader = -1;
-    std::vector<float> w;
-    std::vector<float> bias;
-    int bias_groups = cout4;
-    int conv_groups = 1;
-    const int pad_top = nn::conv_pad_before(is.h, l.kernel_h, l.stride_h, l.padding);
-    const int pad_left = nn::conv_pad_before(is.w, l.kernel_w, l.stride_w, l.padding);
-    if (is_pointwise(l)) {
-      shader = static_cast<int>(Shader::kPointwiseConv2D);
-      const int cout4p = round_up(cout4, kPointwiseGroups);
-      bias_groups = cout4p;
-      w.assign(ix(static_cast<long>(cin4) * 4 * cout4p * 4), 0.f);
-      bias.assign(ix(static_cast<long>(bias_groups) * 4), 0.f);
-      for (std::size_t m : members) {
-        const nn::Layer& lm = model.layers[m];
-        const int first = fused[li].leader >= 0 ? fused[m].offset4 * 4 : 0;
-        const nn::ConstTensor& wt = model.tensors[ix(lm.weights)];
-        const int cin = wt.shape[2];
-        const int cout = wt.shape[3];
-        for (int ci = 0; ci < cin; ++ci) {
-          for (int co = 0; co < cout; ++co) {
-            w[ix(static_cast<long>(ci) * cout4p * 4 + first + co)] =
-                wt.data[ix(static_cast<long>(ci) * cout + co)];
-          }
-        }
-        if (lm.bias >= 0) {
-          const auto& bt = model.tensors[ix(lm.bias)].data;
-          std::copy(bt.begin(), bt.end(), bias.begin() + first);
-        }
-      }
-      const long pixels = static_cast<long>(os.n) * os.h * os.w;
-      step.push = {static_cast<std::int32_t>(pixels), cin4, cin4, 0, cout4, cout4p, cout4, 0};
-      step.groups = div_up(div_up(pixels, kPointwisePixels) * (cout4p / kPointwiseGroups),
-                           static_cast<long>(options.workgroup_size));
-    } else if (l.op == nn::OpType::kConv2D) {
-      shader = static_cast<int>(Shader::kConv2D);
-      conv_groups = std::min(cout4, kConvGroupsMax);
-      const int cout4p = round_up(cout4, conv_groups);
-      bias_groups = cout4p;
-      const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
-      const int cin = wt.shape[2];
-      const int cout = wt.shape[3];
-      w.assign(ix(static_cast<long>(l.kernel_h) * l.kernel_w * cin4 * 4 * cout4p * 4), 0.f);
-      for (int k = 0; k < l.kernel_h * l.kernel_w; ++k) {
-        for (int ci = 0; ci < cin; ++ci) {
-          for (int co = 0; co < cout; ++co) {
-            w[ix((static_cast<long>(k) * cin4 * 4 + ci) * cout4p * 4 + co)] =
-                wt.data[ix((static_cast<long>(k) * cin + ci) * cout + co)];
-          }
-        }
-      }
-      const int x_blocks = (os.w + kConvPixels - 1) / kConvPixels;
-      step.push = {os.n,  is.h, is.w,       cin4,       cin4,    os.h,     os.w,     cout4,
-                   cout4, 0,    l.stride_h, l.stride_w, pad_top, pad_left, x_blocks, cout4p};
-      step.groups = div_up(static_cast<long>(os.n) * os.h * x_blocks * (cout4p / conv_groups),
-                           static_cast<long>(options.workgroup_size));
-    } else {
-      shader = static_cast<int>(Shader::kDepthwiseConv2D);
-      const nn::ConstTensor& wt = model.tensors[ix(l.weights)];
-      const int c = wt.shape[2];
-      w.assign(ix(static_cast<long>(l.kernel_h) * l.kernel_w * cin4 * 4), 0.f);
-      for (int k = 0; k < l.kernel_h * l.kernel_w; ++k) {
-        for (int ch = 0; ch < c; ++ch) {
-          w[ix(static_cast<long>(k) * cin4 * 4 + ch)] = wt.data[ix(static_cast<long>(k) * c + ch)];
-        }
-      }
-      const int x_blocks = (os.w + kDepthwisePixels - 1) / kDepthwisePixels;
-      step.push = {os.n,  is.h,       is.w,       cin4,    cin4,     os.h,    os.w,
-                   cout4, l.stride_h, l.stride_w, pad_top, pad_left, x_blocks};
-      step.groups = div_up(static_cast<long>(os.n) * os.h * x_blocks * cout4,
-                           static_cast<long>(options.workgroup_size));
-    }
-    step.push.resize(kPushBytes / sizeof(std::int32_t), 0);
-    if (bias.empty()) bias.assign(ix(static_cast<long>(bias_groups) * 4), 0.f);
-    if (l.bias >= 0 && !is_pointwise(l)) {
-      const auto& bt = model.tensors[ix(l.bias)].data;
-      std::copy(bt.begin(), bt.end(), bias.begin());
-    }
-    std::vector<float> alpha;
-    if (l.activation == nn::Activation::kPRelu) {
-      alpha.assign(ix(static_cast<long>(bias_groups) * 4), 0.f);
-      const auto& at = model.tensors[ix(l.alpha)].data;
-      std::copy(at.begin(), at.end(), alpha.begin());
-    }
-    std::vector<std::int32_t> spec{static_cast<std::int32_t>(l.activation)};
-    if (shader == static_cast<int>(Shader::kPointwiseConv2D)) {
-      spec.insert(spec.end(), {kPointwisePixels, kPointwiseGroups, kPointwiseBlock});
-    } else if (shader == static_cast<int>(Shader::kDepthwiseConv2D)) {
-      spec.insert(spec.end(), {l.kernel_h, l.kernel_w, l.stride_w, kDepthwisePixels});
-    } else {
-      spec.insert(spec.end(), {l.kernel_h, l.kernel_w, l.stride_w, kConvPixels, conv_groups});
-    }
-    auto k = kernel(shader, spec);
-    if (!k.ok()) return k.error();
-    step.kernel = *k;
-    auto wb = upload(w);
-    if (!wb.ok()) return wb.error();
-    auto bb = upload(bias);
-    if (!bb.ok()) return bb.error();
-    const std::size_t wi = constants_.size();
-    constants_.push_back(std::move(*wb));
-    constants_.push_back(std::move(*bb));
-    std::size_t ai = dummy_index;
-    if (!alpha.empty()) {
-      auto ab = upload(alpha);
-      if (!ab.ok()) return ab.error();
-      ai = constants_.size();
-      constants_.push_back(std::move(*ab));
-    }
-    const Buffer* bufs[kBindings] = {&values_[ix(in_v)], &constants_[wi], &constants_[wi + 1],
-                                     &values_[li + 1], &constants_[ai]};
-    if (Status st = bind(step, bufs); !st.ok()) return st;
-    layer_times_.push_back(LayerTime{step.name, shader_name(static_cast<Shader>(shader)), 0});
-    steps_.push_back(std::move(step));
+Status Network::add_conv_step(const nn::Model& model, std::size_t li,
+                              const std::vector<FusedHead>& fused) {
+  const nn::Layer& l = model.layers[li];
+  const std::size_t L = model.layers.size();
+  std::vector<std::size_t> members{li};
+  for (std::size_t lj = li + 1; lj < L && fused[li].leader >= 0; ++lj) {
+    if (fused[lj].leader == static_cast<int>(li)) members.push_back(lj);
   }
-  // All weights in one submission.
-  if (Status s = flush_uploads(); !s.ok()) return s;
-  return record();
+  const int in_v = l.inputs[0];
+  ConvShape g;
+  g.in = shapes_[ix(in_v)];
+  g.out = shapes_[li + 1];
+  g.cin4 = c4_[ix(in_v)];
+  g.cout4 = fused[li].leader >= 0 ? fused[li].stride4 : c4_[li + 1];
+  g.pad_top = nn::conv_pad_before(g.in.h, l.kernel_h, l.stride_h, l.padding);
+  g.pad_left = nn::conv_pad_before(g.in.w, l.kernel_w, l.stride_w, l.padding);
+  std::vector<int> first_channel;  // of each member in the leader's buffer
+  for (std::size_t m : members) {
+    first_channel.push_back(fused[li].leader >= 0 ? fused[m].offset4 * 4 : 0);
+  }
+  Step step;
+  step.name = l.name;
+  for (std::size_t k = 1; k < members.size(); ++k)
+    step.name += " + " + model.layers[members[k]].name;
+  ConvPlan p = is_pointwise(l)
+                   ? plan_pointwise(model, members, first_channel, g, options_.workgroup_size)
+               : l.op == nn::OpType::kConv2D ? plan_conv(model, l, g, options_.workgroup_size)
+                                             : plan_depthwise(model, l, g, options_.workgroup_size);
+  step.push = std::move(p.push);
+  step.groups = p.groups;
+  step.push.resize(kPushBytes / sizeof(std::int32_t), 0);
+  if (p.bias.empty()) p.bias.assign(ix(static_cast<long>(p.bias_groups) * 4), 0.f);
+  if (l.bias >= 0 && !is_pointwise(l)) {
+    const auto& bt = model.tensors[ix(l.bias)].data;
+    std::copy(bt.begin(), bt.end(), p.bias.begin());
+  }
+  std::vector<float> alpha;
+  if (l.activation == nn::Activation::kPRelu) {
+    alpha.assign(ix(static_cast<long>(p.bias_groups) * 4), 0.f);
+    const auto& at = model.tensors[ix(l.alpha)].data;
+    std::copy(at.begin(), at.end(), alpha.begin());
+  }
+  auto k = kernel(static_cast<int>(p.shader), conv_spec(p, l));
+  if (!k.ok()) return k.error();
+  step.kernel = *k;
+  auto wb = upload(p.w);
+  if (!wb.ok()) return wb.error();
+  auto bb = upload(p.bias);
+  if (!bb.ok()) return bb.error();
+  const std::size_t wi = constants_.size();
+  constants_.push_back(std::move(*wb));
+  constants_.push_back(std::move(*bb));
+  std::size_t ai = kDummyConstant;
+  if (!alpha.empty()) {
+    auto ab = upload(alpha);
+    if (!ab.ok()) return ab.error();
+    ai = constants_.size();
+    constants_.push_back(std::move(*ab));
+  }
+  const Buffer* bufs[kBindings] = {&values_[ix(in_v)], &constants_[wi], &constants_[wi + 1],
+                                   &values_[li + 1], &constants_[ai]};
+  if (Status st = bind(step, bufs); !st.ok()) return st;
+  layer_times_.push_back(LayerTime{step.name, shader_name(p.shader), 0});
+  steps_.push_back(std::move(step));
+  return Status::Ok();
 }
 
 Status Network::bind(Step& step, const Buffer* const (&bufs)[5]) {

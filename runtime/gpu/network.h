@@ -61,6 +61,14 @@ class Network {
 
  private:
   Network(Context& ctx) : ctx_(ctx) {}
+  // A 1x1 conv fused with its sibling heads (output heads reading one value, computed by one
+  // GEMM): group leader (layer index; -1 not fused), first vec4 group and groups per pixel in
+  // the leader's buffer.
+  struct FusedHead {
+    int leader = -1;
+    int offset4 = 0;
+    int stride4 = 0;
+  };
   struct Output {
     std::string name;
     int value = -1;
@@ -78,6 +86,14 @@ class Network {
     std::uint32_t groups = 0;
   };
   Status build(const nn::Model& model, const NetworkOptions& options);
+  // Per layer, its group of fused output heads (leader -1: not fused).
+  static std::vector<FusedHead> fuse_output_heads(const nn::Model& model,
+                                                  const std::vector<int>& c4);
+  // build()'s stages: value, staging and output buffers (and the dummy constant); the
+  // descriptor pool; one step per conv layer or fused group of heads (its weights uploaded).
+  Status allocate_buffers(const nn::Model& model, const std::vector<FusedHead>& fused);
+  Status create_descriptor_pool(const nn::Model& model);
+  Status add_conv_step(const nn::Model& model, std::size_t li, const std::vector<FusedHead>& fused);
   // Steps of an add, activation, max-pool, resize or concat layer (no weights).
   Status add_data_step(const nn::Model& model, std::size_t li);
   // Allocates step.set and points bindings 0..4 at `bufs` (texel views for 0 and 1).

@@ -152,6 +152,17 @@ struct NodeValue {
   std::string const_name;
 };
 
+// One weight of a manifest group: what its bytes hold.
+struct WeightSpec {
+  std::string name;
+  std::vector<int> shape;
+  std::uint64_t elements = 1;
+  bool is_int = false;
+  std::size_t quantized_bytes = 0;  // 0: not quantized; else 1 (uint8) or 2 (uint16)
+  float scale = 0.0f;
+  float min = 0.0f;
+};
+
 class Importer {
  public:
   explicit Importer(const std::filesystem::path& json_path)
@@ -172,6 +183,12 @@ class Importer {
   Status parse_nodes();
   Status load_weights();
   Status load_group(const Json& group, std::size_t g);
+  // load_group's stages: one manifest entry; the group's shard files read into `buffer`
+  // (exactly `needed` bytes); the weights decoded from it.
+  Result<WeightSpec> parse_weight_spec(const Json& j, const std::string& wwhere) const;
+  Status read_shards(const Json& paths, const std::string& where, std::uint64_t needed,
+                     std::vector<std::uint8_t>& buffer) const;
+  Status decode_weights(std::vector<WeightSpec>& specs, const std::vector<std::uint8_t>& buffer);
   Result<std::vector<std::string>> output_nodes() const;
   Result<std::vector<const TfNode*>> topological_order(const std::vector<std::string>& outs);
   const TfNode* resolve_passthrough(const TfNode* n) const;
@@ -342,81 +359,79 @@ Status Importer::load_group(const Json& group, std::size_t g) {
   if (weights == group.end() || !weights->is_array()) {
     return error(where + ": missing array 'weights'");
   }
-
   // Pass 1: what the group's bytes must hold.
-  struct Spec {
-    std::string name;
-    std::vector<int> shape;
-    std::uint64_t elements = 1;
-    bool is_int = false;
-    std::size_t quantized_bytes = 0;  // 0: not quantized; else 1 (uint8) or 2 (uint16)
-    float scale = 0.0f;
-    float min = 0.0f;
-  };
-  std::vector<Spec> specs;
+  std::vector<WeightSpec> specs;
   std::uint64_t needed = 0;
   for (std::size_t w = 0; w < weights->size(); ++w) {
-    const Json& j = (*weights)[w];
-    const std::string wwhere = where + ".weights[" + std::to_string(w) + "]";
-    if (!j.is_object()) return error(wwhere + " must be an object");
-    auto name = j.find("name");
-    auto shape = j.find("shape");
-    auto dtype = j.find("dtype");
-    if (name == j.end() || !name->is_string()) return error(wwhere + ": missing string 'name'");
-    Spec s;
-    s.name = name->get<std::string>();
-    const std::string wname = "weight '" + s.name + "'";
-    if (shape == j.end() || !shape->is_array()) return error(wname + ": missing array 'shape'");
-    if (dtype == j.end() || !dtype->is_string()) return error(wname + ": missing string 'dtype'");
-    for (const Json& d : *shape) {
-      if (!d.is_number_integer() || d.get<std::int64_t>() < 0 || d.get<std::int64_t>() > kMaxInt) {
-        return error(wname + ": shape entries must be integers in [0, " + std::to_string(kMaxInt) +
-                     "]");
-      }
-      s.shape.push_back(d.get<int>());
-      s.elements *= static_cast<std::uint64_t>(s.shape.back());
-      if (s.elements > kMaxGroupBytes) return error(wname + ": shape is implausibly large");
-    }
-    const std::string type = dtype->get<std::string>();
-    if (type == "int32") {
-      s.is_int = true;
-    } else if (type != "float32") {
-      return error(wname + ": dtype '" + type + "' is not supported (float32 and int32 are)",
-                   ErrorCode::kUnsupported);
-    }
-    std::uint64_t bytes_per = sizeof(float);
-    if (auto q = j.find("quantization"); q != j.end()) {
-      auto qtype = q->is_object() ? q->find("dtype") : q->end();
-      if (qtype == q->end() || !qtype->is_string()) {
-        return error(wname + ": 'quantization' needs a string 'dtype'");
-      }
-      const std::string qt = qtype->get<std::string>();
-      if (s.is_int || (qt != "uint8" && qt != "uint16")) {
-        return error(wname + ": quantization to '" + qt + "' of a " + type +
-                         " weight is not supported (uint8/uint16 of float32 are)",
-                     ErrorCode::kUnsupported);
-      }
-      auto scale = q->find("scale");
-      auto min = q->find("min");
-      if (scale == q->end() || !scale->is_number() || min == q->end() || !min->is_number()) {
-        return error(wname + ": uint8/uint16 quantization needs numbers 'scale' and 'min'");
-      }
-      s.quantized_bytes = qt == "uint8" ? sizeof(std::uint8_t) : sizeof(std::uint16_t);
-      s.scale = scale->get<float>();
-      s.min = min->get<float>();
-      bytes_per = s.quantized_bytes;
-    }
-    needed += s.elements * bytes_per;
+    auto s = parse_weight_spec((*weights)[w], where + ".weights[" + std::to_string(w) + "]");
+    if (!s.ok()) return s.error();
+    needed += s->elements * (s->quantized_bytes != 0 ? s->quantized_bytes : sizeof(float));
     if (needed > kMaxGroupBytes) return error(where + ": weights need implausibly many bytes");
-    specs.push_back(std::move(s));
+    specs.push_back(std::move(*s));
   }
+  std::vector<std::uint8_t> buffer;
+  if (Status s = read_shards(*paths, where, needed, buffer); !s.ok()) return s;
+  return decode_weights(specs, buffer);  // pass 2
+}
 
+Result<WeightSpec> Importer::parse_weight_spec(const Json& j, const std::string& wwhere) const {
+  if (!j.is_object()) return error(wwhere + " must be an object");
+  auto name = j.find("name");
+  auto shape = j.find("shape");
+  auto dtype = j.find("dtype");
+  if (name == j.end() || !name->is_string()) return error(wwhere + ": missing string 'name'");
+  WeightSpec s;
+  s.name = name->get<std::string>();
+  const std::string wname = "weight '" + s.name + "'";
+  if (shape == j.end() || !shape->is_array()) return error(wname + ": missing array 'shape'");
+  if (dtype == j.end() || !dtype->is_string()) return error(wname + ": missing string 'dtype'");
+  for (const Json& d : *shape) {
+    if (!d.is_number_integer() || d.get<std::int64_t>() < 0 || d.get<std::int64_t>() > kMaxInt) {
+      return error(wname + ": shape entries must be integers in [0, " + std::to_string(kMaxInt) +
+                   "]");
+    }
+    s.shape.push_back(d.get<int>());
+    s.elements *= static_cast<std::uint64_t>(s.shape.back());
+    if (s.elements > kMaxGroupBytes) return error(wname + ": shape is implausibly large");
+  }
+  const std::string type = dtype->get<std::string>();
+  if (type == "int32") {
+    s.is_int = true;
+  } else if (type != "float32") {
+    return error(wname + ": dtype '" + type + "' is not supported (float32 and int32 are)",
+                 ErrorCode::kUnsupported);
+  }
+  auto q = j.find("quantization");
+  if (q == j.end()) return s;
+  auto qtype = q->is_object() ? q->find("dtype") : q->end();
+  if (qtype == q->end() || !qtype->is_string()) {
+    return error(wname + ": 'quantization' needs a string 'dtype'");
+  }
+  const std::string qt = qtype->get<std::string>();
+  if (s.is_int || (qt != "uint8" && qt != "uint16")) {
+    return error(wname + ": quantization to '" + qt + "' of a " + type +
+                     " weight is not supported (uint8/uint16 of float32 are)",
+                 ErrorCode::kUnsupported);
+  }
+  auto scale = q->find("scale");
+  auto min = q->find("min");
+  if (scale == q->end() || !scale->is_number() || min == q->end() || !min->is_number()) {
+    return error(wname + ": uint8/uint16 quantization needs numbers 'scale' and 'min'");
+  }
+  s.quantized_bytes = qt == "uint8" ? sizeof(std::uint8_t) : sizeof(std::uint16_t);
+  s.scale = scale->get<float>();
+  s.min = min->get<float>();
+  return s;
+}
+
+Status Importer::read_shards(const Json& paths, const std::string& where, std::uint64_t needed,
+                             std::vector<std::uint8_t>& buffer) const {
   // The shard files, concatenated in order, must hold exactly that many bytes.
   const std::filesystem::path dir = path_.parent_path();
   std::vector<std::filesystem::path> files;
   std::uint64_t have = 0;
   std::string names;
-  for (const Json& p : *paths) {
+  for (const Json& p : paths) {
     if (!p.is_string() || p.get<std::string>().empty()) {
       return error(where + ": 'paths' must hold non-empty strings");
     }
@@ -443,7 +458,7 @@ Status Importer::load_group(const Json& group, std::size_t g) {
                                         source_ + " needs " + std::to_string(needed) +
                                         (have < needed ? " (truncated?)" : ""));
   }
-  std::vector<std::uint8_t> buffer(static_cast<std::size_t>(needed));
+  buffer.resize(static_cast<std::size_t>(needed));
   std::size_t at = 0;
   for (const std::filesystem::path& file : files) {
     std::ifstream in(file, std::ios::binary);
@@ -459,10 +474,13 @@ Status Importer::load_group(const Json& group, std::size_t g) {
     }
     at += size;
   }
+  return Status::Ok();
+}
 
-  // Pass 2: decode.
-  at = 0;
-  for (Spec& s : specs) {
+Status Importer::decode_weights(std::vector<WeightSpec>& specs,
+                                const std::vector<std::uint8_t>& buffer) {
+  std::size_t at = 0;
+  for (WeightSpec& s : specs) {
     Weight w;
     w.shape = std::move(s.shape);
     w.is_int = s.is_int;

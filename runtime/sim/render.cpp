@@ -169,10 +169,26 @@ bool DetectionRenderer::occluded(int person, const Vector2d& px, double radius_p
 void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonTopology& topology,
                                     const DetectionNoiseOptions& noise, RenderedFrame& out) {
   const int J = topology.joint_count();
+  project_persons(cam, J);
+  const bool occlusion = noise.occlusion && noise.occlusion_radius_px > 0.0;
+  if (occlusion) prepare_occluders(noise.occlusion_radius_px);
+  // Room for every person plus a generous number of false candidates, so that storage stops
+  // growing after the first frames.
+  const std::size_t expected = ix(persons_) + kSpareCandidates;
+  add_true_candidates(cam, J, noise, occlusion, expected);
+  add_false_candidates(cam, J, noise, expected, out.detections.views[ix(view)],
+                       out.truth_person[ix(view)]);
+  mark_near_persons(noise);
+  ViewDetections& vd = out.detections.views[ix(view)];
+  for (int l = 0; l < topology.limb_count(); ++l) {
+    render_affinities(topology.limb(l), J, noise, expected, vd.affinities[ix(l)]);
+  }
+}
+
+// Projects the bodies (occluders: image boxes, pelvis depth) and the detection joints.
+void DetectionRenderer::project_persons(const Camera& cam, int J) {
   const double width_px = static_cast<double>(cam.width_px());
   const double height_px = static_cast<double>(cam.height_px());
-
-  // Project the bodies (occluders) and the detection joints.
   for (int p = 0; p < persons_; ++p) {
     PersonView& pv = person_view_[ix(p)];
     pv.any = false;
@@ -208,14 +224,15 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
           target_front_[i] && q.x() >= 0.0 && q.x() < width_px && q.y() >= 0.0 && q.y() < height_px;
     }
   }
+}
 
-  const bool occlusion = noise.occlusion && noise.occlusion_radius_px > 0.0;
-  if (occlusion) prepare_occluders(noise.occlusion_radius_px);
-
-  // True candidates: occlusion, misses, jitter.
-  // Room for every person plus a generous number of false candidates, so that storage stops
-  // growing after the first frames.
-  const std::size_t expected = ix(persons_) + kSpareCandidates;
+// True candidates of the joints inside the image: occlusion (dropped or displaced), misses,
+// jitter.
+void DetectionRenderer::add_true_candidates(const Camera& cam, int J,
+                                            const DetectionNoiseOptions& noise, bool occlusion,
+                                            std::size_t expected) {
+  const double width_px = static_cast<double>(cam.width_px());
+  const double height_px = static_cast<double>(cam.height_px());
   for (int j = 0; j < J; ++j) {
     cands_[ix(j)].clear();
     cands_[ix(j)].reserve(expected);
@@ -240,10 +257,16 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
                                         static_cast<float>(score), p, displaced});
     }
   }
+}
 
-  // False candidates, shuffle, output.
-  ViewDetections& vd = out.detections.views[ix(view)];
-  std::vector<std::vector<int>>& truth_person = out.truth_person[ix(view)];
+// False candidates, then each joint's list shuffled and written to the view's candidates and
+// their owners.
+void DetectionRenderer::add_false_candidates(const Camera& cam, int J,
+                                             const DetectionNoiseOptions& noise,
+                                             std::size_t expected, ViewDetections& vd,
+                                             std::vector<std::vector<int>>& truth_person) {
+  const double width_px = static_cast<double>(cam.width_px());
+  const double height_px = static_cast<double>(cam.height_px());
   for (int j = 0; j < J; ++j) {
     std::vector<Candidate>& list = cands_[ix(j)];
     const int false_count = rng_.poisson(noise.false_candidates_per_joint);
@@ -269,10 +292,12 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
       out_truth[k] = list[k].owner >= 0 ? person_ids_[ix(list[k].owner)] : -1;
     }
   }
+}
 
-  // Persons whose image boxes are far apart cannot confuse each other's limbs: the support
-  // below vanishes beyond 3 sigma, sigma is at most a quarter of the box diagonal, and
-  // candidates stray from their joints by jitter and occlusion displacement.
+// Persons whose image boxes are far apart cannot confuse each other's limbs: the support in
+// render_affinities vanishes beyond 3 sigma, sigma is at most a quarter of the box diagonal,
+// and candidates stray from their joints by jitter and occlusion displacement.
+void DetectionRenderer::mark_near_persons(const DetectionNoiseOptions& noise) {
   const double slack_px = 2.0 * noise.occlusion_radius_px + 6.0 * noise.jitter_px + 10.0;
   near_.assign(ix(persons_) * ix(persons_), 0);
   for (int p = 0; p < persons_; ++p) {
@@ -294,81 +319,83 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
       near_[ix(q) * ix(persons_) + ix(p)] = apart ? 0 : 1;
     }
   }
+}
 
-  // Limb affinities.
-  const double log_no_false_affinity = std::log1p(-kFalseAffinityProbability);
-  for (int l = 0; l < topology.limb_count(); ++l) {
-    const Limb& limb = topology.limb(l);
-    const std::vector<Candidate>& ca = cands_[ix(limb.joint_a)];
-    const std::vector<Candidate>& cb = cands_[ix(limb.joint_b)];
-    const int rows = static_cast<int>(ca.size());
-    const int cols = static_cast<int>(cb.size());
-    AffinityMatrix& m = vd.affinities[ix(l)];
-    m.rows = rows;
-    m.cols = cols;
-    m.values.reserve(expected * expected);
-    m.values.assign(ix(rows * cols), 0.f);
-    // Occasional small affinities between unrelated candidates (skipping geometrically).
-    if (noise.false_affinity_mean > 0.0) {
-      const long long total = static_cast<long long>(rows) * cols;
-      for (long long k = rng_.geometric_log(log_no_false_affinity); k < total;
-           k += 1 + rng_.geometric_log(log_no_false_affinity)) {
-        m.values[static_cast<std::size_t>(k)] =
-            clamp_unit(noise.false_affinity_mean * rng_.uniform(0.5, 1.5));
-      }
+// The affinity matrix of one limb: occasional small affinities between unrelated candidates,
+// the true affinity between the two ends of one person's limb, and PAF confusion between
+// persons whose boxes are near.
+void DetectionRenderer::render_affinities(const Limb& limb, int J,
+                                          const DetectionNoiseOptions& noise, std::size_t expected,
+                                          AffinityMatrix& m) {
+  const std::vector<Candidate>& ca = cands_[ix(limb.joint_a)];
+  const std::vector<Candidate>& cb = cands_[ix(limb.joint_b)];
+  const int rows = static_cast<int>(ca.size());
+  const int cols = static_cast<int>(cb.size());
+  m.rows = rows;
+  m.cols = cols;
+  m.values.reserve(expected * expected);
+  m.values.assign(ix(rows * cols), 0.f);
+  // Occasional small affinities between unrelated candidates (skipping geometrically).
+  if (noise.false_affinity_mean > 0.0) {
+    const double log_no_false_affinity = std::log1p(-kFalseAffinityProbability);
+    const long long total = static_cast<long long>(rows) * cols;
+    for (long long k = rng_.geometric_log(log_no_false_affinity); k < total;
+         k += 1 + rng_.geometric_log(log_no_false_affinity)) {
+      m.values[static_cast<std::size_t>(k)] =
+          clamp_unit(noise.false_affinity_mean * rng_.uniform(0.5, 1.5));
     }
-    // Confusion width per person: a fraction of the limb's length in this view.
-    for (int p = 0; p < persons_; ++p) {
-      const std::size_t ia = ix(p * J + limb.joint_a);
-      const std::size_t ib = ix(p * J + limb.joint_b);
-      double len_px = 0.0;
-      if (target_front_[ia] && target_front_[ib]) len_px = (target_px_[ia] - target_px_[ib]).norm();
-      const double sigma = std::max(kConfusionMinSigma_px, kConfusionSigmaFraction * len_px);
-      sigma_sq_[ix(p)] = sigma * sigma;
-    }
-    // PAF confusion: the support of an owner's limb for a foreign end is a Gaussian of the
-    // foreign end's distance from the owner's own joint at that end. Row r looks at its
-    // owner's joint_b, column c at its owner's joint_a (both constant along the loops).
-    auto end_of = [&](const Candidate& cand, int joint, End& e) {
-      e.active = false;
-      if (cand.owner < 0) return;
-      const std::size_t i = ix(cand.owner * J + joint);
-      if (!target_front_[i]) return;
-      e.active = true;
-      e.px = target_px_[i];
-      e.sigma_sq = sigma_sq_[ix(cand.owner)];
-    };
-    auto support = [](const End& e, const Candidate& foreign) {
-      if (!e.active) return 0.0;
-      const double dx = static_cast<double>(foreign.x_px) - e.px.x();
-      const double dy = static_cast<double>(foreign.y_px) - e.px.y();
-      const double d_sq = dx * dx + dy * dy;
-      if (d_sq > 9.0 * e.sigma_sq) return 0.0;
-      return std::exp(-0.5 * d_sq / e.sigma_sq);
-    };
-    col_ends_.reserve(expected);
-    col_ends_.resize(ix(cols));
-    for (int c = 0; c < cols; ++c) end_of(cb[ix(c)], limb.joint_a, col_ends_[ix(c)]);
-    for (int r = 0; r < rows; ++r) {
-      const Candidate& a = ca[ix(r)];
-      End row_end;
-      end_of(a, limb.joint_b, row_end);
-      for (int c = 0; c < cols; ++c) {
-        const Candidate& b = cb[ix(c)];
-        if (a.owner >= 0 && a.owner == b.owner) {
-          double v = noise.true_affinity_mean + rng_.normal(0.0, noise.affinity_noise);
-          if (a.displaced || b.displaced) v *= kDisplacedFactor;
-          m.at(r, c) = clamp_unit(v);
-          continue;
-        }
-        if (a.owner >= 0 && b.owner >= 0 && !near_[ix(a.owner) * ix(persons_) + ix(b.owner)]) {
-          continue;
-        }
-        const double s = std::max(support(row_end, b), support(col_ends_[ix(c)], a));
-        if (s < kMinConfusionSupport) continue;
-        const double v = s * (noise.true_affinity_mean + rng_.normal(0.0, noise.affinity_noise));
-        m.at(r, c) = std::max(m.at(r, c), clamp_unit(v));
+  }
+  // Confusion width per person: a fraction of the limb's length in this view.
+  for (int p = 0; p < persons_; ++p) {
+    const std::size_t ia = ix(p * J + limb.joint_a);
+    const std::size_t ib = ix(p * J + limb.joint_b);
+    double len_px = 0.0;
+    if (target_front_[ia] && target_front_[ib]) len_px = (target_px_[ia] - target_px_[ib]).norm();
+    const double sigma = std::max(kConfusionMinSigma_px, kConfusionSigmaFraction * len_px);
+    sigma_sq_[ix(p)] = sigma * sigma;
+  }
+  // PAF confusion: the support of an owner's limb for a foreign end is a Gaussian of the
+  // foreign end's distance from the owner's own joint at that end. Row r looks at its owner's
+  // joint_b, column c at its owner's joint_a (both constant along the loops).
+  auto end_of = [&](const Candidate& cand, int joint, End& e) {
+    e.active = false;
+    if (cand.owner < 0) return;
+    const std::size_t i = ix(cand.owner * J + joint);
+    if (!target_front_[i]) return;
+    e.active = true;
+    e.px = target_px_[i];
+    e.sigma_sq = sigma_sq_[ix(cand.owner)];
+  };
+  auto support = [](const End& e, const Candidate& foreign) {
+    if (!e.active) return 0.0;
+    const double dx = static_cast<double>(foreign.x_px) - e.px.x();
+    const double dy = static_cast<double>(foreign.y_px) - e.px.y();
+    const double d_sq = dx * dx + dy * dy;
+    if (d_sq > 9.0 * e.sigma_sq) return 0.0;
+    return std::exp(-0.5 * d_sq / e.sigma_sq);
+  };
+  col_ends_.reserve(expected);
+  col_ends_.resize(ix(cols));
+  for (int c = 0; c < cols; ++c) end_of(cb[ix(c)], limb.joint_a, col_ends_[ix(c)]);
+  for (int r = 0; r < rows; ++r) {
+    const Candidate& a = ca[ix(r)];
+    End row_end;
+    end_of(a, limb.joint_b, row_end);
+    for (int c = 0; c < cols; ++c) {
+      const Candidate& b = cb[ix(c)];
+      if (a.owner >= 0 && a.owner == b.owner) {
+        double v = noise.true_affinity_mean + rng_.normal(0.0, noise.affinity_noise);
+        if (a.displaced || b.displaced) v *= kDisplacedFactor;
+        m.at(r, c) = clamp_unit(v);
+        continue;
       }
+      if (a.owner >= 0 && b.owner >= 0 && !near_[ix(a.owner) * ix(persons_) + ix(b.owner)]) {
+        continue;
+      }
+      const double s = std::max(support(row_end, b), support(col_ends_[ix(c)], a));
+      if (s < kMinConfusionSupport) continue;
+      const double v = s * (noise.true_affinity_mean + rng_.normal(0.0, noise.affinity_noise));
+      m.at(r, c) = std::max(m.at(r, c), clamp_unit(v));
     }
   }
 }

@@ -22,7 +22,8 @@
 
 namespace mocap {
 class SkeletonTopology;
-}
+struct Limb;
+}  // namespace mocap
 
 namespace mocap::sim {
 
@@ -108,8 +109,18 @@ class DetectionRenderer {
 
   void prepare_occluders(double radius_px);
   bool occluded(int person, const Eigen::Vector2d& px, double radius_px) const;
+  // One view's detections; the stages below, in this order (the random draws depend on it).
   void render_view(int view, const Camera& cam, const SkeletonTopology& topology,
                    const DetectionNoiseOptions& noise, RenderedFrame& out);
+  void project_persons(const Camera& cam, int J);
+  void add_true_candidates(const Camera& cam, int J, const DetectionNoiseOptions& noise,
+                           bool occlusion, std::size_t expected);
+  void add_false_candidates(const Camera& cam, int J, const DetectionNoiseOptions& noise,
+                            std::size_t expected, ViewDetections& vd,
+                            std::vector<std::vector<int>>& truth_person);
+  void mark_near_persons(const DetectionNoiseOptions& noise);
+  void render_affinities(const Limb& limb, int J, const DetectionNoiseOptions& noise,
+                         std::size_t expected, AffinityMatrix& m);
 
   const SkeletonTopology* prepared_ = nullptr;
   std::vector<JointSource> sources_;  // [detection joint]

@@ -328,6 +328,39 @@ TEST(AssocEngine, CreateRejectsTooFewCamerasAndInvalidOptions) {
   EXPECT_NE(r4.error().message().find("lonely"), std::string::npos);
 }
 
+// Fitting enabled on a topology the fitter cannot take is an error that names the topology and
+// the fix, not an engine that silently runs without fitting.
+TEST(AssocEngine, FittingATopologyTheFitterCannotTakeIsAnError) {
+  const std::vector<Camera> cams = ring(kViews);
+  const SkeletonTopology cycle =
+      SkeletonTopology::create("cycle", {"a", "b", "c"}, {{0, 1}, {1, 2}, {2, 0}}).value();
+  auto r = Engine::create(cycle, cams, AssociationOptions{});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
+  EXPECT_NE(r.error().message().find("'cycle' is not one"), std::string::npos)
+      << r.error().message();
+  EXPECT_NE(r.error().message().find("set fit.enabled = false"), std::string::npos)
+      << r.error().message();
+  AssociationOptions no_fit;
+  no_fit.fit.enabled = false;
+  EXPECT_TRUE(Engine::create(cycle, cams, no_fit).ok());
+
+  // A tree with more joints than the fitter supports: the fitter's error, with the fix.
+  std::vector<std::string> names;
+  std::vector<Limb> limbs;
+  for (int j = 0; j <= fit::kMaxFitJoints; ++j) {
+    names.push_back(std::string(1, 'j') += std::to_string(j));
+    if (j > 0) limbs.push_back(Limb{j - 1, j});
+  }
+  const SkeletonTopology chain = SkeletonTopology::create("long_chain", names, limbs).value();
+  auto r2 = Engine::create(chain, cams, AssociationOptions{});
+  ASSERT_FALSE(r2.ok());
+  EXPECT_NE(r2.error().message().find("'long_chain'"), std::string::npos) << r2.error().message();
+  EXPECT_NE(r2.error().message().find("set fit.enabled = false"), std::string::npos)
+      << r2.error().message();
+  EXPECT_TRUE(Engine::create(chain, cams, no_fit).ok());
+}
+
 TEST(AssocEngine, DetectionsInAnotherTopologyAreAnError) {
   const Frames f = two_person_frames();
   auto engine = Engine::create(body19_topology(), f.cams(), AssociationOptions{});
