@@ -2,8 +2,9 @@
 # Runs the whole test suite (GoogleTest via CTest). Builds first if needed.
 #
 #   tools/test.sh              Release build in build/
-#   tools/test.sh --sanitize   ASan + UBSan build in build-asan/ of the test executables only,
-#                              without the hil and e2e labels: the HIL VM boot and the two
+#   tools/test.sh --sanitize   ASan + UBSan build in build-asan/ of the test executables (and
+#                              mocap, mocapd: the mixed-geometry test runs them), without
+#                              the hil and e2e labels: the HIL VM boot and the two
 #                              whole-recording runs (~1 min each under ASan) are in the
 #                              Release suite, to keep CI within its budget. No debug info
 #                              (-g0): reports name functions (UBSan also file:line), and a

@@ -1,10 +1,10 @@
 #include "runtime/assoc/engine.h"
 
 #include <algorithm>
-#include <chrono>
 #include <string>
 
 #include "runtime/assoc/fragments.h"
+#include "runtime/core/clock.h"
 #include "runtime/core/log.h"
 #include "runtime/skeleton/topology.h"
 
@@ -14,10 +14,6 @@ namespace mocap::assoc {
 namespace {
 
 inline std::size_t ix(int i) { return static_cast<std::size_t>(i); }
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The skeleton fitter for these options: none when fitting is off; an error naming the topology
 // and the fix when it cannot fit this topology (not a tree, too many joints).
@@ -72,7 +68,6 @@ Engine::Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
 void Engine::reset() { tracker_.reset(); }
 
 Result<FrameResult> Engine::process(const DetectionSet& det) {
-  using clock = std::chrono::steady_clock;
   if (det.topology != &topology_) {
     return Error(ErrorCode::kInvalidArgument,
                  "frame " + std::to_string(det.frame_id) + ": detections are in topology '" +
@@ -85,21 +80,21 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
 
   // Association: the 4D graph (the tracks' joints seen recently enough as tracking nodes),
   // limb bundles, persons.
-  auto t0 = clock::now();
+  auto t0 = monotonic_ns();
   tracker_.poses(track_poses_);
   const bool track_first = options_.clique.track_first && !track_poses_.empty();
   if (Status s = build_graph(det, track_first, st); !s.ok()) return s.error();
   st.graph_ms = ms_since(t0);
-  t0 = clock::now();
+  t0 = monotonic_ns();
   parse_bundles(track_first, st);
   st.parse_ms = ms_since(t0);
-  t0 = clock::now();
+  t0 = monotonic_ns();
   assemble_persons(graph_, topology_, hierarchy_, options_.clique, bundles_,
                    options_.tracking.min_assignments_new_person, persons_, st.assembly);
   st.assemble_ms = ms_since(t0);
 
   // Reconstruction: persons triangulated, fragments merged, tracks claimed and fitted.
-  t0 = clock::now();
+  t0 = monotonic_ns();
   tracker_.begin_frame(det.frame_id);
   triangulate_persons(det.frame_id);
   merge_fragments(det.frame_id, st);
@@ -139,8 +134,7 @@ Status Engine::build_graph(const DetectionSet& det, bool track_first, FrameStats
 // matching edges only between candidates some limb type still needs, and the clique search
 // over what is left.
 void Engine::parse_bundles(bool track_first, FrameStats& st) {
-  using clock = std::chrono::steady_clock;
-  const auto t0 = clock::now();
+  const auto t0 = monotonic_ns();
   const int L = topology_.limb_count();
   bundles_.clear();
   if (track_first) {
@@ -150,7 +144,7 @@ void Engine::parse_bundles(bool track_first, FrameStats& st) {
                           exclusions_[ix(l)], st.parsing);
     }
     st.track_first_ms = ms_since(t0);
-    const auto tm = clock::now();
+    const auto tm = monotonic_ns();
     // The clique search reads matching edges only through the 2D limbs it still holds.
     unneeded_candidates(graph_, topology_, exclusions_, unneeded_);
     graph_.build_matching(unneeded_);
@@ -220,7 +214,7 @@ void Engine::track_persons(FrameStats& st) {
 // with the triangulated ones while the bone lengths are still being learned.
 void Engine::fit_person(const PersonAssignment& person, PersonPoints& points, int t,
                         std::vector<Eigen::Quaterniond>& rotations, FrameStats& st) {
-  const auto t0 = std::chrono::steady_clock::now();
+  const std::int64_t t0 = monotonic_ns();
   const int J = topology_.joint_count();
   const int V = static_cast<int>(cameras_.size());
   tri_X_.resize(ix(J));

@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 
+#include "runtime/core/stats.h"
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::fit {
@@ -146,12 +147,6 @@ class AnchorCost final : public ceres::SizedCostFunction<3, 3> {
   double w_;
 };
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 }  // namespace
 
 double template_bone_length_m(std::string_view parent_name, std::string_view child_name) {
@@ -273,7 +268,7 @@ void SkeletonFitter::learn(PersonFitState& state, std::span<const Eigen::Vector3
         valid[ix(p)] && views_used[ix(j)] >= options_.confident_min_views &&
         views_used[ix(p)] >= options_.confident_min_views) {
       const double len = (joints_m[ix(j)] - joints_m[ix(p)]).norm();
-      const double ref = samples.empty() ? template_length_m_[ix(j)] : median(samples);
+      const double ref = samples.empty() ? template_length_m_[ix(j)] : sample_median(samples);
       // The first sample is checked loosely against the template, later ones against the median.
       const double tol =
           samples.empty() ? 2.0 * options_.bone_sample_tolerance : options_.bone_sample_tolerance;
@@ -293,7 +288,7 @@ void SkeletonFitter::learn(PersonFitState& state, std::span<const Eigen::Vector3
     const auto& s = state.bone_samples_m[ix(j)];
     if (static_cast<int>(s.size()) >= options_.bone_learning_frames) {
       ++learned;
-      scale_num += median(s);
+      scale_num += sample_median(s);
       scale_den += template_length_m_[ix(j)];
     }
   }
@@ -303,7 +298,7 @@ void SkeletonFitter::learn(PersonFitState& state, std::span<const Eigen::Vector3
     if (parents_[ix(j)] < 0) continue;
     const auto& s = state.bone_samples_m[ix(j)];
     state.bone_length_m[ix(j)] = static_cast<int>(s.size()) >= options_.bone_learning_frames
-                                     ? median(s)
+                                     ? sample_median(s)
                                      : scale * template_length_m_[ix(j)];
   }
   // Left/right symmetry.

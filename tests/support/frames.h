@@ -23,8 +23,8 @@ class BytesBuffer final : public FrameBuffer {
 
 // The same random NV12 picture twice: packed, and padded (stride + pad_bytes per row, the UV
 // plane starting uv_gap_bytes after the padded Y plane; padding filled with 0xEE).
-inline std::pair<Frame, Frame> nv12_packed_and_padded(int w, int h, int pad_bytes,
-                                                     int uv_gap_bytes, unsigned seed) {
+inline std::pair<Frame, Frame> nv12_packed_and_padded(int w, int h, int pad_bytes, int uv_gap_bytes,
+                                                      unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<int> u(0, 255);
   const auto W = static_cast<std::size_t>(w), H = static_cast<std::size_t>(h);
