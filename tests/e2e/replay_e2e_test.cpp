@@ -39,6 +39,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing::at_woman;
+using testing::dominant;
 using testing::kMaxMedianReprojectionPx;
 using testing::on_belt;
 
@@ -87,14 +88,6 @@ struct Places {
     woman_per_frame.push_back(woman);
   }
 };
-
-std::pair<int, int> dominant(const std::map<int, int>& ids) {
-  std::pair<int, int> best{-1, 0};
-  for (const auto& [id, n] : ids) {
-    if (n > best.second) best = {id, n};
-  }
-  return best;
-}
 
 TEST(ReplayE2e, Pose2SimMultiTwoPeopleTrackedWithStableIds) {
   MOCAP_REQUIRE_DATA(data, "pose2sim_multi");

@@ -8,6 +8,8 @@
 #include <Eigen/Core>
 
 #include <cmath>
+#include <map>
+#include <utility>
 
 namespace mocap::testing {
 
@@ -25,5 +27,14 @@ inline bool at_woman(const Eigen::Vector3d& c) {
 // median, for driver and model differences; a broken association (another person's candidates,
 // a swapped view) gives medians of 50 px and more.
 inline constexpr double kMaxMedianReprojectionPx = 36.0;
+
+// The id seen at a place in the most frames, and in how many: {-1, 0} for none.
+inline std::pair<int, int> dominant(const std::map<int, int>& frames_by_id) {
+  std::pair<int, int> best{-1, 0};
+  for (const auto& [id, n] : frames_by_id) {
+    if (n > best.second) best = {id, n};
+  }
+  return best;
+}
 
 }  // namespace mocap::testing

@@ -36,6 +36,7 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 using testing::at_woman;
+using testing::dominant;
 using testing::kMaxMedianReprojectionPx;
 using testing::on_belt;
 constexpr int kFrames = 100;
@@ -129,13 +130,6 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
       if (at_woman(ctr)) ++woman_ids[mp["id"].get<int>()];
     }
   }
-  auto dominant = [](const std::map<int, int>& ids) {
-    std::pair<int, int> best{-1, 0};
-    for (const auto& [id, n] : ids) {
-      if (n > best.second) best = {id, n};
-    }
-    return best;
-  };
   const auto [man_id, man_frames] = dominant(man_ids);
   const auto [woman_id, woman_frames] = dominant(woman_ids);
   EXPECT_GE(man_frames, 90) << "the man is one id in >= 90 % of the streamed frames";
