@@ -1,8 +1,9 @@
 // The pipeline with fake plug-ins (tests/pipeline/fakes.h), no hardware: ordering under both
 // drop policies, drops counted per queue, backpressure bounding what is in flight, the CNN
 // stage (detector errors skip a frame, images without a detector stop it, camera buffers are
-// let go), the engine stage (a real engine on the simulator; its errors skip a frame), sinks
-// (called in order; a failing one stops the pipeline with its name), stop() and bad options.
+// let go, also while the sink stalls), the engine stage (a real engine on the simulator; its errors
+// skip a frame), sinks (called in order; a failing one stops the pipeline with its name), stop()
+// and bad options.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <vector>
 
 #include "runtime/assoc/engine.h"
+#include "runtime/core/clock.h"
 #include "runtime/pipeline/pipeline.h"
 #include "runtime/pipeline/sinks.h"
 #include "runtime/sim/simulator_source.h"
@@ -128,6 +130,37 @@ TEST(Pipeline, ImagesGoThroughTheDetectorInOrderAndTheirBuffersAreLetGo) {
   // the one being detected and the one the source holds (2 views each).
   EXPECT_EQ(s->alive_buffers.load(), 0);
   EXPECT_LE(most_alive.load(), 2 * (2 + 1 + 1));
+}
+
+TEST(Pipeline, AStalledSinkHoldsNoCameraBufferPastTheCnnQueue) {
+  // The sink stalls: the engine queue fills, the CNN stage waits to hand its detections over and
+  // the source waits on a full CNN queue. The camera buffers held are then the CNN queue's and
+  // the source's own set only: the CNN stage let go of its images once they were detected.
+  constexpr int kDepth = 2;
+  std::atomic<bool> open{false};
+  CallbackSink gate("gate", [&](const PipelineFrame&) {
+    while (!open) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return Status{};
+  });
+  FakeDetector det;
+  auto src = std::make_unique<FakeSource>(FakeSource::Options{.frames = 20, .images = true});
+  FakeSource* s = src.get();
+  auto p = make(std::move(src), &det, {&gate}, blocking(kDepth));
+  ASSERT_TRUE(p->start().ok());
+  // Stalled: one set in the sink, kDepth in the engine queue, one at the CNN stage, kDepth in
+  // the CNN queue and one at the source.
+  constexpr int kStalled = 1 + kDepth + 1 + kDepth + 1;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (s->handed_out.load() < kStalled && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(s->handed_out.load(), kStalled);
+  EXPECT_EQ(s->alive_buffers.load(), 2 * (kDepth + 1));  // 2 views per set
+  open = true;
+  ASSERT_TRUE(p->wait(60000));
+  EXPECT_EQ(p->metrics().frames_out, 20u);
+  EXPECT_EQ(s->alive_buffers.load(), 0);
 }
 
 TEST(Pipeline, DetectorErrorsSkipTheFrameAndAreCounted) {
@@ -337,6 +370,27 @@ TEST(Pipeline, TheEngineAssociatesTheSimulatorAndItsErrorsSkipAFrame) {
   EXPECT_EQ(m.errors, 5u);
   EXPECT_EQ(m.frames_out, 0u);
   EXPECT_TRUE(persons.empty());
+}
+
+// The paced simulator: frame k is due k periods after start() and not given before; a caller
+// that cannot wait that long gets kTimeout, not an early frame.
+TEST(SimulatorSource, PacedFramesComeOnTheirScheduleNeverEarly) {
+  sim::SimulatorSourceOptions so;
+  so.frame_rate_hz = 2;  // a 500 ms period: far longer than any scheduling delay
+  so.frames = 2;
+  auto src = sim::SimulatorSource::open(so);
+  ASSERT_TRUE(src.ok()) << src.error().message();
+  ASSERT_TRUE((*src)->start().ok());
+  SourceItem first;
+  ASSERT_EQ(*(*src)->next(first, 5000), SourceStatus::kItem);
+  SourceItem second;
+  ASSERT_EQ(*(*src)->next(second, 0), SourceStatus::kTimeout);
+  ASSERT_EQ(*(*src)->next(second, 5000), SourceStatus::kItem);
+  EXPECT_GE(monotonic_ns(), second.detections->timestamp_ns);
+  EXPECT_EQ(second.detections->timestamp_ns - first.detections->timestamp_ns, 500'000'000);
+  EXPECT_EQ(second.detections->frame_id, 1u);
+  SourceItem end;
+  EXPECT_EQ(*(*src)->next(end, 0), SourceStatus::kEnded);
 }
 
 }  // namespace
