@@ -1,17 +1,21 @@
 // mocap replay --data DIR [--model FILE] [--size S] [--frames N] [--backend vulkan|cpu|auto]
-//              [--skeletons-out FILE]
+//              [--skeletons-out FILE] [--quality-out FILE]
 // A recorded multi-view capture through the real-time pipeline (runtime/pipeline), composed as
 // mocapd composes it for `--replay` (tools/common/replay_parts.h), every frame processed: per
 // frame the persons and their observed joints, then a summary (per-stage times, persons per
 // frame, track ids and lifetimes, id switches, reprojection error of the 3D joints;
-// runtime/eval/replay_stats.h).
+// runtime/eval/replay_stats.h) and the label-free quality (runtime/eval/quality.h), whose
+// figures end the output on one line:
+//   loo_reprojection_px=X.X bone_std_mm=X.X jitter_m_s2=X ids=N
 #include <cstdio>
 #include <string>
 #include <vector>
 
 #include "runtime/core/clock.h"
 #include "runtime/core/stats.h"
+#include "runtime/eval/quality.h"
 #include "runtime/eval/replay_stats.h"
+#include "runtime/io/text_scan.h"
 #include "runtime/pipeline/sinks.h"
 #include "runtime/skeleton/topology.h"
 #include "tools/common/cli.h"
@@ -39,6 +43,15 @@ constexpr const char* kHelp =
     "position) and the reprojection error of the 3D joints against the 2D candidates the\n"
     "engine used (all views). --skeletons-out writes every frame as the stream message\n"
     "mocapd would send (docs/stream-format.md), one per line.\n"
+    "\n"
+    "Quality without ground truth (docs/quality.md), per person and for the run:\n"
+    "leave-one-view-out reprojection (each used 2D joint against the point the other views\n"
+    "give), bone-length std (arms, legs, shoulders, hips; frames where both ends were\n"
+    "triangulated), limb jitter (median |second difference| x fps^2 of elbows, wrists, knees,\n"
+    "ankles) and ids. The last line is\n"
+    "  loo_reprojection_px=X.X bone_std_mm=X.X jitter_m_s2=X ids=N\n"
+    "(bone_std_mm and jitter_m_s2: the worst person output in >= 10 frames). --quality-out\n"
+    "writes the same figures, per person too, as JSON.\n"
     "\n"
     "--size: 353 by default, chosen by measurement on pose2sim_multi (1088x1920 portrait;\n"
     "the two people on the treadmill are 500-1000 px tall, 90-180 px at a 353 input): at\n"
@@ -116,11 +129,29 @@ void print_reprojection(const eval::ReplaySummary& sum, int views) {
       all.size(), median(all), percentile(all, 0.9));
 }
 
+void print_quality(const eval::QualityReport& q) {
+  std::printf("\nquality (label-free, %.1f fps):\n", q.frame_rate_hz);
+  std::printf("  leave-one-view-out reprojection: median %.1f px, p90 %.1f px (%zu)\n",
+              q.loo_reprojection_px, q.loo_reprojection_p90_px, q.loo_samples);
+  std::printf("  by view (median px):");
+  for (std::size_t v = 0; v < q.loo_by_view_px.size(); ++v) {
+    std::printf(" %zu: %.1f", v, q.loo_by_view_px[v]);
+  }
+  std::printf("\n");
+  for (const eval::PersonQuality& p : q.persons) {
+    std::printf(
+        "  id %d: %d frames, bone std %.1f mm (worst %s %.1f), limb jitter %.0f m/s^2 (%zu), "
+        "loo %.1f px\n",
+        p.id, p.frames, p.bone_std_mm, p.worst_bone.empty() ? "-" : p.worst_bone.c_str(),
+        p.worst_bone_std_mm, p.jitter_m_s2, p.jitter_samples, p.loo_reprojection_px);
+  }
+}
+
 }  // namespace
 
 int run_replay(Args args) {
   std::string data, model = default_model_path().string();
-  std::string backend = "auto", device, skeletons_out;
+  std::string backend = "auto", device, skeletons_out, quality_out;
   int size = gpu::kDefaultInputSizePx, frames = -1;
   bool quiet = false, no_fit = false;
   cli::ArgParser p("mocap replay", kHelp);
@@ -132,6 +163,8 @@ int run_replay(Args args) {
   p.option("--device", &device, "NAME", "Vulkan device index or name substring");
   p.option("--skeletons-out", &skeletons_out, "FILE",
            "write every frame's stream message (docs/stream-format.md), one per line");
+  p.option("--quality-out", &quality_out, "FILE",
+           "write the label-free quality figures (per person and the run) as JSON");
   p.flag("--quiet", &quiet, "summary only (no per-frame lines)");
   p.flag("--no-fit", &no_fit, "triangulated joints only (no skeleton fitting)");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
@@ -160,8 +193,11 @@ int run_replay(Args args) {
     file = std::move(*f);
   }
   eval::ReplayStats stats(parts->cameras);
+  auto quality = eval::QualityMeter::create(parts->cameras, coco17_topology(), {});
+  if (!quality.ok()) return fail(quality.error());
   pipeline::CallbackSink report("report", [&](const pipeline::PipelineFrame& f) {
     stats.add(f);
+    if (f.result) quality->add(f.detections, *f.result);
     if (!quiet) print_frame(f);
     return Status{};
   });
@@ -185,6 +221,14 @@ int run_replay(Args args) {
                 static_cast<unsigned long long>(m.errors));
   }
   if (file) std::printf("stream messages written to %s\n", skeletons_out.c_str());
+  const eval::QualityReport q = quality->finish();
+  print_quality(q);
+  if (!quality_out.empty()) {
+    if (Status s = io::write_text_file(quality_out, q.to_json() + "\n"); !s.ok())
+      return fail(s.error());
+    std::printf("quality written to %s\n", quality_out.c_str());
+  }
+  std::printf("%s\n", q.summary_line().c_str());
   return 0;
 }
 
