@@ -75,6 +75,7 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
                      "' but the engine runs '" + topology_.name() + "'");
   }
   if (Status s = det.validate(); !s.ok()) return s.error();
+  frame_timestamp_ns_ = det.timestamp_ns;
   FrameResult res;
   FrameStats& st = res.stats;
 
@@ -237,7 +238,8 @@ void Engine::fit_person(const PersonAssignment& person, PersonPoints& points, in
       fit_obs_.push_back(fit::JointObservation{j, v, c.px, static_cast<double>(c.score)});
     }
   }
-  fit::FitResult fr = fitter_->fit(state, cameras_, fit_obs_, tri_X_, tri_valid_);
+  fit::FitResult fr =
+      fitter_->fit(state, cameras_, fit_obs_, tri_X_, tri_valid_, frame_timestamp_ns_);
   if (fr.fitted) {
     ++st.persons_fitted;
     rotations = std::move(fr.rotations);

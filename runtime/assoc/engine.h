@@ -140,6 +140,7 @@ class Engine {
   std::vector<bool> tri_valid_;
   std::vector<int> tri_views_;
   std::vector<fit::JointObservation> fit_obs_;
+  std::int64_t frame_timestamp_ns_ = 0;  // the frame being processed (the fit's smoother)
   std::vector<Output> outputs_;
 };
 

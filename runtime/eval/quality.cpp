@@ -73,8 +73,8 @@ Result<QualityMeter> QualityMeter::create(std::vector<Camera> cameras,
                                           const QualityOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
   if (cameras.size() < 2) {
-    return Error(ErrorCode::kInvalidArgument, "quality: needs at least 2 cameras, got " +
-                                                  std::to_string(cameras.size()));
+    return Error(ErrorCode::kInvalidArgument,
+                 "quality: needs at least 2 cameras, got " + std::to_string(cameras.size()));
   }
   QualityMeter m;
   m.cameras_ = std::move(cameras);
@@ -220,7 +220,8 @@ QualityReport QualityMeter::finish() const {
 
 std::string QualityReport::summary_line() const {
   char buf[160];
-  std::snprintf(buf, sizeof buf, "loo_reprojection_px=%.1f bone_std_mm=%.1f jitter_m_s2=%.0f ids=%d",
+  std::snprintf(buf, sizeof buf,
+                "loo_reprojection_px=%.1f bone_std_mm=%.1f jitter_m_s2=%.0f ids=%d",
                 loo_reprojection_px, bone_std_mm, jitter_m_s2, ids);
   return buf;
 }
@@ -238,14 +239,14 @@ std::string QualityReport::to_json() const {
   nlohmann::json list = nlohmann::json::array();
   for (const PersonQuality& q : persons) {
     list.push_back({{"id", q.id},
-                       {"frames", q.frames},
-                       {"bone_std_mm", q.bone_std_mm},
-                       {"worst_bone_std_mm", q.worst_bone_std_mm},
-                       {"worst_bone", q.worst_bone},
-                       {"jitter_m_s2", q.jitter_m_s2},
-                       {"jitter_samples", q.jitter_samples},
-                       {"loo_reprojection_px", q.loo_reprojection_px},
-                       {"loo_samples", q.loo_samples}});
+                    {"frames", q.frames},
+                    {"bone_std_mm", q.bone_std_mm},
+                    {"worst_bone_std_mm", q.worst_bone_std_mm},
+                    {"worst_bone", q.worst_bone},
+                    {"jitter_m_s2", q.jitter_m_s2},
+                    {"jitter_samples", q.jitter_samples},
+                    {"loo_reprojection_px", q.loo_reprojection_px},
+                    {"loo_samples", q.loo_samples}});
   }
   j["persons"] = std::move(list);
   return j.dump(2);

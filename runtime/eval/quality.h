@@ -40,11 +40,11 @@ struct QualityOptions {
 
 struct PersonQuality {
   int id = -1;
-  int frames = 0;               // frames the id was output
-  double bone_std_mm = 0;       // mean over its bones of the length's std
+  int frames = 0;                // frames the id was output
+  double bone_std_mm = 0;        // mean over its bones of the length's std
   double worst_bone_std_mm = 0;  // the least stable bone's
-  std::string worst_bone;       // its name ("left_elbow-left_wrist")
-  double jitter_m_s2 = 0;       // median over its limb joints and frames
+  std::string worst_bone;        // its name ("left_elbow-left_wrist")
+  double jitter_m_s2 = 0;        // median over its limb joints and frames
   std::size_t jitter_samples = 0;
   double loo_reprojection_px = 0;  // median of its leave-one-view-out errors
   std::size_t loo_samples = 0;
@@ -56,10 +56,10 @@ struct QualityReport {
   std::size_t loo_samples = 0;
   std::vector<double> loo_by_view_px;  // [view] median of the samples left out in that view:
                                        // a camera far above the others moved or is miscalibrated
-  double bone_std_mm = 0;  // the worst person's (of those with min_track_frames)
-  double jitter_m_s2 = 0;  // the worst person's median (of those with min_track_frames)
-  int ids = 0;             // track ids output during the run
-  double frame_rate_hz = 0;  // from the frames' timestamps (median interval)
+  double bone_std_mm = 0;              // the worst person's (of those with min_track_frames)
+  double jitter_m_s2 = 0;              // the worst person's median (of those with min_track_frames)
+  int ids = 0;                         // track ids output during the run
+  double frame_rate_hz = 0;            // from the frames' timestamps (median interval)
   std::vector<PersonQuality> persons;  // by id
   // "loo_reprojection_px=X.X bone_std_mm=X.X jitter_m_s2=X ids=N"
   std::string summary_line() const;
@@ -81,7 +81,7 @@ class QualityMeter {
     std::vector<Eigen::Vector3d> prev, prev2;  // [joint] the two frames before
     std::vector<bool> prev_ok, prev2_ok;       // measured there
     std::vector<std::vector<double>> bone_m;   // [bone] lengths
-    std::vector<double> second_diff_m;  // |x(t+1) − 2x(t) + x(t−1)|, per frame²
+    std::vector<double> second_diff_m;         // |x(t+1) − 2x(t) + x(t−1)|, per frame²
     std::vector<double> loo_px;
     int frames = 0;
   };

@@ -188,7 +188,7 @@ Status FitOptions::validate() const {
   if (!(predicted_joint_confidence >= 0.f && predicted_joint_confidence <= 1.f)) {
     return bad("fit.predicted_joint_confidence", "must be in [0, 1]");
   }
-  return Status::Ok();
+  return smoothing.validate();
 }
 
 Result<SkeletonFitter> SkeletonFitter::create(const SkeletonTopology& topology,
@@ -321,7 +321,8 @@ Eigen::Quaterniond SkeletonFitter::rest_to(const Eigen::Vector3d& rest,
 FitResult SkeletonFitter::fit(PersonFitState& state, std::span<const Camera> cameras,
                               std::span<const JointObservation> observations,
                               std::span<const Eigen::Vector3d> init_m,
-                              const std::vector<bool>& init_valid) const {
+                              const std::vector<bool>& init_valid,
+                              std::int64_t timestamp_ns) const {
   const int J = topology_->joint_count();
   FitResult out;
   out.joints_m.assign(init_m.begin(), init_m.end());
@@ -362,6 +363,12 @@ FitResult SkeletonFitter::fit(PersonFitState& state, std::span<const Camera> cam
                                 ? solve_ceres(state, cameras, observations, r, u)
                                 : solve_fast(state, cameras, observations, r, u);
   if (!solved.ok) return out;
+  state.root_prev = r;  // the solver's smoothness term anchors on the unfiltered pose
+  state.dir_prev = u;
+  state.has_previous = true;
+  if (options_.smoothing.enabled) {
+    filter_pose(options_.smoothing, state.filter, timestamp_ns, state.bone_length_m, r, u);
+  }
 
   // Forward kinematics and rotations.
   std::vector<Eigen::Quaterniond> global(ix(J), Eigen::Quaterniond::Identity());
@@ -389,9 +396,6 @@ FitResult SkeletonFitter::fit(PersonFitState& state, std::span<const Camera> cam
     global[ix(j)] = global[ix(p)] * local;
     out.rotations[ix(j)] = local;
   }
-  state.root_prev = r;
-  state.dir_prev = u;
-  state.has_previous = true;
   out.fitted = true;
   out.final_cost = solved.final_cost;
   out.iterations = solved.iterations;

@@ -21,11 +21,13 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <cstdint>
 #include <span>
 #include <string_view>
 #include <vector>
 
 #include "runtime/core/error.h"
+#include "runtime/fit/pose_filter.h"
 #include "runtime/geometry/camera.h"
 
 namespace mocap {
@@ -65,6 +67,9 @@ struct FitOptions {
   float predicted_joint_confidence = 0.1f;
   // World up direction (z up in Shelf and Qualisys/pose2sim frames).
   Eigen::Vector3d up{0.0, 0.0, 1.0};
+  // Temporal smoothing of the output pose (pose_filter.h); the solver's own smoothness term
+  // (temporal_weight_px_per_m) still sees the unfiltered previous pose.
+  PoseFilterOptions smoothing;
 
   Status validate() const;
 };
@@ -85,6 +90,7 @@ struct PersonFitState {
   bool has_previous = false;
   Eigen::Vector3d root_prev = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> dir_prev;  // [joint]
+  PoseFilterState filter;                 // the output smoother's
 };
 
 struct FitResult {
@@ -108,9 +114,12 @@ class SkeletonFitter {
 
   // Fits the skeleton. `init_m`/`init_valid` are the triangulated joints (initial guess).
   // Returns fitted = false (and the input joints) until the bone lengths are learned.
+  // `timestamp_ns` is the frame's time for the smoother (options.smoothing); a call at the same
+  // time as the last (e.g. always 0) passes the pose through unsmoothed.
   FitResult fit(PersonFitState& state, std::span<const Camera> cameras,
                 std::span<const JointObservation> observations,
-                std::span<const Eigen::Vector3d> init_m, const std::vector<bool>& init_valid) const;
+                std::span<const Eigen::Vector3d> init_m, const std::vector<bool>& init_valid,
+                std::int64_t timestamp_ns = 0) const;
 
   const FitOptions& options() const { return options_; }
 

@@ -30,8 +30,8 @@ std::vector<Camera> rig() {
 std::vector<Eigen::Vector3d> body(const Eigen::Vector3d& at) {
   std::vector<Eigen::Vector3d> j;
   for (int i = 0; i < 17; ++i) {
-    j.push_back(at + Eigen::Vector3d(0.25 * std::sin(i * 1.3), 0.2 * std::cos(i * 0.7),
-                                     0.2 + 0.1 * i));
+    j.push_back(at +
+                Eigen::Vector3d(0.25 * std::sin(i * 1.3), 0.2 * std::cos(i * 0.7), 0.2 + 0.1 * i));
   }
   return j;
 }

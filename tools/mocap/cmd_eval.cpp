@@ -14,6 +14,7 @@
 #include "runtime/io/shelf_detections.h"
 #include "runtime/io/shelf_gt.h"
 #include "tools/common/cli.h"
+#include "tools/common/smoothing_args.h"
 #include "tools/mocap/commands.h"
 
 namespace mocap::tools {
@@ -37,10 +38,18 @@ int eval_shelf(Args args) {
            "write the estimates in the gt.txt format (15 Shelf joints, metres, id = track id)");
   p.flag("--per-frame", &per_frame, "print per-frame person counts and timings");
   p.flag("--no-fit", &no_fit, "skip the parametric skeleton fit (triangulated joints only)");
+  ShelfRunOptions opt;
+  SmoothingArgs smoothing(opt.association.fit.smoothing);
+  smoothing.add_to(p);
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
 
-  ShelfRunOptions opt;
   opt.association.fit.enabled = !no_fit;
+  auto smooth = smoothing.get();
+  if (!smooth.ok()) {
+    std::fprintf(stderr, "error: %s\n", smooth.error().message().c_str());
+    return 2;
+  }
+  opt.association.fit.smoothing = *smooth;
   if (!views_text.empty()) {
     auto v = cli::parse_int_list(views_text);
     if (!v.ok()) {

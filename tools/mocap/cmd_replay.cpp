@@ -21,6 +21,7 @@
 #include "tools/common/cli.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
+#include "tools/common/smoothing_args.h"
 #include "tools/mocap/commands.h"
 
 namespace mocap::tools {
@@ -154,6 +155,7 @@ int run_replay(Args args) {
   std::string backend = "auto", device, skeletons_out, quality_out;
   int size = gpu::kDefaultInputSizePx, frames = -1;
   bool quiet = false, no_fit = false;
+  SmoothingArgs smoothing(assoc::posenet_coco17_options().fit.smoothing);
   cli::ArgParser p("mocap replay", kHelp);
   p.option("--data", &data, "DIR", "recording folder (calibration.json, videos/)");
   p.option("--model", &model, "FILE", "PoseNet model (default models/posenet.mcnn)");
@@ -167,6 +169,7 @@ int run_replay(Args args) {
            "write the label-free quality figures (per person and the run) as JSON");
   p.flag("--quiet", &quiet, "summary only (no per-frame lines)");
   p.flag("--no-fit", &no_fit, "triangulated joints only (no skeleton fitting)");
+  smoothing.add_to(p);
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   if (data.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--data DIR is required"));
   auto request = gpu::parse_backend_request(backend);
@@ -179,6 +182,9 @@ int run_replay(Args args) {
   o.cnn.device = device;
   o.cnn.input_size_px = size;
   o.assoc.fit.enabled = !no_fit;
+  auto smooth = smoothing.get();
+  if (!smooth.ok()) return fail(smooth.error());
+  o.assoc.fit.smoothing = *smooth;
   auto parts = open_replay(o);
   if (!parts.ok()) return fail(parts.error());
   const int views = parts->source->view_count();

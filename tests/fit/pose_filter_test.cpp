@@ -1,0 +1,107 @@
+// The fitted pose's One-Euro smoother: a still pose's noise is removed; a move at constant
+// speed is followed with a lag of at most 1 / (2 pi beta) metres (the cutoff grows with speed);
+// directions stay unit vectors; a gap or a step back in time restarts it; bad options are named.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <vector>
+
+#include "runtime/fit/pose_filter.h"
+
+namespace mocap::fit {
+namespace {
+
+constexpr double kFps = 60;
+std::int64_t at(int frame) { return static_cast<std::int64_t>(std::llround(frame * 1e9 / kFps)); }
+
+PoseFilterOptions on(double beta_per_m = 10) {
+  PoseFilterOptions o;
+  o.enabled = true;
+  o.min_cutoff_hz = 1.0;
+  o.beta_per_m = beta_per_m;
+  return o;
+}
+
+double stddev_x(const std::vector<Eigen::Vector3d>& v) {
+  double m = 0, ss = 0;
+  for (const auto& x : v) m += x.x();
+  m /= static_cast<double>(v.size());
+  for (const auto& x : v) ss += (x.x() - m) * (x.x() - m);
+  return std::sqrt(ss / static_cast<double>(v.size()));
+}
+
+TEST(PoseFilter, AStillPosesNoiseIsRemoved) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0, 0.01);  // 1 cm
+  PoseFilterState s;
+  const std::vector<double> lengths = {0, 0.3};
+  std::vector<Eigen::Vector3d> raw, out;
+  for (int f = 0; f < 600; ++f) {
+    Eigen::Vector3d root(noise(rng), noise(rng), 1 + noise(rng));
+    std::vector<Eigen::Vector3d> dir = {Eigen::Vector3d::UnitZ(),
+                                        Eigen::Vector3d(noise(rng), 0, 1).normalized()};
+    raw.push_back(root);
+    filter_pose(on(), s, at(f), lengths, root, dir);
+    if (f >= 60) out.push_back(root);
+    EXPECT_NEAR(dir[1].norm(), 1.0, 1e-12);
+  }
+  raw.erase(raw.begin(), raw.begin() + 60);
+  EXPECT_LT(stddev_x(out), 0.4 * stddev_x(raw));
+}
+
+TEST(PoseFilter, AConstantSpeedIsFollowedWithinOneOverTwoPiBetaMetres) {
+  for (double beta : {2.0, 10.0}) {
+    PoseFilterState s;
+    const std::vector<double> lengths = {0};
+    constexpr double kSpeed_m_s = 2.0;
+    double lag_m = 0;
+    for (int f = 0; f < 120; ++f) {
+      const double x = kSpeed_m_s * f / kFps;
+      Eigen::Vector3d root(x, 0, 1);
+      std::vector<Eigen::Vector3d> dir = {Eigen::Vector3d::UnitZ()};
+      filter_pose(on(beta), s, at(f), lengths, root, dir);
+      lag_m = x - root.x();
+      EXPECT_GE(lag_m, -1e-9) << "overshoot at frame " << f;
+    }
+    EXPECT_GT(lag_m, 0);
+    EXPECT_LT(lag_m, 1.0 / (2 * std::numbers::pi * beta)) << "beta " << beta;
+  }
+}
+
+TEST(PoseFilter, AGapOrTimeGoingBackRestartsIt) {
+  PoseFilterState s;
+  const std::vector<double> lengths = {0};
+  std::vector<Eigen::Vector3d> dir = {Eigen::Vector3d::UnitZ()};
+  Eigen::Vector3d r(0, 0, 0);
+  filter_pose(on(), s, at(0), lengths, r, dir);
+  r = {1, 0, 0};
+  filter_pose(on(), s, at(1), lengths, r, dir);
+  EXPECT_LT(r.x(), 1.0);  // smoothed
+  r = {2, 0, 0};
+  filter_pose(on(), s, at(1) + 600'000'000, lengths, r, dir);  // 0.6 s later: a new start
+  EXPECT_EQ(r.x(), 2.0);
+  r = {3, 0, 0};
+  filter_pose(on(), s, at(0), lengths, r, dir);  // back in time
+  EXPECT_EQ(r.x(), 3.0);
+}
+
+TEST(PoseFilter, BadOptionsNameTheField) {
+  PoseFilterOptions o = on();
+  EXPECT_TRUE(o.validate().ok());
+  o.min_cutoff_hz = 0;
+  EXPECT_NE(o.validate().error().message().find("min_cutoff_hz"), std::string::npos);
+  o = on();
+  o.beta_per_m = -1;
+  EXPECT_NE(o.validate().error().message().find("beta_per_m"), std::string::npos);
+  o = on();
+  o.derivative_cutoff_hz = NAN;
+  EXPECT_NE(o.validate().error().message().find("derivative_cutoff_hz"), std::string::npos);
+  o = on();
+  o.max_gap_s = 0;
+  EXPECT_NE(o.validate().error().message().find("max_gap_s"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace mocap::fit
