@@ -63,7 +63,8 @@ Engine::Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
       hierarchy_(limb_hierarchy_weights(topology)),
       limb_template_m_(limb_template_lengths_m(topology)),
       fitter_(std::move(fitter)),
-      tracker_(topology, options.tracking, fitter_ ? &*fitter_ : nullptr) {}
+      tracker_(topology, options.tracking, fitter_ ? &*fitter_ : nullptr),
+      sanity_(topology, options.sanity) {}
 
 void Engine::reset() { tracker_.reset(); }
 
@@ -204,6 +205,7 @@ void Engine::track_persons(FrameStats& st) {
     if (fitter_) {
       fit_person(persons_[i], points, t, rotations, st);
     } else {
+      st.joints_implausible += sanity_.check(points.joints, nullptr, points.implausible);
       tracker_.update(t, points.joints, nullptr);
     }
     add_output(persons_[i], points, t, std::move(rotations));
@@ -240,14 +242,16 @@ void Engine::fit_person(const PersonAssignment& person, PersonPoints& points, in
   }
   fit::FitResult fr =
       fitter_->fit(state, cameras_, fit_obs_, tri_X_, tri_valid_, frame_timestamp_ns_);
+  st.joints_implausible +=
+      sanity_.check(points.joints, fr.fitted ? &fr.solved_joints_m : nullptr, points.implausible);
   if (fr.fitted) {
     ++st.persons_fitted;
     rotations = std::move(fr.rotations);
-    for (int j = 0; j < J; ++j) {
-      if (!points.joints[ix(j)].valid) {
-        points.confidence[ix(j)] = options_.fit.predicted_joint_confidence;
-      }
-    }
+  }
+  for (int j = 0; j < J; ++j) {
+    const bool observed = points.joints[ix(j)].valid && !points.implausible[ix(j)];
+    if (!observed)
+      points.confidence[ix(j)] = fr.fitted ? options_.fit.predicted_joint_confidence : 0.f;
   }
   tracker_.update(t, points.joints, fr.fitted ? &fr.joints_m : nullptr);
   st.fit_ms += ms_since(t0);
@@ -266,7 +270,9 @@ void Engine::add_output(const PersonAssignment& person, const PersonPoints& poin
       if (k >= 0) o.candidate[ix(j * V + v)] = graph_.candidates(j)[ix(k)].index;
     }
     const TriangulatedPoint& X = points.joints[ix(j)];
-    o.views_used[ix(j)] = X.valid ? X.views_used : 0;
+    const bool observed =
+        X.valid && !(ix(j) < points.implausible.size() && points.implausible[ix(j)]);
+    o.views_used[ix(j)] = observed ? X.views_used : 0;
   }
   outputs_.push_back(std::move(o));
 }

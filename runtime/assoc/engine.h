@@ -17,6 +17,7 @@
 
 #include "runtime/assoc/bundles.h"
 #include "runtime/assoc/graph.h"
+#include "runtime/assoc/limb_sanity.h"
 #include "runtime/assoc/options.h"
 #include "runtime/assoc/person_triangulation.h"
 #include "runtime/assoc/tracker.h"
@@ -54,6 +55,7 @@ struct FrameStats {
   double reconstruct_ms = 0;  // triangulation, tracking and skeleton fitting
   double fit_ms = 0;          // of which skeleton fitting
   int persons_fitted = 0;
+  int joints_implausible = 0;  // triangulated but output as not observed (limb_sanity.h)
 };
 
 // The 2D evidence of one output person: for each (joint, view) the index of the candidate in
@@ -125,6 +127,7 @@ class Engine {
   std::vector<double> limb_template_m_;        // per limb; 0 = no template length known
   std::optional<fit::SkeletonFitter> fitter_;  // empty: fitting off
   Tracker tracker_;
+  LimbSanity sanity_;
 
   // Per-frame scratch, reused (no per-frame growth once warmed up).
   FrameGraph graph_;

@@ -74,7 +74,24 @@ Status TriangulationOptions::validate() const {
   return Status::Ok();
 }
 
+Status LimbSanityOptions::validate() const {
+  auto bad = [](const char* f, const char* range, double got) {
+    return Status(Error(ErrorCode::kInvalidArgument, std::string("sanity.") + f + " must be in " +
+                                                         range + ", got " + std::to_string(got)));
+  };
+  if (!(min_bone_ratio > 0 && min_bone_ratio <= 1))
+    return bad("min_bone_ratio", "(0, 1]", min_bone_ratio);
+  if (!(max_bone_ratio >= 1 && max_bone_ratio <= 10))
+    return bad("max_bone_ratio", "[1, 10]", max_bone_ratio);
+  if (!(bone_slack_m >= 0 && bone_slack_m <= 1)) return bad("bone_slack_m", "[0, 1]", bone_slack_m);
+  if (!(max_fit_distance_m > 0 && max_fit_distance_m <= 10)) {
+    return bad("max_fit_distance_m", "(0, 10]", max_fit_distance_m);
+  }
+  return {};
+}
+
 Status AssociationOptions::validate() const {
+  if (Status s = sanity.validate(); !s.ok()) return s;
   if (Status s = graph.validate(); !s.ok()) return s;
   if (Status s = clique.validate(); !s.ok()) return s;
   if (Status s = tracking.validate(); !s.ok()) return s;

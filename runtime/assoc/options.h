@@ -118,12 +118,23 @@ struct TriangulationOptions {
   Status validate() const;
 };
 
+// Which triangulated joints are output as observed (limb_sanity.h).
+struct LimbSanityOptions {
+  bool enabled = true;
+  double min_bone_ratio = 0.5;       // (0, 1]: of the template bone length
+  double max_bone_ratio = 1.6;       // [1, 10]
+  double bone_slack_m = 0.05;        // [0, 1]: triangulation noise on short (face) bones
+  double max_fit_distance_m = 0.15;  // (0, 10]: triangulated joint to the fitted one
+  Status validate() const;
+};
+
 struct AssociationOptions {
   GraphOptions graph;
   CliqueOptions clique;
   TrackingOptions tracking;
   TriangulationOptions triangulation;
   fit::FitOptions fit;  // parametric skeleton fitting (needs a tree topology while enabled)
+  LimbSanityOptions sanity;
 
   Status validate() const;
 };

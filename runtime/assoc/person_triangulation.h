@@ -23,6 +23,9 @@ struct PersonPoints {
   // [joint] mean detection score of the joint's candidates (at most 1); 0 when not triangulated.
   std::vector<float> confidence;
   int valid = 0;  // joints triangulated
+  // [joint] triangulated but implausible (limb_sanity.h): output as not observed. Set by the
+  // engine after fitting.
+  std::vector<bool> implausible;
 };
 
 // Triangulates every joint of `person` (candidates in graph numbering) into `out`, reusing its

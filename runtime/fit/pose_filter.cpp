@@ -34,11 +34,13 @@ Status PoseFilterOptions::validate() const {
   if (!(min_cutoff_hz > 0 && min_cutoff_hz <= 1000)) {
     return bad("min_cutoff_hz", "must be in (0, 1000]", min_cutoff_hz);
   }
-  if (!(beta_per_m >= 0 && std::isfinite(beta_per_m))) return bad("beta_per_m", "must be >= 0", beta_per_m);
+  if (!(beta_per_m >= 0 && std::isfinite(beta_per_m)))
+    return bad("beta_per_m", "must be >= 0", beta_per_m);
   if (!(derivative_cutoff_hz > 0 && derivative_cutoff_hz <= 1000)) {
     return bad("derivative_cutoff_hz", "must be in (0, 1000]", derivative_cutoff_hz);
   }
-  if (!(max_gap_s > 0 && std::isfinite(max_gap_s))) return bad("max_gap_s", "must be > 0", max_gap_s);
+  if (!(max_gap_s > 0 && std::isfinite(max_gap_s)))
+    return bad("max_gap_s", "must be > 0", max_gap_s);
   return {};
 }
 

@@ -318,6 +318,17 @@ Eigen::Quaterniond SkeletonFitter::rest_to(const Eigen::Vector3d& rest,
   return Eigen::Quaterniond::FromTwoVectors(rest, dir);
 }
 
+void SkeletonFitter::place(const PersonFitState& state, const Eigen::Vector3d& root_m,
+                           const std::vector<Eigen::Vector3d>& dir,
+                           std::vector<Eigen::Vector3d>& joints_m) const {
+  joints_m.resize(dir.size());
+  for (int j : order_) {
+    const int p = parents_[ix(j)];
+    joints_m[ix(j)] =
+        p < 0 ? root_m : Eigen::Vector3d(joints_m[ix(p)] + state.bone_length_m[ix(j)] * dir[ix(j)]);
+  }
+}
+
 FitResult SkeletonFitter::fit(PersonFitState& state, std::span<const Camera> cameras,
                               std::span<const JointObservation> observations,
                               std::span<const Eigen::Vector3d> init_m,
@@ -366,18 +377,16 @@ FitResult SkeletonFitter::fit(PersonFitState& state, std::span<const Camera> cam
   state.root_prev = r;  // the solver's smoothness term anchors on the unfiltered pose
   state.dir_prev = u;
   state.has_previous = true;
+  place(state, r, u, out.solved_joints_m);
   if (options_.smoothing.enabled) {
     filter_pose(options_.smoothing, state.filter, timestamp_ns, state.bone_length_m, r, u);
+    place(state, r, u, out.joints_m);
+  } else {
+    out.joints_m = out.solved_joints_m;
   }
 
-  // Forward kinematics and rotations.
+  // Rotations.
   std::vector<Eigen::Quaterniond> global(ix(J), Eigen::Quaterniond::Identity());
-  out.joints_m[ix(root)] = r;
-  for (int j : order_) {
-    const int p = parents_[ix(j)];
-    if (p < 0) continue;
-    out.joints_m[ix(j)] = out.joints_m[ix(p)] + state.bone_length_m[ix(j)] * u[ix(j)];
-  }
   for (int j : order_) {
     const int p = parents_[ix(j)];
     if (p < 0) {

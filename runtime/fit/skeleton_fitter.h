@@ -94,9 +94,10 @@ struct PersonFitState {
 };
 
 struct FitResult {
-  bool fitted = false;                        // false while bone lengths are still being learned
-  std::vector<Eigen::Vector3d> joints_m;      // [joint]
-  std::vector<Eigen::Quaterniond> rotations;  // [joint] local rotations
+  bool fitted = false;                           // false while bone lengths are still being learned
+  std::vector<Eigen::Vector3d> joints_m;         // [joint] the output (smoothed when enabled)
+  std::vector<Eigen::Vector3d> solved_joints_m;  // [joint] this frame's solution, unsmoothed
+  std::vector<Eigen::Quaterniond> rotations;     // [joint] local rotations
   double final_cost = 0;
   int iterations = 0;
 };
@@ -126,6 +127,9 @@ class SkeletonFitter {
  private:
   SkeletonFitter(const SkeletonTopology& topology, const FitOptions& options);
   Eigen::Quaterniond rest_to(const Eigen::Vector3d& rest, const Eigen::Vector3d& dir) const;
+  // Forward kinematics: the joints of root position and bone directions.
+  void place(const PersonFitState& state, const Eigen::Vector3d& root_m,
+             const std::vector<Eigen::Vector3d>& dir, std::vector<Eigen::Vector3d>& joints_m) const;
 
   struct SolveStats {
     bool ok = false;
