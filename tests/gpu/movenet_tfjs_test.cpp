@@ -155,8 +155,13 @@ TEST_F(MoveNetTfjsTest, VulkanAndCpuHeadsMatchTfjsOnPhotos) {
         EXPECT_EQ(got.shape, (nn::Shape{1, size / 4, size / 4, got.shape.c})) << name;
         const double err = ::mocap::testing::max_relative_error(got.data, ref);
         EXPECT_LT(err, kTolerance) << "vulkan " << name;
-        std::printf("[ movenet ] %s %d %-19s vulkan rel err %.2e", photo.c_str(), size,
-                    name.c_str(), err);
+        double abs_err = 0;
+        for (std::size_t i = 0; i < ref.size() && i < got.data.size(); ++i) {
+          abs_err = std::max(
+              abs_err, std::fabs(static_cast<double>(got.data[i]) - static_cast<double>(ref[i])));
+        }
+        std::printf("[ movenet ] %s %d %-19s vulkan rel err %.2e (abs %.2e)", photo.c_str(), size,
+                    name.c_str(), err, abs_err);
         if (!cpu_values.empty()) {
           const auto& cpu = cpu_values[static_cast<std::size_t>(model->outputs[o].value)].data;
           const double cerr = ::mocap::testing::max_relative_error(cpu, ref);
