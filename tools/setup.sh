@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One command on a fresh Debian 12 machine: installs the Debian packages, fetches the PoseNet
-# weights and test photos (SHA-256 checked, cached), installs the TF.js reference runner,
-# builds (CMake + Ninja, Release), converts models/posenet.json to models/posenet.mcnn and runs
+# and MoveNet weights and test photos (SHA-256 checked, cached), installs the TF.js reference
+# runner, builds (CMake + Ninja, Release), converts models/posenet.json to models/posenet.mcnn
+# (and MoveNet MultiPose, cut at its heads, to models/movenet-multipose.mcnn) and runs
 # the main job. Idempotent: a second run installs and downloads nothing. --no-models skips
 # every download (weights, photos, npm packages) and the conversion.
 #
@@ -70,22 +71,28 @@ build() {
   cmake --build "$ROOT/build"
 }
 
-convert_models() {
-  # models/posenet.mcnn (docs/model-format.md) from the TF.js graph model, with the mocap just
-  # built; redone only when missing or older than posenet.json/posenet.bin. mocap writes a
-  # temporary file and renames it, so an interrupted run leaves no partial model behind.
-  local json="$ROOT/models/posenet.json" bin="$ROOT/models/posenet.bin"
-  local out="$ROOT/models/posenet.mcnn"
+convert_model() {  # convert_model NAME [CUT]: models/NAME.mcnn from models/NAME.json
+  # docs/model-format.md; with the mocap just built; redone only when missing or older than
+  # the .json/.bin. mocap writes a temporary file and renames it, so an interrupted run leaves
+  # no partial model behind. CUT: mocap model convert --cut (a graph cut at its heads).
+  local name="$1" cut="${2:-}"
+  local json="$ROOT/models/$name.json" bin="$ROOT/models/$name.bin"
+  local out="$ROOT/models/$name.mcnn"
   if [ ! -f "$json" ]; then
-    say "Model file: models/posenet.json not found, conversion skipped"
+    say "Model file: models/$name.json not found, conversion skipped"
     return
   fi
   if [ -f "$out" ] && [ ! "$json" -nt "$out" ] && [ ! "$bin" -nt "$out" ]; then
-    say "Model file: models/posenet.mcnn up to date"
+    say "Model file: models/$name.mcnn up to date"
     return
   fi
-  say "Model file: converting models/posenet.json to models/posenet.mcnn"
-  "$ROOT/build/bin/mocap" model convert --tfjs "$json" --out "$out"
+  say "Model file: converting models/$name.json to models/$name.mcnn"
+  "$ROOT/build/bin/mocap" model convert --tfjs "$json" --out "$out" ${cut:+--cut "$cut"}
+}
+
+convert_models() {
+  convert_model posenet
+  convert_model movenet-multipose movenet-multipose
 }
 
 install_packages

@@ -253,7 +253,8 @@ void Engine::fit_person(const PersonAssignment& person, PersonPoints& points, in
     if (!observed)
       points.confidence[ix(j)] = fr.fitted ? options_.fit.predicted_joint_confidence : 0.f;
   }
-  tracker_.update(t, points.joints, fr.fitted ? &fr.joints_m : nullptr);
+  tracker_.update(t, points.joints, fr.fitted ? &fr.solved_joints_m : nullptr,
+                  fr.fitted ? &fr.joints_m : nullptr);
   st.fit_ms += ms_since(t0);
 }
 

@@ -32,7 +32,7 @@ class LimbSanity {
 
  private:
   LimbSanityOptions options_;
-  std::vector<int> parent_;            // [joint] tree parent, -1 for the root
+  std::vector<int> parent_;             // [joint] tree parent, -1 for the root
   std::vector<double> template_len_m_;  // [joint] its bone's template length, 0 when unknown
 };
 

@@ -135,7 +135,8 @@ int Tracker::assign(int attached, std::span<const TriangulatedPoint> joints,
 }
 
 void Tracker::update(int t, std::span<const TriangulatedPoint> joints,
-                     const std::vector<Eigen::Vector3d>* fitted_joints_m) {
+                     const std::vector<Eigen::Vector3d>* fitted_joints_m,
+                     const std::vector<Eigen::Vector3d>* output_joints_m) {
   const int J = topology_.joint_count();
   Track& tr = tracks_[ix(t)];
   for (int j = 0; j < J; ++j) {
@@ -151,6 +152,9 @@ void Tracker::update(int t, std::span<const TriangulatedPoint> joints,
       ++age;
     }
   }
+  tr.output_m = output_joints_m != nullptr && output_joints_m->size() == tr.joints_m.size()
+                    ? *output_joints_m
+                    : tr.joints_m;
   if (valid_count(joints) < options_.min_joints_observed) {
     ++tr.missed;  // a fragment keeps the track's joints fresh but does not keep it alive
     ++stats_.fragment_observations;
@@ -163,13 +167,15 @@ void Tracker::update(int t, std::span<const TriangulatedPoint> joints,
 void Tracker::skeleton(int t, PersonSkeleton& out) const {
   const Track& tr = tracks_[ix(t)];
   out.person_id = tr.id;
-  out.joints_m = tr.joints_m;
+  const std::vector<Eigen::Vector3d>& src =
+      tr.output_m.size() == tr.joints_m.size() ? tr.output_m : tr.joints_m;
+  out.joints_m = src;
   if (parents_.empty()) return;
   for (int j = 0; j < topology_.joint_count(); ++j) {
     if (tr.joint_age[ix(j)] >= 0) continue;
     int a = parents_[ix(j)];
     while (a >= 0 && tr.joint_age[ix(a)] < 0) a = parents_[ix(a)];
-    if (a >= 0) out.joints_m[ix(j)] = tr.joints_m[ix(a)];
+    if (a >= 0) out.joints_m[ix(j)] = src[ix(a)];
   }
 }
 

@@ -28,7 +28,8 @@ namespace mocap::assoc {
 
 struct Track {
   int id = -1;
-  std::vector<Eigen::Vector3d> joints_m;
+  std::vector<Eigen::Vector3d> joints_m;  // what tracking matches against (unsmoothed)
+  std::vector<Eigen::Vector3d> output_m;  // what is output: the smoothed fit, else joints_m
   std::vector<int> joint_age;  // frames since the joint was last triangulated (-1 = never)
   int missed = 0;              // consecutive frames without observation
   int observed_frames = 0;
@@ -95,9 +96,12 @@ class Tracker {
   // only, never triangulated, gets age 0); otherwise triangulated joints are taken and the
   // others age. A person with fewer than min_joints_observed joints is a fragment: it keeps
   // the track's joints fresh but counts as a missed frame, so a track seen only as fragments
-  // dies after max_missed_frames.
+  // dies after max_missed_frames. `output_joints_m` (null: the track's joints) is what
+  // skeleton() outputs, e.g. the fit smoothed over time: tracking keeps matching against the
+  // unsmoothed joints, so a smoother's lag never costs an association.
   void update(int t, std::span<const TriangulatedPoint> joints,
-              const std::vector<Eigen::Vector3d>* fitted_joints_m);
+              const std::vector<Eigen::Vector3d>* fitted_joints_m,
+              const std::vector<Eigen::Vector3d>* output_joints_m = nullptr);
 
   // Track t as an output skeleton: id and joints, where a joint never seen is filled from its
   // nearest seen ancestor (tree topologies; held joints keep their last position).

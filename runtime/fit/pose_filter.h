@@ -17,12 +17,12 @@
 
 namespace mocap::fit {
 
-// Defaults measured (docs/quality.md): on pose2sim_multi (60 fps, PoseNet 353) the limb jitter
-// of the woman standing falls from 124 to 25 m/s², the man's from 200 to 148, and the smoothed
-// limbs follow the unsmoothed ones one frame behind (the best-aligning shift); Shelf strict PCP
-// rises from 97.20 to 97.42 (every 4-view subset rises, the 3-view mean 92.42 -> 92.43).
-// beta 1 smooths more (the man 121 m/s²) but lags 1-2 frames; beta 10 lags less and smooths
-// little (212 m/s² before limb sanity).
+// Defaults measured (docs/quality.md): on pose2sim_multi (60 fps, PoseNet 353, limb sanity on)
+// the limb jitter of the woman standing falls from 124 to 25 m/s², the man's from 200 to 138,
+// and the smoothed limbs follow the unsmoothed ones one frame behind (the best-aligning
+// shift); Shelf strict PCP rises from 97.20 to 97.51 (every 4-view subset as high or higher,
+// the 3-view mean 92.42 -> 92.53). beta 1 smooths more but lags 1-2 frames; beta 10 lags less
+// and smooths little. Tracking matches the unsmoothed fit (Tracker::update).
 struct PoseFilterOptions {
   bool enabled = true;
   double min_cutoff_hz = 1.0;         // (0, 1000]: cutoff of a still joint

@@ -1,5 +1,6 @@
 #include "runtime/gpu/cnn_detector.h"
 
+#include "runtime/nn/movenet.h"
 #include "runtime/nn/tfjs_import.h"
 
 namespace mocap::gpu {
@@ -10,7 +11,7 @@ Status CnnOptions::validate() const {
                  "no pose model given (install it with tools/fetch_models.sh, or set model)");
   }
   PoseDetectorOptions po;
-  po.input_size_px = input_size_px;
+  po.input_size_px = input_size_px == 0 ? kDefaultInputSizePx : input_size_px;
   po.max_views = max_views;
   return po.validate();
 }
@@ -29,11 +30,15 @@ Result<std::unique_ptr<CnnDetector>> CnnDetector::open(const CnnOptions& options
   if (!b.ok()) return b.error();
   std::unique_ptr<CnnDetector> d(new CnnDetector());
   d->options_ = options;
+  if (options.input_size_px == 0) {
+    d->options_.input_size_px =
+        nn::is_movenet(*model) ? kDefaultMoveNetInputSizePx : kDefaultInputSizePx;
+  }
   d->backend_ = std::move(*b);
   d->model_name_ = model->name;
   PoseDetectorOptions po;
   po.backend = d->backend_.backend;
-  po.input_size_px = options.input_size_px;
+  po.input_size_px = d->options_.input_size_px;
   po.max_views = options.max_views;
   auto det = PoseDetector::create(*model, po, d->backend_.context.get());
   if (!det.ok()) return det.error();

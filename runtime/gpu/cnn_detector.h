@@ -24,6 +24,8 @@ struct CnnOptions {
   BackendRequest backend = BackendRequest::kAuto;
   std::string device;  // Vulkan device index or name substring; empty = the best one
   bool validation = false;
+  // Network input size; 0 = the model's default (kDefaultInputSizePx for PoseNet,
+  // kDefaultMoveNetInputSizePx for MoveNet).
   int input_size_px = kDefaultInputSizePx;
   int max_views = 1;  // views per frame (the network batch)
   Status validate() const;
@@ -34,7 +36,7 @@ class CnnDetector final : public pipeline::Detector {
   static Result<std::unique_ptr<CnnDetector>> open(const CnnOptions& options);
 
   Result<DetectionSet> detect(const FrameSet& frames) override;
-  // e.g. "PoseNet 353 px on Vulkan on llvmpipe (LLVM 15.0.6, 256 bits) (CPU)".
+  // e.g. "posenet 353 px on Vulkan on llvmpipe (LLVM 15.0.6, 256 bits) (CPU)".
   std::string description() const override;
 
   PoseBackend backend() const { return backend_.backend; }

@@ -14,6 +14,9 @@ namespace mocap::gpu {
 // pose2sim_multi (`mocap replay --help` has the figures): the people on the treadmill are
 // tracked as well as at 513 at half the time per frame.
 inline constexpr int kDefaultInputSizePx = 353;
+// MoveNet MultiPose (runtime/nn/movenet.h): sizes are multiples of 32; 256 is the size the
+// model was published for.
+inline constexpr int kDefaultMoveNetInputSizePx = 256;
 inline constexpr int kMinInputSizePx = 17;
 inline constexpr int kMaxInputSizePx = 1025;
 

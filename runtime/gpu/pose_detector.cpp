@@ -18,6 +18,17 @@ Error invalid(const std::string& what) {
 
 constexpr const char* kHeadNames[4] = {"heatmap", "offsets", "displacement_fwd",
                                        "displacement_bwd"};
+constexpr const char* kMoveNetHeadNames[4] = {
+    nn::kMoveNetKeypointHeatmap, nn::kMoveNetCenterHeatmap, nn::kMoveNetKeypointRegression,
+    nn::kMoveNetKeypointOffsets};
+constexpr int kCocoJoints = 17;
+
+// Each limb its own matrix (MoveNet's affinities are computed per limb).
+std::vector<nn::LimbEdge> identity_limb_edges(const SkeletonTopology& topology) {
+  std::vector<nn::LimbEdge> edges(static_cast<std::size_t>(topology.limb_count()));
+  for (std::size_t l = 0; l < edges.size(); ++l) edges[l].edge = static_cast<int>(l);
+  return edges;
+}
 
 }  // namespace
 
@@ -29,6 +40,7 @@ Status PoseDetectorOptions::validate() const {
   if (max_views < 1 || max_views > 16) {
     return invalid(std::string("max_views ") + std::to_string(max_views) + " must be in [1, 16]");
   }
+  if (Status s = movenet.validate(); !s.ok()) return s;
   return post.validate();
 }
 
@@ -40,23 +52,20 @@ Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& mode
   if (Status s = options.validate(); !s.ok()) return s.error();
   std::unique_ptr<PoseDetector> d(new PoseDetector());
   d->options_ = options;
-  for (int h = 0; h < 4; ++h) {
-    bool found = false;
-    for (std::size_t i = 0; i < model.outputs.size(); ++i) {
-      if (model.outputs[i].name == kHeadNames[h]) {
-        d->heads_[h] = i;
-        found = true;
-      }
-    }
-    if (!found) {
-      return invalid("model '" + model.name + "' has no output named '" + kHeadNames[h] +
-                     "' (PoseNet needs heatmap, offsets, displacement_fwd, displacement_bwd)");
-    }
-  }
-  auto limb_edges = nn::map_displacement_edges(coco17_topology());
-  if (!limb_edges.ok()) return limb_edges.error();
-  d->limb_edges_ = std::move(*limb_edges);
+  if (Status s = d->find_heads(model); !s.ok()) return s.error();
   const int S = options.input_size_px;
+  if (d->movenet_) {
+    if (S % nn::kMoveNetInputMultiplePx != 0) {
+      return invalid("model '" + model.name + "' is MoveNet: input_size_px " + std::to_string(S) +
+                     " must be a multiple of " + std::to_string(nn::kMoveNetInputMultiplePx) +
+                     " (256, 320, 384, ...)");
+    }
+    d->limb_edges_ = identity_limb_edges(coco17_topology());
+  } else {
+    auto limb_edges = nn::map_displacement_edges(coco17_topology());
+    if (!limb_edges.ok()) return limb_edges.error();
+    d->limb_edges_ = std::move(*limb_edges);
+  }
   if (options.backend == PoseBackend::kCpu) {
     d->model_ = model;
     return d;
@@ -70,22 +79,73 @@ Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& mode
   auto net = Network::create(*ctx, model, no);
   if (!net.ok()) return net.error();
   d->net_ = std::move(*net);
+  if (Status s = d->check_vulkan_heads(model); !s.ok()) return s.error();
+  auto pre = FramePreprocessor::create(*ctx, S, options.max_views);
+  if (!pre.ok()) return pre.error();
+  d->pre_ = std::move(*pre);
+  if (d->movenet_) return d;
   const nn::Shape hs = d->net_->output_shape(d->heads_[0]);
-  const nn::Shape fs = d->net_->output_shape(d->heads_[2]);
+  auto post = PoseNetPostprocessor::create(*ctx, options.max_views, hs.h, hs.w, hs.c,
+                                           nn::posenet_displacement_edges(), options.post);
+  if (!post.ok()) return post.error();
+  d->post_ = std::move(*post);
+  return d;
+}
+
+Status PoseDetector::find_heads(const nn::Model& model) {
+  movenet_ = nn::is_movenet(model);
+  const char* const(&names)[4] = movenet_ ? kMoveNetHeadNames : kHeadNames;
+  for (int h = 0; h < 4; ++h) {
+    bool found = false;
+    for (std::size_t i = 0; i < model.outputs.size(); ++i) {
+      if (model.outputs[i].name == names[h]) {
+        heads_[h] = i;
+        found = true;
+      }
+    }
+    if (!found) {
+      return invalid("model '" + model.name + "' has no output named '" + names[h] +
+                     "' (PoseNet needs heatmap, offsets, displacement_fwd, displacement_bwd; "
+                     "MoveNet keypoint_heatmap, center_heatmap, keypoint_regression, "
+                     "keypoint_offsets)");
+    }
+  }
+  return Status::Ok();
+}
+
+Status PoseDetector::check_vulkan_heads(const nn::Model& model) const {
+  const nn::Shape hs = net_->output_shape(heads_[0]);
+  if (movenet_) {
+    if (hs.c != kCocoJoints || hs.h * nn::kMoveNetOutputStridePx != options_.input_size_px) {
+      return invalid("model '" + model.name + "': keypoint heatmap " + std::to_string(hs.h) + "x" +
+                     std::to_string(hs.w) + "x" + std::to_string(hs.c) +
+                     " (MoveNet: 17 joints at output stride 4)");
+    }
+    return Status::Ok();
+  }
+  const nn::Shape fs = net_->output_shape(heads_[2]);
   const auto& edges = nn::posenet_displacement_edges();
-  if (hs.c != 17 || fs.c != 2 * static_cast<int>(edges.size())) {
+  if (hs.c != kCocoJoints || fs.c != 2 * static_cast<int>(edges.size())) {
     return invalid("model '" + model.name + "': heatmap has " + std::to_string(hs.c) +
                    " channels and displacements " + std::to_string(fs.c) +
                    " (PoseNet COCO-17: 17 and 32)");
   }
-  auto pre = FramePreprocessor::create(*ctx, S, options.max_views);
-  if (!pre.ok()) return pre.error();
-  d->pre_ = std::move(*pre);
-  auto post =
-      PoseNetPostprocessor::create(*ctx, options.max_views, hs.h, hs.w, hs.c, edges, options.post);
-  if (!post.ok()) return post.error();
-  d->post_ = std::move(*post);
-  return d;
+  return Status::Ok();
+}
+
+Result<std::vector<nn::PoseNetView>> PoseDetector::decode_movenet(
+    const nn::Tensor* const (&heads)[4]) const {
+  nn::MoveNetOptions mo = options_.movenet;
+  mo.peaks = options_.post;
+  auto views = nn::movenet_postprocess_cpu(*heads[0], *heads[1], *heads[2], *heads[3],
+                                           options_.input_size_px, coco17_topology(), mo);
+  if (!views.ok()) return views.error();
+  std::vector<nn::PoseNetView> out(views->size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i].peaks = std::move((*views)[i].peaks);
+    out[i].edge_affinity = std::move((*views)[i].limb_affinity);
+  }
+  return out;
 }
 
 Result<std::vector<nn::PoseNetView>> PoseDetector::run_vulkan(std::span<const nn::FrameView> frames,
@@ -101,7 +161,8 @@ Result<std::vector<nn::PoseNetView>> PoseDetector::run_vulkan(std::span<const nn
     if (Status s = net_->read_output(heads_[h], outs[h]); !s.ok()) return s.error();
   }
   const auto t2 = monotonic_ns();
-  auto views = post_->run(outs[0], outs[1], outs[2], outs[3]);
+  auto views = movenet_ ? decode_movenet({&outs[0], &outs[1], &outs[2], &outs[3]})
+                        : post_->run(outs[0], outs[1], outs[2], outs[3]);
   if (!views.ok()) return views.error();
   const auto t3 = monotonic_ns();
   times_.preprocess_ms = ms_between(t0, t1);
@@ -128,8 +189,10 @@ Result<std::vector<nn::PoseNetView>> PoseDetector::run_cpu(std::span<const nn::F
     outs[h] = &(*values)[static_cast<std::size_t>(model_.outputs[heads_[h]].value)];
   }
   const auto t2 = monotonic_ns();
-  auto views = nn::posenet_postprocess_cpu(*outs[0], *outs[1], *outs[2], *outs[3],
-                                           nn::posenet_displacement_edges(), options_.post);
+  auto views = movenet_
+                   ? decode_movenet(outs)
+                   : nn::posenet_postprocess_cpu(*outs[0], *outs[1], *outs[2], *outs[3],
+                                                 nn::posenet_displacement_edges(), options_.post);
   if (!views.ok()) return views.error();
   times_.preprocess_ms = ms_between(t0, t1);
   times_.network_ms = ms_between(t1, t2);

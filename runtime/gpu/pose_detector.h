@@ -1,10 +1,12 @@
-// PoseNet detections for the N views of a frame: one batched pre-processing submission
+// Pose detections for the N views of a frame: one batched pre-processing submission
 // (FramePreprocessor), the network (Network::run), one post-processing submission
 // (PoseNetPostprocessor), then the candidates mapped back to image pixels and one affinity
 // matrix per COCO-17 limb (runtime/skeleton/topology.h), as a DetectionSet that passes
 // DetectionSet::validate(). The CPU backend runs the same stages with the CPU references
 // (nn::letterbox_frame, nn::run_model_cpu, nn::posenet_postprocess_cpu) for machines
-// without a Vulkan driver.
+// without a Vulkan driver. A MoveNet MultiPose model (runtime/nn/movenet.h: its four heads by
+// name) is decoded on the CPU (nn::movenet_postprocess_cpu) on either backend; its input size
+// must be a multiple of 32.
 //
 //   PoseDetectorOptions o;  o.max_views = 4;
 //   auto det = PoseDetector::create(model, o, ctx.get());
@@ -23,6 +25,7 @@
 #include "runtime/gpu/pose_kernels.h"
 #include "runtime/msg/messages.h"
 #include "runtime/nn/model.h"
+#include "runtime/nn/movenet.h"
 #include "runtime/nn/postprocess.h"
 
 namespace mocap::gpu {
@@ -37,6 +40,8 @@ struct PoseDetectorOptions {
   // Views per frame (the network batch), in [1, 16].
   int max_views = 1;
   nn::PostprocessOptions post;
+  // MoveNet only: centres and affinities (its `peaks` are ignored: `post` is used).
+  nn::MoveNetOptions movenet;
 
   Status validate() const;
 };
@@ -53,7 +58,8 @@ struct PoseDetectorTimes {
 class PoseDetector {
  public:
   // `model` must have PoseNet's four outputs (heatmap, offsets, displacement_fwd,
-  // displacement_bwd: output names as tfjs_import gives them). `ctx` is needed (and must
+  // displacement_bwd: output names as tfjs_import gives them) or MoveNet's (keypoint_heatmap,
+  // center_heatmap, keypoint_regression, keypoint_offsets). `ctx` is needed (and must
   // outlive the detector) for the Vulkan backend and ignored for the CPU backend.
   static Result<std::unique_ptr<PoseDetector>> create(const nn::Model& model,
                                                       const PoseDetectorOptions& options,
@@ -73,6 +79,12 @@ class PoseDetector {
 
  private:
   PoseDetector() = default;
+  // The output index of each head (PoseNet's or MoveNet's four, in their header order).
+  Status find_heads(const nn::Model& model);
+  Status check_vulkan_heads(const nn::Model& model) const;
+  // MoveNet's heads decoded, as PoseNetViews whose matrices are per limb (limb_edges_ is the
+  // identity for MoveNet).
+  Result<std::vector<nn::PoseNetView>> decode_movenet(const nn::Tensor* const (&heads)[4]) const;
   Result<std::vector<nn::PoseNetView>> run_vulkan(std::span<const nn::FrameView> frames,
                                                   std::vector<nn::Letterbox>& boxes);
   Result<std::vector<nn::PoseNetView>> run_cpu(std::span<const nn::FrameView> frames,
@@ -80,7 +92,8 @@ class PoseDetector {
 
   PoseDetectorOptions options_;
   nn::Model model_;            // CPU backend
-  std::size_t heads_[4] = {};  // output index of heatmap, offsets, fwd, bwd
+  bool movenet_ = false;       // the model is MoveNet MultiPose (else PoseNet)
+  std::size_t heads_[4] = {};  // output index of heatmap, offsets, fwd, bwd (MoveNet: its four)
   std::vector<nn::LimbEdge> limb_edges_;
   std::unique_ptr<FramePreprocessor> pre_;
   std::unique_ptr<Network> net_;

@@ -60,25 +60,53 @@ constexpr std::array<PoseNetHead, 4> kPoseNetHeads = {{
 
 // Every op the importer understands (others are rejected before any mapping starts).
 const std::set<std::string, std::less<>>& supported_ops() {
-  static const std::set<std::string, std::less<>> ops = {"Placeholder",
-                                                         "Const",
-                                                         "Identity",
-                                                         "Conv2D",
-                                                         "DepthwiseConv2dNative",
-                                                         "_FusedConv2D",
-                                                         "FusedDepthwiseConv2dNative",
-                                                         "BiasAdd",
-                                                         "Relu",
-                                                         "Relu6",
-                                                         "Sigmoid",
-                                                         "Prelu",
-                                                         "Add",
-                                                         "AddV2",
-                                                         "ConcatV2",
-                                                         "MaxPool",
-                                                         "ResizeBilinear",
-                                                         "ResizeNearestNeighbor"};
+  static const std::set<std::string, std::less<>> ops = {
+      "Placeholder", "Const", "Identity", "Conv2D", "DepthwiseConv2dNative", "_FusedConv2D",
+      "FusedDepthwiseConv2dNative", "BiasAdd", "Relu", "Relu6", "Sigmoid", "Prelu", "Add", "AddV2",
+      "ConcatV2", "MaxPool", "ResizeBilinear", "ResizeNearestNeighbor",
+      // only as a resize's run-time size:
+      "Shape", "StridedSlice", "Mul"};
   return ops;
+}
+
+// Ops allowed between a cut input node and the Placeholder (TfjsImportOptions::input_node).
+const std::set<std::string, std::less<>>& elementwise_input_ops() {
+  static const std::set<std::string, std::less<>> ops = {"Cast", "Sub",   "Mul",
+                                                         "Add",  "AddV2", "RealDiv"};
+  return ops;
+}
+
+// IEEE 754 binary16 to float (subnormals, infinities and NaN included).
+float half_to_float(std::uint16_t h) {
+  constexpr int kHalfMantissaBits = 10;
+  constexpr int kFloatMantissaBits = 23;
+  constexpr std::uint32_t kHalfExpMask = 0x1Fu;
+  constexpr std::uint32_t kHalfMantissaMask = 0x3FFu;
+  constexpr int kExpBiasDelta = 127 - 15;
+  constexpr std::uint32_t kFloatExpAllOnes = 0xFFu;
+  constexpr int kHalfSignBit = 15;
+  constexpr int kFloatSignBit = 31;
+  const std::uint32_t sign = static_cast<std::uint32_t>(h >> kHalfSignBit) << kFloatSignBit;
+  std::uint32_t exponent = (h >> kHalfMantissaBits) & kHalfExpMask;
+  std::uint32_t mantissa = h & kHalfMantissaMask;
+  if (exponent == kHalfExpMask) {  // infinity or NaN
+    return std::bit_cast<float>(sign | (kFloatExpAllOnes << kFloatMantissaBits) |
+                                (mantissa << (kFloatMantissaBits - kHalfMantissaBits)));
+  }
+  if (exponent == 0) {
+    if (mantissa == 0) return std::bit_cast<float>(sign);
+    // Subnormal: normalise the mantissa.
+    int shift = 0;
+    while ((mantissa & (1u << kHalfMantissaBits)) == 0) {
+      mantissa <<= 1;
+      ++shift;
+    }
+    mantissa &= kHalfMantissaMask;
+    exponent = static_cast<std::uint32_t>(1 - shift);
+  }
+  const std::uint32_t fexp = exponent + kExpBiasDelta;
+  return std::bit_cast<float>(sign | (fexp << kFloatMantissaBits) |
+                              (mantissa << (kFloatMantissaBits - kHalfMantissaBits)));
 }
 
 std::optional<std::string> base64_decode(std::string_view in) {
@@ -141,15 +169,31 @@ struct Weight {
 struct TfNode {
   std::string name;
   std::string op;
-  std::vector<std::string> inputs;  // data inputs: ":0" stripped, control inputs dropped
+  std::vector<std::string> inputs;  // data inputs: ":N" stripped, control inputs dropped
+  std::string other_output;         // the first input naming an output other than 0, if any
   const Json* attr = nullptr;
 };
 
-// What a node evaluates to: an activation (value id) or a constant.
+// A run-time size computed from an activation's shape (Keras UpSampling2D): Shape(x) (the
+// whole NHWC shape), then its [height, width] slice, then that times `factor`.
+struct SizeExpr {
+  int value = -1;  // the activation x
+  bool whole_shape = true;
+  int factor = 1;
+};
+
+// What a node evaluates to: an activation (value id), a constant or a run-time size.
 struct NodeValue {
   int value = -1;                  // value id when not a constant
   const Weight* weight = nullptr;  // the constant
   std::string const_name;
+  std::optional<SizeExpr> size;  // a Shape / StridedSlice / Mul node of a resize size
+
+  static NodeValue activation(int value_id) {
+    NodeValue v;
+    v.value = value_id;
+    return v;
+  }
 };
 
 // One weight of a manifest group: what its bytes hold.
@@ -158,15 +202,16 @@ struct WeightSpec {
   std::vector<int> shape;
   std::uint64_t elements = 1;
   bool is_int = false;
-  std::size_t quantized_bytes = 0;  // 0: not quantized; else 1 (uint8) or 2 (uint16)
+  std::size_t quantized_bytes = 0;  // 0: not quantized; else 1 (uint8) or 2 (uint16 / float16)
+  bool float16 = false;             // stored as IEEE binary16 (no scale and min)
   float scale = 0.0f;
   float min = 0.0f;
 };
 
 class Importer {
  public:
-  explicit Importer(const std::filesystem::path& json_path)
-      : path_(json_path), source_(json_path.string()) {}
+  Importer(const std::filesystem::path& json_path, const TfjsImportOptions& options)
+      : path_(json_path), source_(json_path.string()), options_(options) {}
 
   Result<Model> run();
 
@@ -191,10 +236,21 @@ class Importer {
   Status decode_weights(std::vector<WeightSpec>& specs, const std::vector<std::uint8_t>& buffer);
   Result<std::vector<std::string>> output_nodes() const;
   Result<std::vector<const TfNode*>> topological_order(const std::vector<std::string>& outs);
+  // The ops of the nodes the outputs need are supported, and they read first outputs only.
+  Status check_needed_nodes(const std::vector<const TfNode*>& order) const;
+  Result<std::vector<ModelOutput>> model_outputs(const std::vector<std::string>& outs) const;
   const TfNode* resolve_passthrough(const TfNode* n) const;
 
   Status map_node(const TfNode& n);
   Status map_placeholder(const TfNode& n);
+  // The cut input node (TfjsImportOptions::input_node): its Placeholder's shape, no layer.
+  Status map_cut_input(const TfNode& n);
+  Result<std::array<std::int64_t, 4>> declared_shape(const TfNode& placeholder) const;
+  void set_input(const TfNode& n, const std::array<std::int64_t, 4>& size);
+  Status map_size_op(const TfNode& n);
+  bool slices_height_and_width(const TfNode& n) const;
+  Result<std::optional<int>> run_time_resize_factor(const TfNode& n, int x) const;
+  Result<int> const_resize_factor(const TfNode& n, int x) const;
   Status map_conv(const TfNode& n);
   Status map_bias_add(const TfNode& n, const std::string& x, const std::string& b);
   Status map_activation(const TfNode& n, Activation a);
@@ -229,6 +285,7 @@ class Importer {
 
   std::filesystem::path path_;
   std::string source_;
+  TfjsImportOptions options_;
   Json doc_;
   std::vector<TfNode> nodes_;
   std::unordered_map<std::string, const TfNode*> by_name_;
@@ -306,11 +363,7 @@ Status Importer::parse_nodes() {
         std::string input = s.get<std::string>();
         if (input.starts_with('^')) continue;  // control dependency: no data flows
         if (auto colon = input.rfind(':'); colon != std::string::npos) {
-          if (input.substr(colon + 1) != "0") {
-            return node_error(
-                n, "uses output '" + input + "'; only a node's first output is supported",
-                ErrorCode::kUnsupported);
-          }
+          if (input.substr(colon + 1) != "0" && n.other_output.empty()) n.other_output = input;
           input.resize(colon);
         }
         n.inputs.push_back(std::move(input));
@@ -328,12 +381,28 @@ Status Importer::parse_nodes() {
     }
   }
   for (const TfNode& n : nodes_) {
-    if (!supported_ops().contains(n.op)) {
-      return node_error(n, "op '" + n.op + "' is not supported by the importer",
-                        ErrorCode::kUnsupported);
-    }
     for (const std::string& in : n.inputs) {
       if (!by_name_.contains(in)) return node_error(n, "input '" + in + "' is not a node");
+    }
+  }
+  return Status::Ok();
+}
+
+Status Importer::check_needed_nodes(const std::vector<const TfNode*>& order) const {
+  for (const TfNode* n : order) {
+    if (n->name == options_.input_node) continue;
+    if (!supported_ops().contains(n->op)) {
+      return node_error(*n, "op '" + n->op + "' is not supported by the importer",
+                        ErrorCode::kUnsupported);
+    }
+    if (!n->other_output.empty()) {
+      return node_error(
+          *n, "uses output '" + n->other_output + "'; only a node's first output is supported",
+          ErrorCode::kUnsupported);
+    }
+    if (n->op == "Placeholder" && !options_.input_node.empty()) {
+      return node_error(*n, "is needed by the outputs other than through the input node '" +
+                                options_.input_node + "'");
     }
   }
   return Status::Ok();
@@ -408,10 +477,15 @@ Result<WeightSpec> Importer::parse_weight_spec(const Json& j, const std::string&
     return error(wname + ": 'quantization' needs a string 'dtype'");
   }
   const std::string qt = qtype->get<std::string>();
-  if (s.is_int || (qt != "uint8" && qt != "uint16")) {
+  if (s.is_int || (qt != "uint8" && qt != "uint16" && qt != "float16")) {
     return error(wname + ": quantization to '" + qt + "' of a " + type +
-                     " weight is not supported (uint8/uint16 of float32 are)",
+                     " weight is not supported (uint8/uint16/float16 of float32 are)",
                  ErrorCode::kUnsupported);
+  }
+  if (qt == "float16") {
+    s.quantized_bytes = sizeof(std::uint16_t);
+    s.float16 = true;
+    return s;
   }
   auto scale = q->find("scale");
   auto min = q->find("min");
@@ -492,7 +566,8 @@ Status Importer::decode_weights(std::vector<WeightSpec>& specs,
         if (s.quantized_bytes == sizeof(std::uint16_t)) {
           q |= static_cast<std::uint32_t>(buffer[at + e * s.quantized_bytes + 1]) << kBitsPerByte;
         }
-        w.floats[e] = static_cast<float>(q) * s.scale + s.min;
+        w.floats[e] = s.float16 ? half_to_float(static_cast<std::uint16_t>(q))
+                                : static_cast<float>(q) * s.scale + s.min;
       }
       at += count * s.quantized_bytes;
     } else if (s.is_int) {
@@ -517,6 +592,13 @@ Status Importer::decode_weights(std::vector<WeightSpec>& specs,
 
 Result<std::vector<std::string>> Importer::output_nodes() const {
   std::vector<std::string> outs;
+  for (const TfjsOutput& o : options_.outputs) {
+    std::string name = o.node;
+    if (name.ends_with(":0")) name.resize(name.size() - 2);
+    if (!by_name_.contains(name)) return error("output node '" + o.node + "' is not a node");
+    outs.push_back(std::move(name));
+  }
+  if (!outs.empty()) return outs;
   if (auto sig = doc_.find("signature"); sig != doc_.end() && sig->is_object()) {
     if (auto o = sig->find("outputs"); o != sig->end() && o->is_object() && !o->empty()) {
       for (auto it = o->begin(); it != o->end(); ++it) {
@@ -566,7 +648,8 @@ Result<std::vector<const TfNode*>> Importer::topological_order(
     mark[root] = Mark::kOpen;
     while (!stack.empty()) {
       auto& [node, next] = stack.back();
-      if (next < node->inputs.size()) {
+      // The cut input node is a leaf: what computes it is left out.
+      if (next < node->inputs.size() && node->name != options_.input_node) {
         const TfNode* in = by_name_.at(node->inputs[next++]);
         Mark& m = mark[in];
         if (m == Mark::kOpen) return node_error(*in, "is part of a cycle");
@@ -756,10 +839,10 @@ Result<int> Importer::activation_input(const TfNode& n, std::size_t i) const {
                              std::to_string(i + 1));
   }
   const NodeValue& v = values_.at(n.inputs[i]);
-  if (v.weight != nullptr) {
+  if (v.weight != nullptr || v.size) {
     return node_error(n,
-                      "input " + std::to_string(i) + " ('" + n.inputs[i] +
-                          "') is a constant; an activation is needed",
+                      "input " + std::to_string(i) + " ('" + n.inputs[i] + "') is a " +
+                          (v.size ? "run-time size" : "constant") + "; an activation is needed",
                       ErrorCode::kUnsupported);
   }
   return v.value;
@@ -827,6 +910,61 @@ Status Importer::map_placeholder(const TfNode& n) {
     return node_error(n, "is a second input; only single-input models are supported",
                       ErrorCode::kUnsupported);
   }
+  Result<std::array<std::int64_t, kNhwcRank>> size = declared_shape(n);
+  if (!size.ok()) return size.error();
+  Result<std::optional<std::string>> dtype = [&]() -> Result<std::optional<std::string>> {
+    if (n.attr == nullptr) return std::optional<std::string>();
+    auto d = n.attr->find("dtype");
+    if (d == n.attr->end() || !d->is_object()) return std::optional<std::string>();
+    auto t = d->find("type");
+    if (t == d->end() || !t->is_string()) return std::optional<std::string>();
+    return std::optional<std::string>(t->get<std::string>());
+  }();
+  if (dtype.ok() && *dtype && **dtype != "DT_FLOAT") {
+    return node_error(n,
+                      "input dtype " + **dtype +
+                          " is not supported (DT_FLOAT is; a graph that converts its input "
+                          "can be cut after the conversion, TfjsImportOptions::input_node)",
+                      ErrorCode::kUnsupported);
+  }
+  set_input(n, *size);
+  return Status::Ok();
+}
+
+Status Importer::map_cut_input(const TfNode& n) {
+  // Walk up to the Placeholder; every step is an elementwise op with constant other operands.
+  const TfNode* at = &n;
+  for (std::size_t steps = 0; at->op != "Placeholder"; ++steps) {
+    if (steps > nodes_.size()) return node_error(n, "is part of a cycle");
+    if (!elementwise_input_ops().contains(at->op)) {
+      return node_error(*at,
+                        "lies between the input node '" + n.name +
+                            "' and the Placeholder and is not an elementwise op (Cast, Sub, "
+                            "Mul, Add, AddV2, RealDiv)",
+                        ErrorCode::kUnsupported);
+    }
+    const TfNode* next = nullptr;
+    for (const std::string& in : at->inputs) {
+      const TfNode* p = by_name_.at(in);
+      if (p->op == "Const") continue;
+      if (next != nullptr) {
+        return node_error(*at,
+                          "has two inputs that are not constants; the input node must be "
+                          "an elementwise function of the Placeholder alone",
+                          ErrorCode::kUnsupported);
+      }
+      next = p;
+    }
+    if (next == nullptr) return node_error(*at, "does not depend on the Placeholder");
+    at = next;
+  }
+  Result<std::array<std::int64_t, kNhwcRank>> size = declared_shape(*at);
+  if (!size.ok()) return size.error();
+  set_input(n, *size);
+  return Status::Ok();
+}
+
+Result<std::array<std::int64_t, kNhwcRank>> Importer::declared_shape(const TfNode& n) const {
   const Json* dims = nullptr;
   if (n.attr != nullptr) {
     auto shape = n.attr->find("shape");
@@ -863,26 +1001,18 @@ Status Importer::map_placeholder(const TfNode& n) {
   if (size[kAxisC] <= 0) {
     return node_error(n, "declared shape has no channel count (last dimension)");
   }
-  Result<std::optional<std::string>> dtype = [&]() -> Result<std::optional<std::string>> {
-    if (n.attr == nullptr) return std::optional<std::string>();
-    auto d = n.attr->find("dtype");
-    if (d == n.attr->end() || !d->is_object()) return std::optional<std::string>();
-    auto t = d->find("type");
-    if (t == d->end() || !t->is_string()) return std::optional<std::string>();
-    return std::optional<std::string>(t->get<std::string>());
-  }();
-  if (dtype.ok() && *dtype && **dtype != "DT_FLOAT") {
-    return node_error(n, "input dtype " + **dtype + " is not supported (DT_FLOAT is)",
-                      ErrorCode::kUnsupported);
-  }
+  return size;
+}
+
+// Value 0 is node n's: the declared size, or unknown (0) where it is -1 (dynamic).
+void Importer::set_input(const TfNode& n, const std::array<std::int64_t, kNhwcRank>& size) {
   model_.input_channels = static_cast<int>(size[kAxisC]);
   sizes_known_ = size[kAxisH] > 0 && size[kAxisW] > 0;
   shapes_.push_back(Shape{1, sizes_known_ ? static_cast<int>(size[kAxisH]) : 0,
                           sizes_known_ ? static_cast<int>(size[kAxisW]) : 0,
                           model_.input_channels});
   have_input_ = true;
-  values_[n.name] = NodeValue{0, nullptr, ""};
-  return Status::Ok();
+  values_[n.name] = NodeValue::activation(0);
 }
 
 Status Importer::map_conv(const TfNode& n) {
@@ -974,7 +1104,7 @@ Status Importer::map_conv(const TfNode& n) {
     out.h = conv_out_size(in.h, l.kernel_h, l.stride_h, l.padding);
     out.w = conv_out_size(in.w, l.kernel_w, l.stride_w, l.padding);
   }
-  values_[n.name] = NodeValue{add_layer(std::move(l), out), nullptr, ""};
+  values_[n.name] = NodeValue::activation(add_layer(std::move(l), out));
   return Status::Ok();
 }
 
@@ -1032,7 +1162,7 @@ Status Importer::map_activation(const TfNode& n, Activation a) {
     if (!alpha.ok()) return alpha.error();
     l.alpha = *alpha;
   }
-  values_[n.name] = NodeValue{add_layer(std::move(l), shape_of(*x)), nullptr, ""};
+  values_[n.name] = NodeValue::activation(add_layer(std::move(l), shape_of(*x)));
   return Status::Ok();
 }
 
@@ -1061,7 +1191,7 @@ Status Importer::map_add(const TfNode& n) {
   l.name = n.name;
   l.op = OpType::kAdd;
   l.inputs = {*a, *b};
-  values_[n.name] = NodeValue{add_layer(std::move(l), shape_of(*a)), nullptr, ""};
+  values_[n.name] = NodeValue::activation(add_layer(std::move(l), shape_of(*a)));
   return Status::Ok();
 }
 
@@ -1102,7 +1232,7 @@ Status Importer::map_concat(const TfNode& n) {
     values_[n.name] = values_.at(n.inputs[0]);
     return Status::Ok();
   }
-  values_[n.name] = NodeValue{add_layer(std::move(l), out), nullptr, ""};
+  values_[n.name] = NodeValue::activation(add_layer(std::move(l), out));
   return Status::Ok();
 }
 
@@ -1134,7 +1264,7 @@ Status Importer::map_max_pool(const TfNode& n) {
     out.h = conv_out_size(in.h, l.kernel_h, l.stride_h, l.padding);
     out.w = conv_out_size(in.w, l.kernel_w, l.stride_w, l.padding);
   }
-  values_[n.name] = NodeValue{add_layer(std::move(l), out), nullptr, ""};
+  values_[n.name] = NodeValue::activation(add_layer(std::move(l), out));
   return Status::Ok();
 }
 
@@ -1146,12 +1276,6 @@ Status Importer::map_resize(const TfNode& n) {
   }
   Result<int> x = activation_input(n, 0);
   if (!x.ok()) return x.error();
-  Result<const NodeValue*> size = const_input(n, 1);
-  if (!size.ok()) return size.error();
-  const Weight& sw = *(*size)->weight;
-  if (!sw.is_int || sw.ints.size() != kResizeSizeElements) {
-    return node_error(n, "size '" + (*size)->const_name + "' must be two int32 (height, width)");
-  }
   Result<std::optional<bool>> align = attr_bool(n, "align_corners");
   if (!align.ok()) return align.error();
   if (align->value_or(false)) {
@@ -1166,13 +1290,37 @@ Status Importer::map_resize(const TfNode& n) {
                       "runtime resizes with half-pixel centres",
                       ErrorCode::kUnsupported);
   }
+  Result<std::optional<int>> run_time = run_time_resize_factor(n, *x);
+  if (!run_time.ok()) return run_time.error();
+  Result<int> factor = *run_time ? Result<int>(**run_time) : const_resize_factor(n, *x);
+  if (!factor.ok()) return factor.error();
+  Layer l;
+  l.name = n.name;
+  l.op = bilinear ? OpType::kResizeBilinear : OpType::kResizeNearest;
+  l.inputs = {*x};
+  l.resize_factor = *factor;
+  Shape out = shape_of(*x);
+  out.h *= *factor;
+  out.w *= *factor;
+  values_[n.name] = NodeValue::activation(add_layer(std::move(l), out));
+  return Status::Ok();
+}
+
+// A constant size: an integer factor at the Placeholder's declared size.
+Result<int> Importer::const_resize_factor(const TfNode& n, int x) const {
+  Result<const NodeValue*> size = const_input(n, 1);
+  if (!size.ok()) return size.error();
+  const Weight& sw = *(*size)->weight;
+  if (!sw.is_int || sw.ints.size() != kResizeSizeElements) {
+    return node_error(n, "size '" + (*size)->const_name + "' must be two int32 (height, width)");
+  }
   if (!sizes_known_) {
     return node_error(n,
                       "needs the Placeholder's declared height and width to turn the size "
                       "constant into a resize factor",
                       ErrorCode::kUnsupported);
   }
-  const Shape in = shape_of(*x);
+  const Shape in = shape_of(x);
   if (in.h <= 0 || in.w <= 0) {
     return node_error(n, "input '" + n.inputs[0] +
                              "' has no height or width at the declared "
@@ -1188,27 +1336,110 @@ Status Importer::map_resize(const TfNode& n) {
                           " at the declared input size: not one integer factor",
                       ErrorCode::kUnsupported);
   }
-  Layer l;
-  l.name = n.name;
-  l.op = bilinear ? OpType::kResizeBilinear : OpType::kResizeNearest;
-  l.inputs = {*x};
-  l.resize_factor = out_h / in.h;
-  Shape out = in;
-  out.h = out_h;
-  out.w = out_w;
-  values_[n.name] = NodeValue{add_layer(std::move(l), out), nullptr, ""};
+  return static_cast<int>(out_h / in.h);
+}
+
+// A size computed at run time from x's own shape times a factor (nullopt: not a run-time
+// size); a run-time size of another value is unsupported.
+Result<std::optional<int>> Importer::run_time_resize_factor(const TfNode& n, int x) const {
+  const NodeValue& v = values_.at(n.inputs[1]);
+  if (!v.size) return std::optional<int>();
+  if (v.size->whole_shape || v.size->value != x) {
+    return node_error(n,
+                      "size '" + n.inputs[1] +
+                          "' is computed at run time, but not as [height, width] of the "
+                          "resized input '" +
+                          n.inputs[0] + "' times a factor",
+                      ErrorCode::kUnsupported);
+  }
+  return std::optional<int>(v.size->factor);
+}
+
+// Shape, StridedSlice and Mul, as the steps of a resize's run-time size (SizeExpr).
+Status Importer::map_size_op(const TfNode& n) {
+  auto unsupported = [&](const std::string& why) {
+    return node_error(n,
+                      why + "; " + n.op +
+                          " is supported only in a resize's run-time size "
+                          "Mul(StridedSlice(Shape(x), [1], [3], [1]), [f, f])",
+                      ErrorCode::kUnsupported);
+  };
+  auto size_input = [&](std::size_t i) -> const SizeExpr* {
+    const std::optional<SizeExpr>& e = values_.at(n.inputs[i]).size;
+    return e ? &*e : nullptr;
+  };
+  NodeValue v;
+  if (n.op == "Shape") {
+    if (n.inputs.size() != 1)
+      return unsupported("it has " + std::to_string(n.inputs.size()) + " inputs");
+    const NodeValue& x = values_.at(n.inputs[0]);
+    if (x.weight != nullptr || x.size || x.value < 0) {
+      return unsupported("its input is not an activation");
+    }
+    v.size = SizeExpr{x.value, true, 1};
+  } else if (n.op == "StridedSlice") {
+    const SizeExpr* shape = n.inputs.size() == 4 ? size_input(0) : nullptr;
+    if (shape == nullptr || !shape->whole_shape) return unsupported("it slices no Shape");
+    if (!slices_height_and_width(n)) {
+      return unsupported("it is not the [1:3] slice (height, width) without masks");
+    }
+    v.size = SizeExpr{shape->value, false, shape->factor};
+  } else {  // Mul
+    const SizeExpr* hw = n.inputs.size() == 2 ? size_input(0) : nullptr;
+    const std::size_t k = hw != nullptr ? 1 : 0;
+    if (hw == nullptr && n.inputs.size() == 2) hw = size_input(1);
+    if (hw == nullptr || hw->whole_shape) return unsupported("it multiplies no [height, width]");
+    const NodeValue& c = values_.at(n.inputs[k]);
+    const bool scalar = c.weight != nullptr && c.weight->is_int && c.weight->ints.size() == 1;
+    const bool pair = c.weight != nullptr && c.weight->is_int &&
+                      c.weight->ints.size() == kResizeSizeElements &&
+                      c.weight->ints[0] == c.weight->ints[1];
+    if ((!scalar && !pair) || c.weight->ints[0] < 1) {
+      return unsupported("its factor is not a positive int32 constant, equal for height and width");
+    }
+    v.size = SizeExpr{hw->value, false, hw->factor * c.weight->ints[0]};
+  }
+  values_[n.name] = std::move(v);
   return Status::Ok();
+}
+
+// A StridedSlice taking elements [1, 3) of a 4-element shape, stride 1, no masks.
+bool Importer::slices_height_and_width(const TfNode& n) const {
+  const std::int32_t want[3] = {1, 3, 1};  // begin, end, strides
+  for (std::size_t i = 0; i < 3; ++i) {
+    const NodeValue& c = values_.at(n.inputs[i + 1]);
+    if (c.weight == nullptr || !c.weight->is_int || c.weight->ints.size() != 1 ||
+        c.weight->ints[0] != want[i]) {
+      return false;
+    }
+  }
+  for (const char* mask :
+       {"begin_mask", "end_mask", "ellipsis_mask", "new_axis_mask", "shrink_axis_mask"}) {
+    const Json* a = find_attr(n, mask);
+    const Json* i = a != nullptr ? field_of(*a, "i") : nullptr;
+    if (i == nullptr) continue;  // protobuf omits 0
+    if (!(i->is_string() && i->get<std::string>() == "0") &&
+        !(i->is_number_integer() && i->get<std::int64_t>() == 0)) {
+      return false;
+    }
+  }
+  return true;
 }
 
 Status Importer::map_node(const TfNode& n) {
   const std::string& op = n.op;
+  if (n.name == options_.input_node) return map_cut_input(n);
   if (op == "Placeholder") return map_placeholder(n);
+  if (op == "Shape" || op == "StridedSlice" || op == "Mul") return map_size_op(n);
   if (op == "Const") {
     auto w = weights_.find(n.name);
     if (w == weights_.end()) {
       return node_error(n, "has no entry in the weights manifest");
     }
-    values_[n.name] = NodeValue{-1, &w->second, n.name};
+    NodeValue v;
+    v.weight = &w->second;
+    v.const_name = n.name;
+    values_[n.name] = std::move(v);
     return Status::Ok();
   }
   if (op == "Identity") {
@@ -1238,12 +1469,17 @@ Status Importer::map_node(const TfNode& n) {
 }
 
 Result<Model> Importer::run() {
+  if (Status s = options_.validate(); !s.ok()) return s.error().with_context(source_);
   if (Status s = load_json(); !s.ok()) return s.error();
   if (Status s = parse_nodes(); !s.ok()) return s.error();
+  if (!options_.input_node.empty() && !by_name_.contains(options_.input_node)) {
+    return error("input node '" + options_.input_node + "' is not a node");
+  }
   Result<std::vector<std::string>> outs = output_nodes();
   if (!outs.ok()) return outs.error();
   Result<std::vector<const TfNode*>> order = topological_order(*outs);
   if (!order.ok()) return order.error();
+  if (Status s = check_needed_nodes(*order); !s.ok()) return s.error();
   if (Status s = load_weights(); !s.ok()) return s.error();
 
   // Uses of each node's value, looking through pass-through nodes; an output counts as a use.
@@ -1258,17 +1494,43 @@ Result<Model> Importer::run() {
   for (const TfNode* n : *order) {
     if (Status s = map_node(*n); !s.ok()) return s.error();
   }
-  if (!have_input_) return error("the graph has no Placeholder input");
+  if (!have_input_) {
+    if (!options_.input_node.empty()) {
+      return error("the outputs do not depend on the input node '" + options_.input_node + "'");
+    }
+    return error("the graph has no Placeholder input");
+  }
+  Result<std::vector<ModelOutput>> outputs = model_outputs(*outs);
+  if (!outputs.ok()) return outputs.error();
+  model_.outputs = std::move(*outputs);
 
-  // Outputs, renamed when they are PoseNet's four heads.
+  if (Status s = model_.validate(); !s.ok()) return s.error().with_context(source_);
+  if (sizes_known_) {
+    const Shape& declared = shapes_[0];
+    Result<std::vector<Shape>> shapes = model_.infer_shapes(declared);
+    if (!shapes.ok()) {
+      return shapes.error().with_context(source_ + ": at the declared input size " +
+                                         std::to_string(declared.h) + "x" +
+                                         std::to_string(declared.w));
+    }
+  }
+  return std::move(model_);
+}
+
+// The outputs: named by the options, else renamed when they are PoseNet's four heads.
+Result<std::vector<ModelOutput>> Importer::model_outputs(
+    const std::vector<std::string>& outs) const {
   std::vector<ModelOutput> outputs;
-  for (const std::string& out : *outs) {
+  for (std::size_t i = 0; i < outs.size(); ++i) {
+    const std::string& out = outs[i];
     const NodeValue& v = values_.at(out);
     if (v.weight != nullptr) return error("output '" + out + "' is a constant");
+    if (v.size) return error("output '" + out + "' is a run-time size, not an activation");
     if (v.value == 0) return error("output '" + out + "' is the network input itself");
-    outputs.push_back(ModelOutput{out, v.value});
+    const bool named = i < options_.outputs.size() && !options_.outputs[i].name.empty();
+    outputs.push_back(ModelOutput{named ? options_.outputs[i].name : out, v.value});
   }
-  if (outputs.size() == kPoseNetHeads.size()) {
+  if (options_.outputs.empty() && outputs.size() == kPoseNetHeads.size()) {
     std::vector<ModelOutput> posenet;
     std::set<std::size_t> matched;  // indices into outputs
     for (const PoseNetHead& head : kPoseNetHeads) {
@@ -1284,34 +1546,38 @@ Result<Model> Importer::run() {
       outputs = std::move(posenet);
     }
   }
-  model_.outputs = std::move(outputs);
-
-  if (Status s = model_.validate(); !s.ok()) return s.error().with_context(source_);
-  if (sizes_known_) {
-    const Shape& declared = shapes_[0];
-    Result<std::vector<Shape>> shapes = model_.infer_shapes(declared);
-    if (!shapes.ok()) {
-      return shapes.error().with_context(source_ + ": at the declared input size " +
-                                         std::to_string(declared.h) + "x" +
-                                         std::to_string(declared.w));
-    }
-  }
-  return std::move(model_);
+  return outputs;
 }
 
 }  // namespace
 
-Result<Model> import_tfjs(const std::filesystem::path& model_json) {
+Status TfjsImportOptions::validate() const {
+  auto invalid = [](const std::string& what) {
+    return Error(ErrorCode::kInvalidArgument, "TF.js import options: " + what);
+  };
+  std::set<std::string, std::less<>> nodes;
+  std::set<std::string, std::less<>> names;
+  for (const TfjsOutput& o : outputs) {
+    if (o.node.empty()) return invalid("an output has no node name");
+    if (!nodes.insert(o.node).second) return invalid("output node '" + o.node + "' given twice");
+    const std::string& name = o.name.empty() ? o.node : o.name;
+    if (!names.insert(name).second) return invalid("output name '" + name + "' given twice");
+  }
+  return Status::Ok();
+}
+
+Result<Model> import_tfjs(const std::filesystem::path& model_json,
+                          const TfjsImportOptions& options) {
   try {
-    Importer importer(model_json);
+    Importer importer(model_json, options);
     return importer.run();
   } catch (const std::exception& e) {  // allocation failure; the checks leave nothing else
     return Error(ErrorCode::kInternal, model_json.string() + ": import failed: " + e.what());
   }
 }
 
-Result<Model> load_model(const std::filesystem::path& path) {
-  if (path.extension() == ".json") return import_tfjs(path);
+Result<Model> load_model(const std::filesystem::path& path, const TfjsImportOptions& options) {
+  if (path.extension() == ".json") return import_tfjs(path, options);
   return read_model_file(path);
 }
 

@@ -28,8 +28,7 @@ std::vector<TriangulatedPoint> body(const SkeletonTopology& topo) {
         j[ci].X_m = {0, 0, 1};
         placed[ci] = true;
       } else if (placed[static_cast<std::size_t>(p)]) {
-        const double L =
-            fit::template_bone_length_m(topo.joint_name(p), topo.joint_name(c));
+        const double L = fit::template_bone_length_m(topo.joint_name(p), topo.joint_name(c));
         j[ci].X_m = j[static_cast<std::size_t>(p)].X_m + L * Eigen::Vector3d(0.6, 0.0, -0.8);
         placed[ci] = true;
       }

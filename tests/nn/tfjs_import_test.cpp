@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -17,6 +18,7 @@
 #include <vector>
 
 #include "runtime/nn/model_file.h"
+#include "runtime/nn/movenet.h"
 #include "tests/support/data.h"
 #include "tests/support/temp_dir.h"
 
@@ -87,13 +89,14 @@ std::size_t count(const std::vector<int>& shape) {
 // A TF.js graph model under construction: nodes, manifest entries and the weight bytes.
 class TfjsGraph {
  public:
-  void placeholder(const std::string& name, std::initializer_list<int> shape) {
+  void placeholder(const std::string& name, std::initializer_list<int> shape,
+                   const char* dtype = "DT_FLOAT") {
     Json dims = Json::array();
     for (int d : shape) dims.push_back(Json{{"size", std::to_string(d)}});
     nodes_.push_back(Json{{"name", name},
                           {"op", "Placeholder"},
                           {"attr", Json{{"shape", Json{{"shape", Json{{"dim", dims}}}}},
-                                        {"dtype", Json{{"type", "DT_FLOAT"}}}}}});
+                                        {"dtype", Json{{"type", dtype}}}}}});
   }
   void const_f(const std::string& name, const std::vector<int>& shape, std::vector<float> v) {
     EXPECT_EQ(v.size(), count(shape)) << name;
@@ -121,6 +124,19 @@ class TfjsGraph {
     for (int x : q) {
       bin_.push_back(static_cast<char>(x & 0xFF));
       if (bytes == 2) bin_.push_back(static_cast<char>((x >> 8) & 0xFF));
+    }
+  }
+  // A float32 weight stored as IEEE binary16 bit patterns.
+  void const_f16(const std::string& name, const std::vector<int>& shape,
+                 const std::vector<std::uint16_t>& h) {
+    add_const(name, shape, "DT_FLOAT");
+    weights_.push_back(Json{{"name", name},
+                            {"shape", shape},
+                            {"dtype", "float32"},
+                            {"quantization", Json{{"dtype", "float16"}}}});
+    for (std::uint16_t x : h) {
+      bin_.push_back(static_cast<char>(x & 0xFF));
+      bin_.push_back(static_cast<char>(x >> 8));
     }
   }
   void node(const std::string& name, const std::string& op, std::vector<std::string> inputs,
@@ -413,6 +429,172 @@ TEST_F(TfjsImportTest, QuantizedWeightsAreDequantized) {
             (std::vector<float>{1.0f, 65535.0f * 0.25f + 1.0f}));
 }
 
+TEST_F(TfjsImportTest, Float16WeightsAreWidened) {
+  g_.placeholder("x", {1, 2, 2, 2});
+  // 1, -2, 0.5, 65504 (largest), 2^-24 (smallest subnormal), 2^-14 (smallest normal).
+  g_.const_f16("w", {1, 1, 2, 2}, {0x3C00, 0xC000, 0x3800, 0x7BFF});
+  g_.const_f16("b", {2}, {0x0001, 0x0400});
+  Json attrs = conv_attrs(1, "SAME");
+  attrs["fused_ops"] = fused_attr({"BiasAdd"});
+  g_.node("conv", "_FusedConv2D", {"x", "w", "b"}, attrs);
+  Result<Model> r = import_tfjs(g_.write(dir_));
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  const Layer& l = r->layers[0];
+  EXPECT_EQ(r->tensors[static_cast<std::size_t>(l.weights)].data,
+            (std::vector<float>{1.0f, -2.0f, 0.5f, 65504.0f}));
+  EXPECT_EQ(r->tensors[static_cast<std::size_t>(l.bias)].data,
+            (std::vector<float>{std::ldexp(1.0f, -24), std::ldexp(1.0f, -14)}));
+}
+
+// A MoveNet-like graph: an int32 input normalised by Cast/Sub/Mul/Sub, a dynamic input size,
+// Keras UpSampling2D (Shape/StridedSlice/Mul as the resize size), heads, then post-processing
+// the importer does not support (TopKV2, an input ":1").
+class TfjsCutTest : public TfjsImportTest {
+ protected:
+  void build_cut_graph() {
+    g_.placeholder("input", {1, -1, -1, 3}, "DT_INT32");
+    g_.const_f("mean", {1, 1, 1, 3}, {0.f, 0.f, 0.f});
+    g_.const_f("scale", {1, 1, 1, 3}, {0.5f, 0.5f, 0.5f});
+    g_.const_f("one", {}, {1.f});
+    g_.node("cast", "Cast", {"input"});
+    g_.node("sub", "Sub", {"cast", "mean"});
+    g_.node("mul", "Mul", {"sub", "scale"});
+    g_.node("norm", "Sub", {"mul", "one"});
+    g_.const_f("w", {3, 3, 3, 4}, ramp(108, -0.5f, 0.01f));
+    g_.const_f("b", {4}, {0.1f, 0.2f, 0.3f, 0.4f});
+    Json c = conv_attrs(2, "SAME");
+    c["fused_ops"] = fused_attr({"BiasAdd", "Relu6"});
+    g_.node("conv", "_FusedConv2D", {"norm", "w", "b"}, c);
+    add_upsampling("up", "conv", 2);
+    g_.const_f("hw", {1, 1, 4, 2}, ramp(8, 0.5f, -0.1f));
+    g_.node("head", "Conv2D", {"up", "hw"}, conv_attrs(1, "VALID"));
+    g_.const_i("k", {}, {6});
+    g_.node("topk", "TopKV2", {"head", "k"});
+    g_.node("post", "Identity", {"topk:1"});
+  }
+  // x resized by `factor` to a size computed at run time, as Keras' UpSampling2D does.
+  void add_upsampling(const std::string& name, const std::string& x, int factor) {
+    g_.node(name + "/Shape", "Shape", {x}, Json{{"out_type", Json{{"type", "DT_INT32"}}}});
+    g_.const_i(name + "/begin", {1}, {1});
+    g_.const_i(name + "/end", {1}, {3});
+    g_.const_i(name + "/strides", {1}, {1});
+    g_.const_i(name + "/factor", {2}, {factor, factor});
+    Json masks{{"begin_mask", Json{{"i", "0"}}}, {"shrink_axis_mask", Json{{"i", "0"}}}};
+    g_.node(name + "/slice", "StridedSlice",
+            {name + "/Shape", name + "/begin", name + "/end", name + "/strides"}, masks);
+    g_.node(name + "/mul", "Mul", {name + "/slice", name + "/factor"},
+            Json{{"T", Json{{"type", "DT_INT32"}}}});
+    g_.node(name, "ResizeBilinear", {x, name + "/mul"},
+            Json{{"align_corners", Json{{"b", false}}}, {"half_pixel_centers", Json{{"b", true}}}});
+  }
+  TfjsImportOptions cut() const {
+    TfjsImportOptions o;
+    o.input_node = "norm";
+    o.outputs = {{"head:0", "heads"}};
+    return o;
+  }
+};
+
+TEST_F(TfjsCutTest, CutsAtTheNormalisedInputAndTheHeads) {
+  build_cut_graph();
+  Result<Model> r = import_tfjs(g_.write(dir_), cut());
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  const Model& m = *r;
+  EXPECT_EQ(m.input_channels, 3);
+  ASSERT_EQ(m.layers.size(), 3u);  // conv, resize, head: no layer for the normalisation
+  EXPECT_EQ(m.layers[0].name, "conv");
+  EXPECT_EQ(m.layers[0].inputs, std::vector<int>{0});
+  EXPECT_EQ(m.layers[1].op, OpType::kResizeBilinear);
+  EXPECT_EQ(m.layers[1].resize_factor, 2);
+  ASSERT_EQ(m.outputs.size(), 1u);
+  EXPECT_EQ(m.outputs[0].name, "heads");
+  EXPECT_EQ(m.outputs[0].value, 3);
+  // Any input size works: the resize factor does not depend on the declared size.
+  for (int size : {8, 32}) {
+    Result<std::vector<Shape>> shapes = m.infer_shapes({1, size, size, 3});
+    ASSERT_TRUE(shapes.ok()) << shapes.error().message();
+    EXPECT_EQ(shapes->back(), (Shape{1, size, size, 2}));
+  }
+}
+
+TEST_F(TfjsCutTest, WithoutTheCutTheUnsupportedPartsAreNamed) {
+  build_cut_graph();
+  const std::filesystem::path json = g_.write(dir_);
+  TfjsImportOptions only_outputs = cut();
+  only_outputs.input_node.clear();  // the int32 Placeholder is then the input
+  // The whole graph, from the int32 Placeholder to the post-processing: the first unsupported
+  // node on the way is the Cast.
+  const Error e = import_error(json);
+  EXPECT_EQ(e.code(), ErrorCode::kUnsupported);
+  EXPECT_THAT(e.message(), HasSubstr("op 'Cast'"));
+  Result<Model> r = import_tfjs(json, only_outputs);
+  ASSERT_FALSE(r.ok());
+  EXPECT_THAT(r.error().message(), HasSubstr("op 'Cast'"));
+  TfjsImportOptions to_post = cut();
+  to_post.outputs = {{"post", ""}};
+  r = import_tfjs(json, to_post);
+  ASSERT_FALSE(r.ok());
+  EXPECT_THAT(r.error().message(), HasSubstr("op 'TopKV2'"));
+}
+
+TEST_F(TfjsCutTest, CutErrors) {
+  build_cut_graph();
+  g_.const_f("w2", {1, 1, 3, 2}, ramp(6, 0.f, 1.f));
+  g_.node("bypass", "Conv2D", {"cast", "w2"}, conv_attrs(1, "SAME"));  // skips "norm"
+  g_.node("relu", "Relu", {"conv"});
+  g_.node("size2", "Shape", {"relu"});
+  const std::filesystem::path json = g_.write(dir_);
+  auto message = [&](const TfjsImportOptions& o) {
+    Result<Model> r = import_tfjs(json, o);
+    EXPECT_FALSE(r.ok());
+    return r.ok() ? std::string() : r.error().message();
+  };
+  TfjsImportOptions o = cut();
+  o.input_node = "absent";
+  EXPECT_THAT(message(o), HasSubstr("input node 'absent' is not a node"));
+  o = cut();
+  o.input_node = "conv";  // not an elementwise function of the input
+  o.outputs = {{"up", ""}};
+  EXPECT_THAT(message(o), AllOf(HasSubstr("'conv'"), HasSubstr("elementwise")));
+  o = cut();
+  o.outputs = {{"bypass", ""}};
+  EXPECT_THAT(message(o), AllOf(HasSubstr("'input'"), HasSubstr("other than through")));
+  o = cut();
+  o.outputs = {{"head", "a"}, {"head", "b"}};
+  EXPECT_THAT(message(o), HasSubstr("given twice"));
+  o = cut();
+  o.outputs = {{"up", "x"}, {"head", "x"}};
+  EXPECT_THAT(message(o), HasSubstr("output name 'x' given twice"));
+  o = cut();
+  o.outputs = {{"size2", ""}};
+  EXPECT_THAT(message(o), HasSubstr("run-time size"));
+}
+
+TEST_F(TfjsCutTest, RunTimeSizeOfAnotherValueIsUnsupported) {
+  g_.placeholder("x", {1, -1, -1, 2});
+  g_.node("relu", "Relu", {"x"});
+  g_.node("s", "Shape", {"relu"});
+  g_.const_i("begin", {1}, {1});
+  g_.const_i("end", {1}, {3});
+  g_.const_i("strides", {1}, {1});
+  g_.const_i("two", {}, {2});
+  g_.node("hw", "StridedSlice", {"s", "begin", "end", "strides"});
+  g_.node("size", "Mul", {"two", "hw"});
+  g_.node("sig", "Sigmoid", {"x"});
+  g_.node("up", "ResizeNearestNeighbor", {"sig", "size"});
+  const std::filesystem::path json = g_.write(dir_);
+  Error e = import_error(json);
+  EXPECT_EQ(e.code(), ErrorCode::kUnsupported);
+  EXPECT_THAT(e.message(), AllOf(HasSubstr("node 'up'"), HasSubstr("run time")));
+  // The same size for the value it measures is fine (scalar factor, either operand order).
+  TfjsImportOptions o;
+  o.outputs = {{"up2", ""}};
+  g_.node("up2", "ResizeNearestNeighbor", {"relu", "size"});
+  Result<Model> r = import_tfjs(g_.write(dir_), o);
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  EXPECT_EQ(r->layers.back().resize_factor, 2);
+}
+
 TEST_F(TfjsImportTest, UnsupportedOpNamesTheNode) {
   build_small_graph();
   g_.node("net/softmax", "Softmax", {"net/sig"});
@@ -532,13 +714,13 @@ TEST_F(TfjsImportTest, UnsupportedWeightEncodings) {
     g.const_q("w", {1, 1, 2, 2}, {0, 1, 2, 3}, 1, 0.5f, 0.0f);
     g.node("conv", "Conv2D", {"x", "w"}, conv_attrs(1, "SAME"));
     const std::filesystem::path json = g.write(dir_);
-    // Rewrite the quantization dtype to float16.
+    // Rewrite the quantization dtype to int8 (TF.js has none).
     Json doc = Json::parse(std::ifstream(json));
-    doc["weightsManifest"][0]["weights"][0]["quantization"]["dtype"] = "float16";
+    doc["weightsManifest"][0]["weights"][0]["quantization"]["dtype"] = "int8";
     std::ofstream(json) << doc.dump();
     const Error e = import_error(json);
     EXPECT_EQ(e.code(), ErrorCode::kUnsupported);
-    EXPECT_THAT(e.message(), AllOf(HasSubstr("weight 'w'"), HasSubstr("float16")));
+    EXPECT_THAT(e.message(), AllOf(HasSubstr("weight 'w'"), HasSubstr("int8")));
     doc["weightsManifest"][0]["weights"][0].erase("quantization");
     doc["weightsManifest"][0]["weights"][0]["dtype"] = "bool";
     std::ofstream(json) << doc.dump();
@@ -642,6 +824,62 @@ TEST(TfjsImportPoseNetTest, ImportsTheRealPoseNet) {
               0)
         << m.tensors[t].name;
   }
+}
+
+// The real MoveNet MultiPose (tools/fetch_models.sh), cut at its heads. Skipped when absent,
+// except in CI.
+TEST(TfjsImportMoveNetTest, ImportsTheRealMoveNetCutAtItsHeads) {
+  const std::filesystem::path json =
+      std::filesystem::path(MOCAP_SOURCE_DIR) / "models/movenet-multipose.json";
+  if (!std::filesystem::exists(json)) {
+    MOCAP_SKIP_OR_FAIL_IN_CI(json.string() + " not found (run tools/fetch_models.sh)");
+  }
+  // Whole, it stops at the int32 input's Cast.
+  Result<Model> whole = import_tfjs(json);
+  ASSERT_FALSE(whole.ok());
+  EXPECT_EQ(whole.error().code(), ErrorCode::kUnsupported);
+
+  Result<Model> r = import_tfjs(json, movenet_multipose_cut());
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  const Model& m = *r;
+  EXPECT_TRUE(is_movenet(m));
+  EXPECT_EQ(m.name, "movenet-multipose");
+  EXPECT_EQ(m.input_channels, 3);
+  // 50 convolutions, 17 fused and 7 plain depthwise, 13 adds, 3 upsamplings (measured on the
+  // graph: the nodes the four heads need).
+  ASSERT_EQ(m.layers.size(), 90u);
+  EXPECT_EQ(m.parameter_count(), 4717726);
+  EXPECT_EQ(m.layers[0].op, OpType::kConv2D);
+  EXPECT_EQ(m.layers[0].inputs, std::vector<int>{0});
+  EXPECT_EQ(m.layers[0].stride_h, 2);
+  int resizes = 0;
+  for (const Layer& l : m.layers) {
+    if (l.op == OpType::kResizeBilinear) {
+      ++resizes;
+      EXPECT_EQ(l.resize_factor, 2) << l.name;
+    }
+  }
+  EXPECT_EQ(resizes, 3);
+  const char* names[] = {kMoveNetKeypointHeatmap, kMoveNetCenterHeatmap, kMoveNetKeypointRegression,
+                         kMoveNetKeypointOffsets};
+  const int channels[] = {17, 1, 34, 34};
+  ASSERT_EQ(m.outputs.size(), 4u);
+  for (int size : {256, 320, 384}) {
+    Result<std::vector<Shape>> shapes = m.infer_shapes({1, size, size, 3});
+    ASSERT_TRUE(shapes.ok()) << shapes.error().message();
+    for (std::size_t i = 0; i < 4; ++i) {
+      EXPECT_EQ(m.outputs[i].name, names[i]);
+      EXPECT_EQ((*shapes)[static_cast<std::size_t>(m.outputs[i].value)],
+                (Shape{1, size / 4, size / 4, channels[i]}))
+          << names[i] << " at " << size;
+    }
+  }
+  // Sizes that are not multiples of 32 make an FPN add mismatch.
+  EXPECT_FALSE(m.infer_shapes({1, 240, 240, 3}).ok());
+  Result<Model> back = parse_model_bytes(serialize_model(m), "movenet.mcnn");
+  ASSERT_TRUE(back.ok()) << back.error().message();
+  EXPECT_TRUE(is_movenet(*back));
+  EXPECT_EQ(back->parameter_count(), m.parameter_count());
 }
 
 }  // namespace

@@ -20,4 +20,10 @@ fs::path share_path(const std::string& sub) {
 
 fs::path default_model_path() { return share_path("models") / "posenet.mcnn"; }
 
+fs::path model_path_for(const std::string& name_or_file) {
+  if (name_or_file == "posenet") return default_model_path();
+  if (name_or_file == "movenet") return share_path("models") / "movenet-multipose.mcnn";
+  return name_or_file;
+}
+
 }  // namespace mocap::tools

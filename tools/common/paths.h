@@ -13,4 +13,8 @@ std::filesystem::path share_path(const std::string& sub);
 // The pose model every tool uses unless told otherwise: share_path("models")/posenet.mcnn.
 std::filesystem::path default_model_path();
 
+// A --model argument: the names "posenet" and "movenet" (share_path("models")/posenet.mcnn and
+// movenet-multipose.mcnn, which tools/setup.sh converts), anything else a file path.
+std::filesystem::path model_path_for(const std::string& name_or_file);
+
 }  // namespace mocap::tools

@@ -22,6 +22,7 @@
 #include "runtime/gpu/pose_detector.h"
 #include "runtime/image/image.h"
 #include "runtime/nn/cpu_ops.h"
+#include "runtime/nn/movenet.h"
 #include "runtime/nn/postprocess.h"
 #include "runtime/nn/tfjs_import.h"
 #include "runtime/skeleton/topology.h"
@@ -386,7 +387,7 @@ int run_infer(Args args) {
 
 int run_bench_cnn(Args args) {
   std::string model_path, backend = "vulkan", device;
-  std::string tfjs_model = std::string(MOCAP_SOURCE_DIR) + "/models/posenet.json";
+  std::string tfjs_model;  // default: the model's own (posenet.json or movenet-multipose.json)
   int size = 257, batch = 1, runs = 20, warmup = 3, tfjs_threads = 1;
   bool no_tfjs = false;
   cli::ArgParser p("mocap bench cnn",
@@ -403,7 +404,9 @@ int run_bench_cnn(Args args) {
   p.option("--warmup", &warmup, "N", "untimed runs first (default 3)");
   p.option("--backend", &backend, "NAME", "vulkan (default) or cpu");
   p.option("--device", &device, "NAME", "Vulkan device index or name substring");
-  p.option("--tfjs-model", &tfjs_model, "FILE", "TF.js model.json for the reference");
+  p.option("--tfjs-model", &tfjs_model, "FILE",
+           "TF.js model.json for the reference (default models/posenet.json, or "
+           "models/movenet-multipose.json for a MoveNet model)");
   p.option("--tfjs-threads", &tfjs_threads, "N", "TF.js wasm threads (default 1)");
   p.flag("--no-tfjs", &no_tfjs, "skip the TF.js reference");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
@@ -474,7 +477,13 @@ int run_bench_cnn(Args args) {
     if (!no_tfjs) std::printf("tfjs reference: only at --batch 1\n");
     return 0;
   }
-  const fs::path script = fs::path(MOCAP_SOURCE_DIR) / "tools/tfjs_ref/posenet_ref.mjs";
+  const bool movenet = nn::is_movenet(*model);
+  if (tfjs_model.empty()) {
+    tfjs_model = std::string(MOCAP_SOURCE_DIR) +
+                 (movenet ? "/models/movenet-multipose.json" : "/models/posenet.json");
+  }
+  const fs::path script = fs::path(MOCAP_SOURCE_DIR) / (movenet ? "tools/tfjs_ref/movenet_ref.mjs"
+                                                                : "tools/tfjs_ref/posenet_ref.mjs");
   const fs::path modules = fs::path(MOCAP_SOURCE_DIR) / "tools/tfjs_ref/node_modules";
   if (!fs::exists(script) || !fs::exists(modules) || !fs::exists(tfjs_model) ||
       std::system("command -v node >/dev/null 2>&1") != 0) {

@@ -8,6 +8,7 @@
 
 #include "runtime/nn/model.h"
 #include "runtime/nn/model_file.h"
+#include "runtime/nn/movenet.h"
 #include "runtime/nn/tfjs_import.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
@@ -108,6 +109,14 @@ void print_model(const nn::Model& m, int size_px) {
   }
 }
 
+// --cut NAME: where to cut a known graph ("" = the whole graph).
+Result<nn::TfjsImportOptions> cut_options(const std::string& name) {
+  if (name.empty()) return nn::TfjsImportOptions{};
+  if (name == "movenet-multipose") return nn::movenet_multipose_cut();
+  return Error(ErrorCode::kInvalidArgument,
+               "--cut '" + name + "' is unknown (known: movenet-multipose)");
+}
+
 Status check_size(int size_px) {
   if (size_px < 1 || size_px > kMaxInputSize_px) {
     return Error(ErrorCode::kInvalidArgument, "--size must be in [1, " +
@@ -120,6 +129,7 @@ Status check_size(int size_px) {
 int run_convert(Args args) {
   std::string tfjs;
   std::string out;
+  std::string cut;
   int size_px = kDefaultInputSize_px;
   cli::ArgParser parser(
       "mocap model convert",
@@ -131,6 +141,9 @@ int run_convert(Args args) {
   parser.option("--size", &size_px, "S",
                 "input size in pixels for the printed output shapes (default " +
                     std::to_string(kDefaultInputSize_px) + ")");
+  parser.option("--cut", &cut, "NAME",
+                "import a known graph cut at its heads: movenet-multipose (MoveNet MultiPose "
+                "from the normalised image to its four heads, runtime/nn/movenet.h)");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (tfjs.empty() || out.empty()) {
     std::fprintf(stderr, "error: --tfjs and --out are required (see mocap model convert --help)\n");
@@ -141,7 +154,12 @@ int run_convert(Args args) {
     return 2;
   }
 
-  Result<nn::Model> model = nn::import_tfjs(tfjs);
+  Result<nn::TfjsImportOptions> import_options = cut_options(cut);
+  if (!import_options.ok()) {
+    std::fprintf(stderr, "error: %s\n", import_options.error().message().c_str());
+    return 2;
+  }
+  Result<nn::Model> model = nn::import_tfjs(tfjs, *import_options);
   if (!model.ok()) {
     std::fprintf(stderr, "error: %s\n", model.error().message().c_str());
     return 1;

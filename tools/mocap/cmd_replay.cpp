@@ -1,4 +1,4 @@
-// mocap replay --data DIR [--model FILE] [--size S] [--frames N] [--backend vulkan|cpu|auto]
+// mocap replay --data DIR [--model NAME|FILE] [--size S] [--frames N] [--backend vulkan|cpu|auto]
 //              [--skeletons-out FILE] [--quality-out FILE]
 // A recorded multi-view capture through the real-time pipeline (runtime/pipeline), composed as
 // mocapd composes it for `--replay` (tools/common/replay_parts.h), every frame processed: per
@@ -36,7 +36,8 @@ constexpr const char* kHelp =
     "Runs a recorded multi-view capture through the real-time pipeline, as `mocapd --replay`\n"
     "does (same source, detector, engine and threads; every frame processed): the N videos\n"
     "(DIR/videos/<view>.mp4, view = 0..N-1, the view ids of DIR/calibration.json) are\n"
-    "decoded frame by frame, PoseNet runs on all views of a frame in one batch (COCO-17),\n"
+    "decoded frame by frame, the pose CNN (PoseNet, or MoveNet MultiPose with --model\n"
+    "movenet) runs on all views of a frame in one batch (COCO-17),\n"
     "the 4D association engine associates, tracks and fits the persons. Prints per frame the\n"
     "persons (track id, joints observed) and the stage times (source = decode, cnn, assoc),\n"
     "then a summary: median ms per frame of each stage, persons per frame, track ids and\n"
@@ -60,7 +61,8 @@ constexpr const char* kHelp =
     "takes half the time (4 views on lavapipe, 2 cores: ~450 vs ~900 ms per frame) for a\n"
     "reprojection error median of 18 px (p90 71) instead of 14 px (p90 51). Use 513 for\n"
     "small or distant people: the third person (~6.5 m from the cameras, ~400 px tall) is\n"
-    "found in 100 frames at 513 and in ~90 at 353.";
+    "found in 100 frames at 513 and in ~90 at 353. MoveNet sizes are multiples of 32\n"
+    "(default 256).";
 
 // "frame 12: 2 person(s) | id 0: 17/17 joints at (x, y, z) | ...  [fitted 2; source ..., ms]"
 void print_frame(const pipeline::PipelineFrame& f) {
@@ -153,13 +155,17 @@ void print_quality(const eval::QualityReport& q) {
 int run_replay(Args args) {
   std::string data, model = default_model_path().string();
   std::string backend = "auto", device, skeletons_out, quality_out;
-  int size = gpu::kDefaultInputSizePx, frames = -1;
+  int size = 0, frames = -1;
   bool quiet = false, no_fit = false;
   SmoothingArgs smoothing(assoc::posenet_coco17_options().fit.smoothing);
   cli::ArgParser p("mocap replay", kHelp);
   p.option("--data", &data, "DIR", "recording folder (calibration.json, videos/)");
-  p.option("--model", &model, "FILE", "PoseNet model (default models/posenet.mcnn)");
-  p.option("--size", &size, "S", "network input size, 16k+1 (default 353; see above)");
+  p.option("--model", &model, "NAME|FILE",
+           "posenet (default: models/posenet.mcnn), movenet (models/movenet-multipose.mcnn) "
+           "or a model file");
+  p.option("--size", &size, "S",
+           "network input size: PoseNet 16k+1 (default 353; see above), MoveNet a multiple "
+           "of 32 (default 256)");
   p.option("--frames", &frames, "N", "process the first N frames only (default: all)");
   p.option("--backend", &backend, "NAME", "vulkan, cpu or auto (default: Vulkan, else CPU)");
   p.option("--device", &device, "NAME", "Vulkan device index or name substring");
@@ -177,7 +183,7 @@ int run_replay(Args args) {
 
   ReplayPartsOptions o;
   o.source.dir = data;
-  o.cnn.model = model;
+  o.cnn.model = model_path_for(model);
   o.cnn.backend = *request;
   o.cnn.device = device;
   o.cnn.input_size_px = size;
@@ -188,9 +194,9 @@ int run_replay(Args args) {
   auto parts = open_replay(o);
   if (!parts.ok()) return fail(parts.error());
   const int views = parts->source->view_count();
-  std::printf("replay: %s, %d views, %lld frames, PoseNet %d px, %s\n", data.c_str(), views,
-              static_cast<long long>(parts->source->frame_count()), size,
-              parts->detector->backend_description().c_str());
+  std::printf("replay: %s, %d views, %lld frames, %s\n", data.c_str(), views,
+              static_cast<long long>(parts->source->frame_count()),
+              parts->detector->description().c_str());
 
   std::unique_ptr<pipeline::MessageFileSink> file;
   if (!skeletons_out.empty()) {
