@@ -16,13 +16,6 @@ namespace {
 
 inline std::size_t ix(int i) { return static_cast<std::size_t>(i); }
 
-const ViewDetections* find_view(const DetectionSet& detections, int view_id) {
-  for (const ViewDetections& d : detections.views) {
-    if (d.view_id == view_id) return &d;
-  }
-  return nullptr;
-}
-
 bool is_limb_joint(std::string name) {
   std::transform(name.begin(), name.end(), name.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -47,7 +40,7 @@ const JointCandidate* used_candidate(const DetectionSet& detections,
                                      const assoc::PersonEvidence& ev, int j, int v, int V) {
   const std::size_t slot = ix(j * V + v);
   if (slot >= ev.candidate.size() || ev.candidate[slot] < 0) return nullptr;
-  const ViewDetections* view = find_view(detections, v);
+  const ViewDetections* view = detections.find_view(v);
   if (view == nullptr || ix(j) >= view->candidates.size()) return nullptr;
   const auto& list = view->candidates[ix(j)];
   const int k = ev.candidate[slot];

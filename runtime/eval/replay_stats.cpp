@@ -5,13 +5,6 @@ namespace {
 
 inline std::size_t ix(int i) { return static_cast<std::size_t>(i); }
 
-const ViewDetections* find_view(const DetectionSet& detections, int view_id) {
-  for (const ViewDetections& d : detections.views) {
-    if (d.view_id == view_id) return &d;
-  }
-  return nullptr;
-}
-
 }  // namespace
 
 void reprojection_errors(const DetectionSet& detections, const assoc::FrameResult& result,
@@ -26,7 +19,7 @@ void reprojection_errors(const DetectionSet& detections, const assoc::FrameResul
       for (int v = 0; v < V; ++v) {
         const std::size_t slot = ix(j * V + v);
         if (slot >= ev.candidate.size() || ev.candidate[slot] < 0) continue;
-        const ViewDetections* view = find_view(detections, v);
+        const ViewDetections* view = detections.find_view(v);
         if (view == nullptr) continue;
         const auto& list = view->candidates[ix(j)];
         const int k = ev.candidate[slot];

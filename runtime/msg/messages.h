@@ -88,6 +88,14 @@ struct DetectionSet {
   const SkeletonTopology* topology = nullptr;  // joint types and limbs of the detections
   std::vector<ViewDetections> views;
 
+  // The view with this view id; null when the set has none.
+  const ViewDetections* find_view(int view_id) const {
+    for (const ViewDetections& v : views) {
+      if (v.view_id == view_id) return &v;
+    }
+    return nullptr;
+  }
+
   // Checks shapes against the topology: one candidate list per joint, one affinity matrix
   // per limb sized by the candidate counts, finite coordinates, scores and affinities in
   // [0, 1]. The error names the frame, view, joint or limb.

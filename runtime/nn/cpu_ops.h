@@ -19,6 +19,11 @@ struct Tensor {
 
   Tensor() = default;
   explicit Tensor(const Shape& s) : shape(s), data(static_cast<std::size_t>(s.elements()), 0.f) {}
+  // Every dimension positive and as many values as the shape says.
+  bool well_formed() const {
+    return shape.n > 0 && shape.h > 0 && shape.w > 0 && shape.c > 0 &&
+           static_cast<long>(data.size()) == shape.elements();
+  }
   float& at(int n, int y, int x, int c) {
     return data[static_cast<std::size_t>(
         ((static_cast<long>(n) * shape.h + y) * shape.w + x) * shape.c + c)];

@@ -22,6 +22,13 @@ struct Shape {
   int c = 0;
   long elements() const { return static_cast<long>(n) * h * w * c; }
   bool operator==(const Shape&) const = default;
+  // "[n,h,w,c]", for error messages.
+  std::string text() const {
+    std::string out("[");
+    out += std::to_string(n) + "," + std::to_string(h) + "," + std::to_string(w) + ",";
+    out += std::to_string(c) + "]";
+    return out;
+  }
 };
 
 // Values stored in the model file; keep the numbers stable (they are the on-disk encoding).

@@ -12,16 +12,6 @@ Error invalid(const std::string& what) {
   return Error(ErrorCode::kInvalidArgument, "MoveNet: " + what);
 }
 
-std::string shape_text(const Shape& s) {
-  return std::string("[") + std::to_string(s.n) + "," + std::to_string(s.h) + "," +
-         std::to_string(s.w) + "," + std::to_string(s.c) + "]";
-}
-
-bool consistent(const Tensor& t) {
-  return t.shape.n > 0 && t.shape.h > 0 && t.shape.w > 0 && t.shape.c > 0 &&
-         static_cast<long>(t.data.size()) == t.shape.elements();
-}
-
 constexpr int kMaxCenterWindowCells = 15;
 constexpr int kMaxCenters = 64;
 
@@ -82,13 +72,13 @@ Status check_heads(const Tensor& heatmap, const Tensor& center, const Tensor& re
                    const Tensor& offsets) {
   const Shape& hs = heatmap.shape;
   auto same_grid = [&](const Shape& s) { return s.n == hs.n && s.h == hs.h && s.w == hs.w; };
-  if (!consistent(heatmap) || !consistent(center) || !consistent(regression) ||
-      !consistent(offsets) || !same_grid(center.shape) || !same_grid(regression.shape) ||
+  if (!heatmap.well_formed() || !center.well_formed() || !regression.well_formed() ||
+      !offsets.well_formed() || !same_grid(center.shape) || !same_grid(regression.shape) ||
       !same_grid(offsets.shape) || center.shape.c != 1 || regression.shape.c != 2 * hs.c ||
       offsets.shape.c != 2 * hs.c) {
-    return invalid("heads heatmap " + shape_text(hs) + ", centre " + shape_text(center.shape) +
-                   ", regression " + shape_text(regression.shape) + " and offsets " +
-                   shape_text(offsets.shape) + " must be [N,H,W,J], [N,H,W,1], [N,H,W,2J] twice");
+    return invalid("heads heatmap " + hs.text() + ", centre " + center.shape.text() +
+                   ", regression " + regression.shape.text() + " and offsets " +
+                   offsets.shape.text() + " must be [N,H,W,J], [N,H,W,1], [N,H,W,2J] twice");
   }
   return Status::Ok();
 }
@@ -142,8 +132,8 @@ Status MoveNetOptions::validate() const {
 Result<std::vector<MoveNetCenter>> movenet_centers_cpu(const Tensor& center, int n,
                                                        const MoveNetOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
-  if (!consistent(center) || center.shape.c != 1 || n < 0 || n >= center.shape.n) {
-    return invalid("centre heatmap " + shape_text(center.shape) + " must be [N,H,W,1], item " +
+  if (!center.well_formed() || center.shape.c != 1 || n < 0 || n >= center.shape.n) {
+    return invalid("centre heatmap " + center.shape.text() + " must be [N,H,W,1], item " +
                    std::to_string(n) + " in it");
   }
   const double p = static_cast<double>(options.center_score_threshold);

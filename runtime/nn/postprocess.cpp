@@ -10,16 +10,6 @@ namespace {
 
 Error invalid(const std::string& what) { return Error(ErrorCode::kInvalidArgument, what); }
 
-std::string shape_text(const Shape& s) {
-  return std::string("[") + std::to_string(s.n) + "," + std::to_string(s.h) + "," +
-         std::to_string(s.w) + "," + std::to_string(s.c) + "]";
-}
-
-bool consistent(const Tensor& t) {
-  return t.shape.n > 0 && t.shape.h > 0 && t.shape.w > 0 && t.shape.c > 0 &&
-         static_cast<long>(t.data.size()) == t.shape.elements();
-}
-
 }  // namespace
 
 Status PostprocessOptions::validate() const {
@@ -59,10 +49,10 @@ Result<std::vector<PeakSet>> find_peaks_cpu(const Tensor& heatmap, const Tensor&
                                             const PostprocessOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
   const Shape& hs = heatmap.shape;
-  if (!consistent(heatmap) || !consistent(offsets) || offsets.shape.n != hs.n ||
+  if (!heatmap.well_formed() || !offsets.well_formed() || offsets.shape.n != hs.n ||
       offsets.shape.h != hs.h || offsets.shape.w != hs.w || offsets.shape.c != 2 * hs.c) {
-    return invalid(std::string("peaks: heatmap ") + shape_text(hs) + " and offsets " +
-                   shape_text(offsets.shape) + " must be [N,H,W,J] and [N,H,W,2J]");
+    return invalid(std::string("peaks: heatmap ") + hs.text() + " and offsets " +
+                   offsets.shape.text() + " must be [N,H,W,J] and [N,H,W,2J]");
   }
   const int J = hs.c;
   const float thr = options.threshold_logit();
@@ -162,11 +152,10 @@ Result<AffinityMatrix> displacement_affinity_cpu(const std::vector<PeakCandidate
                                                  const Tensor& fwd, const Tensor& bwd, int n,
                                                  int edge, const PostprocessOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
-  if (!consistent(fwd) || !(fwd.shape == bwd.shape) || fwd.shape.c % 2 != 0 || n < 0 ||
+  if (!fwd.well_formed() || !(fwd.shape == bwd.shape) || fwd.shape.c % 2 != 0 || n < 0 ||
       n >= fwd.shape.n || edge < 0 || edge >= fwd.shape.c / 2) {
-    return invalid(std::string("displacement affinity: fwd ") + shape_text(fwd.shape) +
-                   " and bwd " + shape_text(bwd.shape) +
-                   " must be equal [N,H,W,2E] with n < N, edge < E");
+    return invalid(std::string("displacement affinity: fwd ") + fwd.shape.text() + " and bwd " +
+                   bwd.shape.text() + " must be equal [N,H,W,2E] with n < N, edge < E");
   }
   const int E = fwd.shape.c / 2;
   const int W = fwd.shape.w;
@@ -198,9 +187,9 @@ Result<PafScores> paf_affinity_cpu(const std::vector<PeakCandidate>& a,
                                    int channel_x, int channel_y,
                                    const PostprocessOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
-  if (!consistent(paf) || n < 0 || n >= paf.shape.n || channel_x < 0 || channel_x >= paf.shape.c ||
-      channel_y < 0 || channel_y >= paf.shape.c) {
-    return invalid(std::string("PAF affinity: field ") + shape_text(paf.shape) + ", batch item " +
+  if (!paf.well_formed() || n < 0 || n >= paf.shape.n || channel_x < 0 ||
+      channel_x >= paf.shape.c || channel_y < 0 || channel_y >= paf.shape.c) {
+    return invalid(std::string("PAF affinity: field ") + paf.shape.text() + ", batch item " +
                    std::to_string(n) + ", channels " + std::to_string(channel_x) + "/" +
                    std::to_string(channel_y) + " out of range");
   }
@@ -250,8 +239,8 @@ Result<std::vector<PoseNetView>> posenet_postprocess_cpu(const Tensor& heatmap,
   const Shape& hs = heatmap.shape;
   if (!(fwd.shape == bwd.shape) || fwd.shape.n != hs.n || fwd.shape.h != hs.h ||
       fwd.shape.w != hs.w || fwd.shape.c != 2 * static_cast<int>(edges.size())) {
-    return invalid(std::string("PoseNet post-processing: displacements ") + shape_text(fwd.shape) +
-                   " / " + shape_text(bwd.shape) +
+    return invalid(std::string("PoseNet post-processing: displacements ") + fwd.shape.text() +
+                   " / " + bwd.shape.text() +
                    " must be [N,H,W,2E] with the heatmap's N,H,W and E = " +
                    std::to_string(edges.size()) + " edges");
   }
