@@ -230,6 +230,7 @@ void Engine::fit_person(const PersonAssignment& person, PersonPoints& points, in
     tri_views_[ix(j)] = X.valid ? X.views_used : 0;
   }
   fit::PersonFitState& state = tracker_.fit_state(t);
+  const fit::PersonFitState before = state;  // restored when the frame is not evidence
   fitter_->learn(state, tri_X_, tri_valid_, tri_views_);
   fit_obs_.clear();
   for (int j = 0; j < J; ++j) {
@@ -242,8 +243,14 @@ void Engine::fit_person(const PersonAssignment& person, PersonPoints& points, in
   }
   fit::FitResult fr =
       fitter_->fit(state, cameras_, fit_obs_, tri_X_, tri_valid_, frame_timestamp_ns_);
-  st.joints_implausible +=
+  const int implausible =
       sanity_.check(points.joints, fr.fitted ? &fr.solved_joints_m : nullptr, points.implausible);
+  st.joints_implausible += implausible;
+  if (implausible > points.valid - implausible) {
+    reject_fit(points, t, before);
+    st.fit_ms += ms_since(t0);
+    return;
+  }
   if (fr.fitted) {
     ++st.persons_fitted;
     rotations = std::move(fr.rotations);
@@ -256,6 +263,22 @@ void Engine::fit_person(const PersonAssignment& person, PersonPoints& points, in
   tracker_.update(t, points.joints, fr.fitted ? &fr.solved_joints_m : nullptr,
                   fr.fitted ? &fr.joints_m : nullptr);
   st.fit_ms += ms_since(t0);
+}
+
+// Most of the person's joints contradict its skeleton (a wrong cross-view match, measured on
+// pose2sim_multi: a standing bystander's fit pulled 0.37 m by them, then a new id): the frame
+// is not evidence. The fit state is restored (no bone samples, no smoother step from it), the
+// track keeps its pose and takes only the plausible joints; the others are output as
+// predicted.
+void Engine::reject_fit(PersonPoints& points, int t, const fit::PersonFitState& before) {
+  tracker_.fit_state(t) = before;
+  std::vector<TriangulatedPoint> plausible = points.joints;
+  for (std::size_t j = 0; j < plausible.size(); ++j) {
+    if (!points.implausible[j] && plausible[j].valid) continue;
+    plausible[j].valid = false;
+    points.confidence[j] = options_.fit.predicted_joint_confidence;
+  }
+  tracker_.update(t, plausible, nullptr);
 }
 
 void Engine::add_output(const PersonAssignment& person, const PersonPoints& points, int t,

@@ -116,6 +116,7 @@ class Engine {
   void track_persons(FrameStats& st);
   void fit_person(const PersonAssignment& person, PersonPoints& points, int track,
                   std::vector<Eigen::Quaterniond>& rotations, FrameStats& st);
+  void reject_fit(PersonPoints& points, int track, const fit::PersonFitState& before);
   void add_output(const PersonAssignment& person, const PersonPoints& points, int track,
                   std::vector<Eigen::Quaterniond> rotations);
   void write_outputs(const DetectionSet& detections, FrameResult& result);

@@ -53,7 +53,8 @@ Status TrackingOptions::validate() const {
   MOCAP_CHECK(min_birth_view_support >= 0 && min_birth_view_support <= 1,
               "tracking.min_birth_view_support", "must be in [0, 1]");
   MOCAP_CHECK(max_missed_frames >= 0, "tracking.max_missed_frames", "must be >= 0");
-  MOCAP_CHECK(reattach_max_mean_dist_m >= 0, "tracking.reattach_max_mean_dist_m", "must be >= 0");
+  MOCAP_CHECK(reattach_max_median_dist_m >= 0, "tracking.reattach_max_median_dist_m",
+              "must be >= 0");
   MOCAP_CHECK(fragment_merge_min_limb_ratio > 0 &&
                   fragment_merge_min_limb_ratio <= fragment_merge_max_limb_ratio,
               "tracking.fragment_merge_min_limb_ratio",

@@ -89,8 +89,9 @@ struct TrackingOptions {
   // around a limb that now belongs to somebody else.
   int min_joints_observed = 5;
   // A person with no tracking edge can still continue a track whose last pose is this close
-  // (mean distance over common joints, metres).
-  double reattach_max_mean_dist_m = 0.35;
+  // (median distance over common joints, metres: a joint or two triangulated from a wrong
+  // cross-view match, metres off, do not make a standing person a new id).
+  double reattach_max_median_dist_m = 0.35;
   // Two assembled persons whose 2D assignments do not contradict and whose triangulated
   // joints lie within this mean distance (over >= 3 common joints) are one person.
   double fragment_merge_max_mean_dist_m = 0.15;

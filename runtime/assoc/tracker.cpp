@@ -4,6 +4,7 @@
 #include <cassert>
 
 #include "runtime/core/log.h"
+#include "runtime/core/stats.h"
 #include "runtime/skeleton/topology.h"
 
 MOCAP_DECLARE_LOG_CATEGORY(Assoc);
@@ -82,18 +83,19 @@ void Tracker::begin_frame(std::uint64_t frame_id) {
 int Tracker::nearest_unclaimed(std::span<const TriangulatedPoint> joints) const {
   const int J = topology_.joint_count();
   int best_t = -1;
-  double best = options_.reattach_max_mean_dist_m;
+  double best = options_.reattach_max_median_dist_m;
+  std::vector<double> dist_m;
   for (std::size_t t = 0; t < old_tracks_; ++t) {
     if (claimed_[t]) continue;
-    double sum = 0;
-    int n = 0;
+    dist_m.clear();
     for (int j = 0; j < J; ++j) {
       if (!joints[ix(j)].valid || tracks_[t].joint_age[ix(j)] < 0) continue;
-      sum += (joints[ix(j)].X_m - tracks_[t].joints_m[ix(j)]).norm();
-      ++n;
+      dist_m.push_back((joints[ix(j)].X_m - tracks_[t].joints_m[ix(j)]).norm());
     }
-    if (n >= 3 && sum / n < best) {
-      best = sum / n;
+    if (dist_m.size() < 3) continue;
+    const double d = median(dist_m);
+    if (d < best) {
+      best = d;
       best_t = static_cast<int>(t);
     }
   }

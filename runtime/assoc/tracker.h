@@ -81,8 +81,8 @@ class Tracker {
 
   // Claims a track for a person with these triangulated joints and returns its index: track
   // `attached` (the graph track its bundles were attached to; -1 none) when it is unclaimed,
-  // else the unclaimed track, of those alive at begin_frame(), with the smallest mean distance
-  // over >= 3 common joints below reattach_max_mean_dist_m, else a new track when the person
+  // else the unclaimed track, of those alive at begin_frame(), with the smallest median distance
+  // over >= 3 common joints below reattach_max_median_dist_m, else a new track when the person
   // has >= min_joints_new_track joints and passes the birth gate against `cameras`. -1 when
   // none (a rejection by the gate is counted).
   int assign(int attached, std::span<const TriangulatedPoint> joints,

@@ -515,7 +515,7 @@ TEST(AssocEngine, MovingPersonKeepsItsId) {
   AssociationOptions o;
   o.fit.enabled = false;
   // 10 cm: tracking edges in every view. 30 cm: in none (beyond max_track_dist_m = 0.2), but
-  // the pose is within reattach_max_mean_dist_m = 0.35 of the track.
+  // the pose is within reattach_max_median_dist_m = 0.35 of the track.
   for (double dx : {0.1, 0.3}) {
     auto engine = Engine::create(body19_topology(), f.cams(), o);
     ASSERT_TRUE(engine.ok());

@@ -114,10 +114,10 @@ TEST(AssocOptions, TrackingOptionsRejectOutOfRange) {
       {"tracking.min_birth_view_support",
        [](auto& o) { o.tracking.min_birth_view_support = kNaN; }},
       {"tracking.max_missed_frames", [](auto& o) { o.tracking.max_missed_frames = -1; }},
-      {"tracking.reattach_max_mean_dist_m",
-       [](auto& o) { o.tracking.reattach_max_mean_dist_m = -0.1; }},
-      {"tracking.reattach_max_mean_dist_m",
-       [](auto& o) { o.tracking.reattach_max_mean_dist_m = kNaN; }},
+      {"tracking.reattach_max_median_dist_m",
+       [](auto& o) { o.tracking.reattach_max_median_dist_m = -0.1; }},
+      {"tracking.reattach_max_median_dist_m",
+       [](auto& o) { o.tracking.reattach_max_median_dist_m = kNaN; }},
   };
   for (const BadCase& c : cases) expect_rejected(c);
 }
