@@ -24,9 +24,14 @@ struct CnnOptions {
   BackendRequest backend = BackendRequest::kAuto;
   std::string device;  // Vulkan device index or name substring; empty = the best one
   bool validation = false;
-  // Network input size; 0 = the model's default (kDefaultInputSizePx for PoseNet,
-  // kDefaultMoveNetInputSizePx for MoveNet).
+  // Network input size (the long side with InputFit::kFrame); 0 = the model's default
+  // (kDefaultInputSizePx for PoseNet, kDefaultMoveNetInputSizePx for MoveNet).
   int input_size_px = kDefaultInputSizePx;
+  // The input's shape: fitted to the frames' aspect (frame_width_px x frame_height_px, the size
+  // all views share; 0 = unknown, a square input), square, or the model's (auto).
+  InputFit input_fit = InputFit::kAuto;
+  int frame_width_px = 0;
+  int frame_height_px = 0;
   int max_views = 1;  // views per frame (the network batch)
   Status validate() const;
 };
@@ -36,8 +41,13 @@ class CnnDetector final : public pipeline::Detector {
   static Result<std::unique_ptr<CnnDetector>> open(const CnnOptions& options);
 
   Result<DetectionSet> detect(const FrameSet& frames) override;
-  // e.g. "posenet 353 px on Vulkan on llvmpipe (LLVM 15.0.6, 256 bits) (CPU)".
+  // e.g. "posenet 209x353 px (1.23 GMAC per view) on Vulkan on llvmpipe (LLVM 15.0.6, 256
+  // bits) (CPU)".
   std::string description() const override;
+  // The network input (width x height).
+  InputShape input_shape() const { return shape_; }
+  // Multiply-adds of the network per view (nn::Model::multiply_adds): 2 FLOPs each.
+  double multiply_adds_per_view() const { return macs_per_view_; }
 
   PoseBackend backend() const { return backend_.backend; }
   // The backend alone, e.g. "Vulkan on llvmpipe (...)".
@@ -52,6 +62,8 @@ class CnnDetector final : public pipeline::Detector {
   BackendChoice backend_;                   // owns the Vulkan context the detector uses
   std::unique_ptr<PoseDetector> detector_;  // destroyed before backend_
   std::string model_name_;
+  InputShape shape_;
+  double macs_per_view_ = 0;
 };
 
 }  // namespace mocap::gpu

@@ -14,11 +14,41 @@ namespace mocap::gpu {
 // pose2sim_multi (`mocap replay --help` has the figures): the people on the treadmill are
 // tracked as well as at 513 at half the time per frame.
 inline constexpr int kDefaultInputSizePx = 353;
-// MoveNet MultiPose (runtime/nn/movenet.h): sizes are multiples of 32; 256 is the size the
-// model was published for.
-inline constexpr int kDefaultMoveNetInputSizePx = 256;
+inline constexpr int kPoseNetSizeStepPx = 16;  // PoseNet sizes: kPoseNetSizeStepPx k + 1
+// MoveNet MultiPose (runtime/nn/movenet.h): sizes are multiples of 32; 448 on the long side
+// (frame fit: 256x448 for 1088x1920 portrait frames) chosen by measurement on pose2sim_multi
+// (docs/quality.md): the bystander (~400 px tall) is found in 100 of 100 frames (256: never;
+// 384: 19; 512: 88) at 1.66 GMAC per view.
+inline constexpr int kDefaultMoveNetInputSizePx = 448;
 inline constexpr int kMinInputSizePx = 17;
 inline constexpr int kMaxInputSizePx = 1025;
+
+// How the network input is shaped from the frames. kFrame: the long side is the input size and
+// the short side the smallest valid size that holds the frame's aspect, so a 1088x1920 portrait
+// frame at 448 is a 256x448 input: the scale of a 448x448 square at 57 % of its pixels (the
+// square's other 43 % are letterbox border). kSquare: input size x input size. kAuto: the
+// model's, chosen by measurement on pose2sim_multi (docs/quality.md): kFrame for MoveNet (same
+// figures as the square at 58-63 % of its time), kSquare for PoseNet (fitted, the bystander at
+// the left edge of view 0 and the woman at the left edge of view 1 break into 5 ids instead of 3:
+// PoseNet's convolutions pad with 0, the letterbox border is black, -1).
+enum class InputFit { kAuto, kFrame, kSquare };
+std::string_view to_string(InputFit fit);  // "auto", "frame", "square"
+// "auto", "frame" or "square"; the error lists them.
+Result<InputFit> parse_input_fit(std::string_view name);
+
+struct InputShape {
+  int width_px = 0;
+  int height_px = 0;
+  bool operator==(const InputShape&) const = default;
+  std::string text() const;  // "209x353"
+};
+
+// The network input for frames of frame_width_px x frame_height_px with `fit`, valid sizes being
+// multiple_px * k + remainder_px (PoseNet 16k + 1, MoveNet 32k): size_px on the long side (it
+// must be valid), the smallest valid size >= size_px * short / long on the other. Frames of
+// unknown size (0), kSquare or kAuto (resolve it first) give size_px x size_px.
+InputShape fit_input_shape(int size_px, int frame_width_px, int frame_height_px, InputFit fit,
+                           int multiple_px, int remainder_px);
 
 // The backend asked for: kAuto takes Vulkan when a device opens and otherwise the CPU reference
 // (saying why); kVulkan fails without a device; kCpu never tries Vulkan.

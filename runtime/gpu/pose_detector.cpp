@@ -33,9 +33,13 @@ std::vector<nn::LimbEdge> identity_limb_edges(const SkeletonTopology& topology) 
 }  // namespace
 
 Status PoseDetectorOptions::validate() const {
-  if (input_size_px < kMinInputSizePx || input_size_px > kMaxInputSizePx) {
-    return invalid(std::string("input_size_px ") + std::to_string(input_size_px) + " must be in [" +
-                   std::to_string(kMinInputSizePx) + ", " + std::to_string(kMaxInputSizePx) + "]");
+  for (int v : {input_size_px, width_px()}) {
+    if (v < kMinInputSizePx || v > kMaxInputSizePx) {
+      return invalid("input size " + std::to_string(width_px()) + "x" +
+                     std::to_string(input_size_px) + " px: each side must be in [" +
+                     std::to_string(kMinInputSizePx) + ", " + std::to_string(kMaxInputSizePx) +
+                     "]");
+    }
   }
   if (max_views < 1 || max_views > 16) {
     return invalid(std::string("max_views ") + std::to_string(max_views) + " must be in [1, 16]");
@@ -53,12 +57,13 @@ Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& mode
   std::unique_ptr<PoseDetector> d(new PoseDetector());
   d->options_ = options;
   if (Status s = d->find_heads(model); !s.ok()) return s.error();
-  const int S = options.input_size_px;
+  const int H = options.input_size_px;
+  const int W = options.width_px();
   if (d->movenet_) {
-    if (S % nn::kMoveNetInputMultiplePx != 0) {
-      return invalid("model '" + model.name + "' is MoveNet: input_size_px " + std::to_string(S) +
-                     " must be a multiple of " + std::to_string(nn::kMoveNetInputMultiplePx) +
-                     " (256, 320, 384, ...)");
+    if (H % nn::kMoveNetInputMultiplePx != 0 || W % nn::kMoveNetInputMultiplePx != 0) {
+      return invalid("model '" + model.name + "' is MoveNet: input " + std::to_string(W) + "x" +
+                     std::to_string(H) + " px: each side must be a multiple of " +
+                     std::to_string(nn::kMoveNetInputMultiplePx) + " (256, 320, 384, ...)");
     }
     d->limb_edges_ = identity_limb_edges(coco17_topology());
   } else {
@@ -73,14 +78,14 @@ Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& mode
   if (ctx == nullptr) return invalid("the Vulkan backend needs a Context");
   NetworkOptions no;
   no.batch = options.max_views;
-  no.height_px = S;
-  no.width_px = S;
+  no.height_px = H;
+  no.width_px = W;
   no.timestamps = false;
   auto net = Network::create(*ctx, model, no);
   if (!net.ok()) return net.error();
   d->net_ = std::move(*net);
   if (Status s = d->check_vulkan_heads(model); !s.ok()) return s.error();
-  auto pre = FramePreprocessor::create(*ctx, S, options.max_views);
+  auto pre = FramePreprocessor::create(*ctx, W, H, options.max_views);
   if (!pre.ok()) return pre.error();
   d->pre_ = std::move(*pre);
   if (d->movenet_) return d;
@@ -116,7 +121,8 @@ Status PoseDetector::find_heads(const nn::Model& model) {
 Status PoseDetector::check_vulkan_heads(const nn::Model& model) const {
   const nn::Shape hs = net_->output_shape(heads_[0]);
   if (movenet_) {
-    if (hs.c != kCocoJoints || hs.h * nn::kMoveNetOutputStridePx != options_.input_size_px) {
+    if (hs.c != kCocoJoints || hs.h * nn::kMoveNetOutputStridePx != options_.input_size_px ||
+        hs.w * nn::kMoveNetOutputStridePx != options_.width_px()) {
       return invalid("model '" + model.name + "': keypoint heatmap " + std::to_string(hs.h) + "x" +
                      std::to_string(hs.w) + "x" + std::to_string(hs.c) +
                      " (MoveNet: 17 joints at output stride 4)");
@@ -174,8 +180,8 @@ Result<std::vector<nn::PoseNetView>> PoseDetector::run_vulkan(std::span<const nn
 Result<std::vector<nn::PoseNetView>> PoseDetector::run_cpu(std::span<const nn::FrameView> frames,
                                                            std::vector<nn::Letterbox>& boxes) {
   const auto t0 = monotonic_ns();
-  const int S = options_.input_size_px;
-  nn::Tensor input({static_cast<int>(frames.size()), S, S, 3});
+  nn::Tensor input(
+      {static_cast<int>(frames.size()), options_.input_size_px, options_.width_px(), 3});
   for (std::size_t i = 0; i < frames.size(); ++i) {
     auto lb = nn::letterbox_frame(frames[i], input, static_cast<int>(i));
     if (!lb.ok()) return lb.error().with_context("frame " + std::to_string(i));

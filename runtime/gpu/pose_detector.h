@@ -34,9 +34,13 @@ enum class PoseBackend { kVulkan, kCpu };
 
 struct PoseDetectorOptions {
   PoseBackend backend = PoseBackend::kVulkan;
-  // Network input height and width, in [kMinInputSizePx, kMaxInputSizePx]; PoseNet sizes are
-  // 16k + 1 (257, 353, 513).
+  // Network input height, and width (0 = the height: a square input), each in
+  // [kMinInputSizePx, kMaxInputSizePx]; PoseNet sizes are 16k + 1 (257, 353, 513), MoveNet's
+  // multiples of 32. Frames are letterboxed into it (fit_input_shape picks a shape that fits
+  // the frames' aspect).
   int input_size_px = kDefaultInputSizePx;
+  int input_width_px = 0;
+  int width_px() const { return input_width_px == 0 ? input_size_px : input_width_px; }
   // Views per frame (the network batch), in [1, 16].
   int max_views = 1;
   nn::PostprocessOptions post;

@@ -133,25 +133,25 @@ int format_index(PixelFormat f) {
 
 }  // namespace
 
-Result<std::unique_ptr<FramePreprocessor>> FramePreprocessor::create(Context& ctx, int size_px,
-                                                                     int max_views) {
-  if (size_px < 1 || size_px > 4096 || max_views < 1 || max_views > 64) {
-    return Error(ErrorCode::kInvalidArgument, std::string("frame pre-processing: size ") +
-                                                  std::to_string(size_px) + " and views " +
-                                                  std::to_string(max_views) +
-                                                  " must be in [1, 4096] and [1, 64]");
+Result<std::unique_ptr<FramePreprocessor>> FramePreprocessor::create(Context& ctx, int width_px,
+                                                                     int height_px, int max_views) {
+  if (width_px < 1 || width_px > 4096 || height_px < 1 || height_px > 4096 || max_views < 1 ||
+      max_views > 64) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "frame pre-processing: size " + std::to_string(width_px) + "x" +
+                     std::to_string(height_px) + " and views " + std::to_string(max_views) +
+                     " must be in [1, 4096] per side and [1, 64]");
   }
   std::unique_ptr<FramePreprocessor> p(new FramePreprocessor(ctx));
-  p->size_px_ = size_px;
+  p->width_px_ = width_px;
+  p->height_px_ = height_px;
   p->max_views_ = max_views;
   for (int f = 0; f < 3; ++f) {
     auto k = BoundKernel::create(ctx, Shader::kPreprocessFrame, 2, sizeof(PreprocessPush), {f});
     if (!k.ok()) return k.error();
     p->kernels_[f] = std::move(*k);
   }
-  auto out =
-      host_buffer(ctx, static_cast<std::size_t>(max_views) * static_cast<std::size_t>(size_px) *
-                           static_cast<std::size_t>(size_px) * 3 * sizeof(float));
+  auto out = host_buffer(ctx, p->output_floats() * sizeof(float));
   if (!out.ok()) return out.error();
   p->output_ = std::move(*out);
   std::memset(p->output_.mapped(), 0, p->output_.size_bytes());
@@ -159,9 +159,12 @@ Result<std::unique_ptr<FramePreprocessor>> FramePreprocessor::create(Context& ct
 }
 
 std::span<const float> FramePreprocessor::output() const {
-  return {static_cast<const float*>(output_.mapped()), static_cast<std::size_t>(max_views_) *
-                                                           static_cast<std::size_t>(size_px_) *
-                                                           static_cast<std::size_t>(size_px_) * 3};
+  return {static_cast<const float*>(output_.mapped()), output_floats()};
+}
+
+std::size_t FramePreprocessor::output_floats() const {
+  return static_cast<std::size_t>(max_views_) * static_cast<std::size_t>(width_px_) *
+         static_cast<std::size_t>(height_px_) * 3;
 }
 
 Result<std::vector<nn::Letterbox>> FramePreprocessor::run(std::span<const nn::FrameView> frames) {
@@ -197,7 +200,7 @@ Result<std::vector<nn::Letterbox>> FramePreprocessor::run(std::span<const nn::Fr
   bool used[3] = {false, false, false};
   for (std::size_t i = 0; i < frames.size(); ++i) {
     const nn::FrameView& f = frames[i];
-    const nn::LetterboxGrid g = nn::letterbox_grid(f.width_px, f.height_px, size_px_, size_px_);
+    const nn::LetterboxGrid g = nn::letterbox_grid(f.width_px, f.height_px, width_px_, height_px_);
     boxes.push_back(g.box);
     PreprocessPush pc{};
     pc.src_base = static_cast<std::int32_t>(base[i]);
@@ -205,7 +208,8 @@ Result<std::vector<nn::Letterbox>> FramePreprocessor::run(std::span<const nn::Fr
     pc.src_h = f.height_px;
     pc.stride = nn::frame_stride_bytes(f);
     pc.uv_offset = static_cast<std::int32_t>(nn::frame_uv_offset_bytes(f));
-    pc.out_w = pc.out_h = size_px_;
+    pc.out_w = width_px_;
+    pc.out_h = height_px_;
     pc.n = static_cast<std::int32_t>(i);
     pc.x_begin = g.x_begin;
     pc.x_end = g.x_end;
@@ -224,8 +228,8 @@ Result<std::vector<nn::Letterbox>> FramePreprocessor::run(std::span<const nn::Fr
   const auto t0 = monotonic_ns();
   Status s = ctx_.run_once([&](VkCommandBuffer cb) {
     for (std::size_t i = 0; i < frames.size(); ++i) {
-      kernels_[format_index(frames[i].format)]->record(cb, &pushes[i],
-                                                       u32(static_cast<long>(size_px_) * size_px_));
+      kernels_[format_index(frames[i].format)]->record(
+          cb, &pushes[i], u32(static_cast<long>(width_px_) * height_px_));
     }
     host_barrier(cb);
   });

@@ -50,21 +50,24 @@ class BoundKernel {
 // frame (batch index n = position in `frames`) in one submission.
 class FramePreprocessor {
  public:
-  static Result<std::unique_ptr<FramePreprocessor>> create(Context& ctx, int size_px,
-                                                           int max_views);
+  static Result<std::unique_ptr<FramePreprocessor>> create(Context& ctx, int width_px,
+                                                           int height_px, int max_views);
   // Validates every frame first (nn::validate_frame; the error names the frame index), then
   // writes batch items 0..frames.size()-1 and returns their letterboxes.
   Result<std::vector<nn::Letterbox>> run(std::span<const nn::FrameView> frames);
-  // The batch written by run(): [max_views, S, S, 3] NHWC float32 (host-visible).
+  // The batch written by run(): [max_views, height, width, 3] NHWC float32 (host-visible).
   std::span<const float> output() const;
-  int size_px() const { return size_px_; }
+  int width_px() const { return width_px_; }
+  int height_px() const { return height_px_; }
   int max_views() const { return max_views_; }
   double last_run_ms() const { return last_ms_; }  // wall clock of the last submission
 
  private:
   explicit FramePreprocessor(Context& ctx) : ctx_(ctx) {}
+  std::size_t output_floats() const;
   Context& ctx_;
-  int size_px_ = 0;
+  int width_px_ = 0;
+  int height_px_ = 0;
   int max_views_ = 0;
   std::unique_ptr<BoundKernel> kernels_[3];  // per format: RGB24, YUYV, NV12
   Buffer staging_;

@@ -81,6 +81,24 @@ long Model::parameter_count() const {
   return n;
 }
 
+Result<double> Model::multiply_adds(const Shape& input) const {
+  auto shapes = infer_shapes(input);
+  if (!shapes.ok()) return shapes.error();
+  double macs = 0;
+  for (std::size_t i = 0; i < layers.size(); ++i) {
+    const Layer& l = layers[i];
+    const Shape& out = (*shapes)[i + 1];
+    const double per_out = static_cast<double>(l.kernel_h) * l.kernel_w;
+    if (l.op == OpType::kConv2D) {
+      const Shape& in = (*shapes)[ix(l.inputs[0])];
+      macs += static_cast<double>(out.elements()) * per_out * in.c;
+    } else if (l.op == OpType::kDepthwiseConv2D) {
+      macs += static_cast<double>(out.elements()) * per_out;
+    }
+  }
+  return macs;
+}
+
 Status Model::validate() const {
   if (input_channels <= 0) {
     return Error(ErrorCode::kParse, "model '" + name + "': input_channels must be > 0");

@@ -101,6 +101,10 @@ struct Model {
   // layer's inputs disagree (e.g. Add of different shapes) or a size collapses to zero.
   Result<std::vector<Shape>> infer_shapes(const Shape& input) const;
   long parameter_count() const;
+  // Multiply-adds of one forward pass for an input of `input` (convolutions and depthwise
+  // convolutions: kh kw cin cout and kh kw c per output pixel; the other ops, a few per
+  // element, are left out): the figure to estimate a GPU's time from (2 FLOPs each).
+  Result<double> multiply_adds(const Shape& input) const;
 };
 
 // Output shape of `layer` (a layer of `model`) for inputs of `input_shapes` (Layer::inputs

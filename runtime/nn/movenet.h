@@ -97,8 +97,8 @@ Result<std::vector<MoveNetCenter>> movenet_centers_cpu(const Tensor& center, int
 Tensor movenet_offsets_as_pixels(const Tensor& offsets, float stride_px);
 
 // The heads of a batch (shapes as above; all four with the same N, H, W) to one MoveNetView
-// per batch item. `input_size_px` is the network input height (= width); `topology` must name
-// COCO-17 joints in MoveNet's order (coco17_topology()).
+// per batch item. `input_size_px` is the network input height (the stride is height / H);
+// `topology` must name COCO-17 joints in MoveNet's order (coco17_topology()).
 Result<std::vector<MoveNetView>> movenet_postprocess_cpu(
     const Tensor& heatmap, const Tensor& center, const Tensor& regression, const Tensor& offsets,
     int input_size_px, const SkeletonTopology& topology, const MoveNetOptions& options);

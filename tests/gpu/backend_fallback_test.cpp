@@ -54,5 +54,36 @@ TEST_F(NoVulkanTest, CpuAndUnknownNames) {
   EXPECT_NE(bad.error().message().find("opencl"), std::string::npos);
 }
 
+// The input fitted to the frame: the long side at the size, the short side the smallest valid
+// size holding the aspect, so the scale is the square's and the border is gone.
+TEST(InputShape, FitsTheFramesAspect) {
+  // PoseNet (16k + 1): 1088x1920 portrait at 353: 353 * 1088 / 1920 = 200.0 -> 209.
+  EXPECT_EQ(fit_input_shape(353, 1088, 1920, InputFit::kFrame, 16, 1), (InputShape{209, 353}));
+  EXPECT_EQ(fit_input_shape(353, 1920, 1080, InputFit::kFrame, 16, 1), (InputShape{353, 209}));
+  EXPECT_EQ(fit_input_shape(513, 1920, 1080, InputFit::kFrame, 16, 1), (InputShape{513, 289}));
+  // MoveNet (32k): 384 * 1088 / 1920 = 217.6 -> 224; 256 * 9 / 16 = 144 -> 160.
+  EXPECT_EQ(fit_input_shape(384, 1088, 1920, InputFit::kFrame, 32, 0), (InputShape{224, 384}));
+  EXPECT_EQ(fit_input_shape(256, 1280, 720, InputFit::kFrame, 32, 0), (InputShape{256, 160}));
+  // An exact fit is not rounded up: 640x480 at 256 -> 192.
+  EXPECT_EQ(fit_input_shape(256, 640, 480, InputFit::kFrame, 32, 0), (InputShape{256, 192}));
+  // Square frames, square fit, unknown sizes: size x size.
+  EXPECT_EQ(fit_input_shape(353, 1000, 1000, InputFit::kFrame, 16, 1), (InputShape{353, 353}));
+  EXPECT_EQ(fit_input_shape(353, 1088, 1920, InputFit::kSquare, 16, 1), (InputShape{353, 353}));
+  EXPECT_EQ(fit_input_shape(353, 0, 0, InputFit::kFrame, 16, 1), (InputShape{353, 353}));
+  // A very thin frame keeps the smallest valid size.
+  EXPECT_EQ(fit_input_shape(353, 4000, 10, InputFit::kFrame, 16, 1), (InputShape{353, 17}));
+  EXPECT_EQ(fit_input_shape(256, 10, 4000, InputFit::kFrame, 32, 0), (InputShape{32, 256}));
+  EXPECT_EQ(InputShape({209, 353}).text(), "209x353");
+  EXPECT_EQ(fit_input_shape(353, 1088, 1920, InputFit::kAuto, 16, 1), (InputShape{353, 353}));
+  for (InputFit f : {InputFit::kAuto, InputFit::kFrame, InputFit::kSquare}) {
+    auto parsed = parse_input_fit(to_string(f));
+    ASSERT_TRUE(parsed.ok());
+    EXPECT_EQ(*parsed, f);
+  }
+  auto bad = parse_input_fit("wide");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message().find("auto, frame or square"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace mocap::gpu

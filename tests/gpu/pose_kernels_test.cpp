@@ -67,7 +67,9 @@ double max_abs_diff(std::span<const float> a, std::span<const float> b) {
 
 TEST_F(PoseKernelsTest, PreprocessMatchesCpuForEveryFormatInOneBatch) {
   std::mt19937 rng(11);
-  for (int size : {33, 17, 64}) {
+  // Square inputs and non-square ones both ways (the frames' aspect fitted).
+  const std::pair<int, int> shapes[] = {{33, 33}, {17, 17}, {64, 64}, {33, 65}, {48, 20}};
+  for (const auto& [w, h] : shapes) {
     std::vector<TestFrame> frames;
     frames.push_back(random_frame(PixelFormat::kRGB24, 37, 23, 37 * 3 + 5, rng));
     frames.push_back(random_frame(PixelFormat::kYUYV, 38, 51, 38 * 2 + 3, rng));
@@ -75,22 +77,24 @@ TEST_F(PoseKernelsTest, PreprocessMatchesCpuForEveryFormatInOneBatch) {
     frames.push_back(random_frame(PixelFormat::kRGB24, 5, 3, 15, rng));  // upscaled
     std::vector<nn::FrameView> views;
     for (auto& f : frames) views.push_back(f.view);
-    auto pre = FramePreprocessor::create(*ctx_, size, 5);
+    auto pre = FramePreprocessor::create(*ctx_, w, h, 5);
     ASSERT_TRUE(pre.ok()) << pre.error().message();
     auto boxes = (*pre)->run(views);
     ASSERT_TRUE(boxes.ok()) << boxes.error().message();
-    nn::Tensor ref({5, size, size, 3});
+    nn::Tensor ref({5, h, w, 3});
     for (std::size_t i = 0; i < views.size(); ++i) {
       auto lb = nn::letterbox_frame(views[i], ref, static_cast<int>(i));
       ASSERT_TRUE(lb.ok()) << lb.error().message();
       EXPECT_DOUBLE_EQ(lb->scale, (*boxes)[i].scale);
-      const std::size_t item = static_cast<std::size_t>(size) * static_cast<std::size_t>(size) * 3;
+      EXPECT_DOUBLE_EQ(lb->offset_x_px, (*boxes)[i].offset_x_px);
+      EXPECT_DOUBLE_EQ(lb->offset_y_px, (*boxes)[i].offset_y_px);
+      const std::size_t item = static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * 3;
       const double err = max_abs_diff((*pre)->output().subspan(i * item, item),
                                       std::span<const float>(ref.data).subspan(i * item, item));
-      std::printf("preprocess %s %dx%d -> %d: max |gpu - cpu| = %.2e\n",
+      std::printf("preprocess %s %dx%d -> %dx%d: max |gpu - cpu| = %.2e\n",
                   std::string(to_string(views[i].format)).c_str(), views[i].width_px,
-                  views[i].height_px, size, err);
-      EXPECT_LT(err, 2e-3) << "frame " << i << " at " << size;
+                  views[i].height_px, w, h, err);
+      EXPECT_LT(err, 2e-3) << "frame " << i << " at " << w << "x" << h;
     }
   }
 }
@@ -98,7 +102,7 @@ TEST_F(PoseKernelsTest, PreprocessMatchesCpuForEveryFormatInOneBatch) {
 // Padded rows and a UV plane at a padded offset (libcamera) read on the GPU as on the CPU.
 TEST_F(PoseKernelsTest, PreprocessReadsThePaddedNv12PlaneOffset) {
   const auto [packed, padded] = testing::nv12_packed_and_padded(64, 36, 64, 8192, 5);
-  auto pre = FramePreprocessor::create(*ctx_, 33, 2);
+  auto pre = FramePreprocessor::create(*ctx_, 33, 33, 2);
   ASSERT_TRUE(pre.ok()) << pre.error().message();
   const nn::FrameView views[2] = {nn::frame_view(packed), nn::frame_view(padded)};
   ASSERT_TRUE((*pre)->run(views).ok());
@@ -110,7 +114,7 @@ TEST_F(PoseKernelsTest, PreprocessReadsThePaddedNv12PlaneOffset) {
 }
 
 TEST_F(PoseKernelsTest, PreprocessRejectsBadFrames) {
-  auto pre = FramePreprocessor::create(*ctx_, 17, 2);
+  auto pre = FramePreprocessor::create(*ctx_, 17, 17, 2);
   ASSERT_TRUE(pre.ok());
   std::vector<std::uint8_t> bytes(4096, 0);
   const nn::FrameView good{bytes, 8, 8, 0, PixelFormat::kRGB24};
@@ -132,7 +136,7 @@ TEST_F(PoseKernelsTest, PreprocessRejectsBadFrames) {
 TEST_F(PoseKernelsTest, Nv12FullHdTo353Timing) {
   std::mt19937 rng(5);
   TestFrame f = random_frame(PixelFormat::kNV12, 1920, 1088, 1920, rng);
-  auto pre = FramePreprocessor::create(*ctx_, 353, 1);
+  auto pre = FramePreprocessor::create(*ctx_, 353, 353, 1);
   ASSERT_TRUE(pre.ok());
   std::vector<double> ms;
   for (int i = 0; i < 5; ++i) {

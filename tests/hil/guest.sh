@@ -125,7 +125,7 @@ HEALTH=
 mocapd_run() {  # mocapd_run NAME REGEX: run mocapd, read 2 messages, GET /health, SIGTERM
   local name=$1 re=$2 out rc=0 drc=0
   XDG_CACHE_HOME=/tmp "$BUILD/bin/mocapd" --board-dir "$boards" --board hil --state-dir "$state" \
-    --gpu cpu --input-size-px 65 --status-log-interval-s 0 &
+    --gpu cpu --input-size-px 64 --status-log-interval-s 0 &
   local pid=$!
   out=$("$MOCAP" stream --raw --messages 2 --timeout 150 2>&1) || rc=$?
   HEALTH=$(health 2>&1 || true)

@@ -60,6 +60,12 @@ TEST(ModelTest, ShapesFlowThroughLayers) {
   EXPECT_EQ((*s)[1], (Shape{2, 129, 128, 8}));
   EXPECT_EQ((*s)[3], (Shape{2, 129, 128, 8}));
   EXPECT_EQ(m.parameter_count(), 3 * 3 * 3 * 8 + 8 + 3 * 3 * 8);
+  // Per output pixel: the conv 3x3x3 per channel (8), the depthwise 3x3 per channel; the add
+  // is not counted.
+  auto macs = m.multiply_adds({2, 257, 255, 3});
+  ASSERT_TRUE(macs.ok());
+  EXPECT_DOUBLE_EQ(*macs, 2.0 * 129 * 128 * 8 * (27 + 9));
+  EXPECT_FALSE(m.multiply_adds({1, 257, 255, 4}).ok());  // wrong channel count
 }
 
 TEST(ModelTest, ValidationNamesTheLayer) {

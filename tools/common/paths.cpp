@@ -18,10 +18,10 @@ fs::path share_path(const std::string& sub) {
   return fs::path(MOCAP_SOURCE_DIR) / sub;
 }
 
-fs::path default_model_path() { return share_path("models") / "posenet.mcnn"; }
+fs::path default_model_path() { return share_path("models") / "movenet-multipose.mcnn"; }
 
 fs::path model_path_for(const std::string& name_or_file) {
-  if (name_or_file == "posenet") return default_model_path();
+  if (name_or_file == "posenet") return share_path("models") / "posenet.mcnn";
   if (name_or_file == "movenet") return share_path("models") / "movenet-multipose.mcnn";
   return name_or_file;
 }

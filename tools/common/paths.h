@@ -10,7 +10,9 @@ namespace mocap::tools {
 // <sub> (a build tree).
 std::filesystem::path share_path(const std::string& sub);
 
-// The pose model every tool uses unless told otherwise: share_path("models")/posenet.mcnn.
+// The pose model every tool uses unless told otherwise: share_path("models")/
+// movenet-multipose.mcnn (MoveNet MultiPose; chosen over PoseNet by measurement,
+// docs/quality.md).
 std::filesystem::path default_model_path();
 
 // A --model argument: the names "posenet" and "movenet" (share_path("models")/posenet.mcnn and

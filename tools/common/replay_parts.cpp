@@ -8,6 +8,17 @@ pipeline::PipelineParts ReplayParts::pipeline_parts(std::vector<pipeline::Sink*>
   return pipeline::PipelineParts{std::move(source), detector.get(), engine.get(), std::move(sinks)};
 }
 
+void set_frame_size(gpu::CnnOptions& options, const std::vector<Camera>& cameras) {
+  options.frame_width_px = 0;
+  options.frame_height_px = 0;
+  if (cameras.empty()) return;
+  for (const Camera& c : cameras) {
+    if (c.width_px() != cameras[0].width_px() || c.height_px() != cameras[0].height_px()) return;
+  }
+  options.frame_width_px = cameras[0].width_px();
+  options.frame_height_px = cameras[0].height_px();
+}
+
 Result<ReplayParts> open_replay(const ReplayPartsOptions& options) {
   ReplayParts parts;
   auto src = hal::ReplaySource::open(options.source);
@@ -16,6 +27,7 @@ Result<ReplayParts> open_replay(const ReplayPartsOptions& options) {
   parts.cameras = parts.source->calibration().cameras;
   gpu::CnnOptions cnn = options.cnn;
   cnn.max_views = parts.source->view_count();
+  set_frame_size(cnn, parts.cameras);
   auto det = gpu::CnnDetector::open(cnn);
   if (!det.ok()) return det.error();
   parts.detector = std::move(*det);

@@ -30,6 +30,11 @@ struct ReplayParts {
   pipeline::PipelineParts pipeline_parts(std::vector<pipeline::Sink*> sinks);
 };
 
+// Fills options' frame size from the calibrated views when they all share one (the CNN input
+// then fits the frames' aspect, gpu::InputFit::kFrame); leaves it unknown (a square input)
+// when they differ or there are none.
+void set_frame_size(gpu::CnnOptions& options, const std::vector<Camera>& cameras);
+
 Result<ReplayParts> open_replay(const ReplayPartsOptions& options);
 
 // Replays go at full speed unless realtime: every frame is processed (block), else, like

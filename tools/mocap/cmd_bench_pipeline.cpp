@@ -97,14 +97,21 @@ Result<PassResult> run_pass(const ReplayPartsOptions& o, int frames, int queue_d
 
 int run_bench_pipeline(Args args) {
   std::string replay, model = default_model_path().string(), gpu = "auto", skeletons_out;
-  int frames = -1, size = gpu::kDefaultInputSizePx, passes = 1, queue_depth = 2;
+  int frames = -1, size = 0, passes = 1, queue_depth = 2;
   cli::ArgParser p("mocap bench pipeline",
                    "mocapd's pipeline on a recording, every frame processed: end-to-end frames/s "
                    "and per-stage latency (median/p99). Last line: pipeline_fps=X.XX (median "
                    "over the passes).");
   p.option("--replay", &replay, "DIR", "recording: calibration.json + videos/<view>.mp4");
   p.option("--model", &model, "FILE", "pose network (default: the installed / source tree's)");
-  p.option("--size", &size, "PX", "network input size (default 353)");
+  p.option("--size", &size, "PX",
+           "network input size (default: the model's, MoveNet 448, PoseNet 353; the long side with "
+           "--input-fit frame)");
+  std::string input_fit = "auto";
+  p.option("--input-fit", &input_fit, "auto|frame|square",
+           "network input shape: frame (--size on the long side, the short side fitted to the "
+           "frames' aspect, no letterbox border), square (--size x --size) or auto (default: "
+           "frame for MoveNet, square for PoseNet)");
   p.option("--gpu", &gpu, "NAME", "auto (default), vulkan or cpu");
   p.option("--frames", &frames, "N", "frames per pass (default: the whole recording)");
   p.option("--passes", &passes, "N", "times the recording is run, each measured (default 1)");
@@ -126,6 +133,12 @@ int run_bench_pipeline(Args args) {
   o.cnn.model = model;
   o.cnn.backend = *request;
   o.cnn.input_size_px = size;
+  auto fit = gpu::parse_input_fit(input_fit);
+  if (!fit.ok()) {
+    std::fprintf(stderr, "mocap bench pipeline: --input-fit: %s\n", fit.error().message().c_str());
+    return 2;
+  }
+  o.cnn.input_fit = *fit;
 
   std::vector<double> fps, e2e, overlap;
   for (int pass = 1; pass <= passes; ++pass) {

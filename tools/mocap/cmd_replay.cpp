@@ -36,8 +36,8 @@ constexpr const char* kHelp =
     "Runs a recorded multi-view capture through the real-time pipeline, as `mocapd --replay`\n"
     "does (same source, detector, engine and threads; every frame processed): the N videos\n"
     "(DIR/videos/<view>.mp4, view = 0..N-1, the view ids of DIR/calibration.json) are\n"
-    "decoded frame by frame, the pose CNN (PoseNet, or MoveNet MultiPose with --model\n"
-    "movenet) runs on all views of a frame in one batch (COCO-17),\n"
+    "decoded frame by frame, the pose CNN (MoveNet MultiPose, or PoseNet with --model\n"
+    "posenet) runs on all views of a frame in one batch (COCO-17),\n"
     "the 4D association engine associates, tracks and fits the persons. Prints per frame the\n"
     "persons (track id, joints observed) and the stage times (source = decode, cnn, assoc),\n"
     "then a summary: median ms per frame of each stage, persons per frame, track ids and\n"
@@ -55,14 +55,14 @@ constexpr const char* kHelp =
     "(bone_std_mm and jitter_m_s2: the worst person output in >= 10 frames). --quality-out\n"
     "writes the same figures, per person too, as JSON.\n"
     "\n"
-    "--size: 353 by default, chosen by measurement on pose2sim_multi (1088x1920 portrait;\n"
-    "the two people on the treadmill are 500-1000 px tall, 90-180 px at a 353 input): at\n"
-    "353 and at 513 both are tracked in all 100 frames with one id each and no switch; 353\n"
-    "takes half the time (4 views on lavapipe, 2 cores: ~450 vs ~900 ms per frame) for a\n"
-    "reprojection error median of 18 px (p90 71) instead of 14 px (p90 51). Use 513 for\n"
-    "small or distant people: the third person (~6.5 m from the cameras, ~400 px tall) is\n"
-    "found in 100 frames at 513 and in ~90 at 353. MoveNet sizes are multiples of 32\n"
-    "(default 256).";
+    "Detector and size: MoveNet MultiPose at 448 on the long side (256x448 for\n"
+    "1088x1920 portrait frames: --input-fit auto fits MoveNet's input to the frames)\n"
+    "by default, chosen by measurement on pose2sim_multi (docs/quality.md): all three\n"
+    "people (the bystander ~400 px tall) in 100 of 100 frames with 3 ids, bone-length\n"
+    "std 1-4 mm, limb jitter 6-18 m/s^2, leave-one-view-out 24 px, ~1.1 s per frame (4\n"
+    "views on lavapipe, 2 cores). PoseNet 353 (square): 0.55 s, loo 48 px, the man's\n"
+    "bone std 14 mm and jitter 138 m/s^2, the bystander's bones 64 mm. MoveNet 256:\n"
+    "0.42 s, the bystander never found.";
 
 // "frame 12: 2 person(s) | id 0: 17/17 joints at (x, y, z) | ...  [fitted 2; source ..., ms]"
 void print_frame(const pipeline::PipelineFrame& f) {
@@ -161,11 +161,16 @@ int run_replay(Args args) {
   cli::ArgParser p("mocap replay", kHelp);
   p.option("--data", &data, "DIR", "recording folder (calibration.json, videos/)");
   p.option("--model", &model, "NAME|FILE",
-           "posenet (default: models/posenet.mcnn), movenet (models/movenet-multipose.mcnn) "
+           "movenet (default: models/movenet-multipose.mcnn), posenet (models/posenet.mcnn) "
            "or a model file");
   p.option("--size", &size, "S",
-           "network input size: PoseNet 16k+1 (default 353; see above), MoveNet a multiple "
-           "of 32 (default 256)");
+           "network input size (the long side with --input-fit frame): MoveNet a multiple of 32 "
+           "(default 448; see above), PoseNet 16k+1 (default 353)");
+  std::string input_fit = "auto";
+  p.option("--input-fit", &input_fit, "auto|frame|square",
+           "network input shape: frame (--size on the long side, the short side fitted to the "
+           "frames' aspect, no letterbox border), square (--size x --size) or auto (default: "
+           "frame for MoveNet, square for PoseNet)");
   p.option("--frames", &frames, "N", "process the first N frames only (default: all)");
   p.option("--backend", &backend, "NAME", "vulkan, cpu or auto (default: Vulkan, else CPU)");
   p.option("--device", &device, "NAME", "Vulkan device index or name substring");
@@ -187,6 +192,9 @@ int run_replay(Args args) {
   o.cnn.backend = *request;
   o.cnn.device = device;
   o.cnn.input_size_px = size;
+  auto fit = gpu::parse_input_fit(input_fit);
+  if (!fit.ok()) return fail(fit.error().with_context("--input-fit"));
+  o.cnn.input_fit = *fit;
   o.assoc.fit.enabled = !no_fit;
   auto smooth = smoothing.get();
   if (!smooth.ok()) return fail(smooth.error());

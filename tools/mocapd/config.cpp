@@ -173,13 +173,25 @@ std::vector<OptionSpec> make_options() {
                          "capture (and simulator) frame rate; 0 = the board's",
                          &DaemonConfig::frame_rate_hz, 0, 1000));
   // CNN
-  v.push_back(string_opt("model", "path",
-                         "pose network (.mcnn or TF.js model.json); empty = the installed "
-                         "models/posenet.mcnn, else the source tree's",
-                         &DaemonConfig::model));
+  v.push_back(
+      string_opt("model", "path",
+                 "pose network (.mcnn or TF.js model.json); empty = the installed "
+                 "models/movenet-multipose.mcnn (MoveNet MultiPose), else the source tree's; "
+                 "PoseNet: models/posenet.mcnn",
+                 &DaemonConfig::model));
   v.push_back(int_opt("input_size_px", "px",
-                      "network input height and width (PoseNet: 16k+1, e.g. 257, 353, 513)",
-                      &DaemonConfig::input_size_px, gpu::kMinInputSizePx, gpu::kMaxInputSizePx));
+                      "network input size, the long side with input_fit frame (PoseNet: 16k+1, "
+                      "e.g. 257, 353, 513; MoveNet: a multiple of 32); 0 = the model's default "
+                      "(PoseNet 353, MoveNet 448)",
+                      &DaemonConfig::input_size_px, 0, gpu::kMaxInputSizePx));
+  v.push_back(enum_opt(
+      "input_fit", "shape",
+      "auto (the model's: frame for MoveNet, square for PoseNet), frame (the short side fitted "
+      "to the calibrated frames' aspect: no letterbox border) or square",
+      &DaemonConfig::input_fit,
+      std::vector<std::pair<std::string, gpu::InputFit>>{{"auto", gpu::InputFit::kAuto},
+                                                         {"frame", gpu::InputFit::kFrame},
+                                                         {"square", gpu::InputFit::kSquare}}));
   using gpu::BackendRequest;
   v.push_back(enum_opt(
       "gpu", "backend",
@@ -368,6 +380,11 @@ Status validate(const DaemonConfig& c) {
     }
   }
   if (c.state_dir.empty()) return err("state_dir must not be empty");
+  if (c.input_size_px != 0 && c.input_size_px < gpu::kMinInputSizePx) {
+    return err("input_size_px " + std::to_string(c.input_size_px) + " must be 0 (the model's " +
+               "default) or in [" + std::to_string(gpu::kMinInputSizePx) + ", " +
+               std::to_string(gpu::kMaxInputSizePx) + "]");
+  }
   return {};
 }
 

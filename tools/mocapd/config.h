@@ -42,8 +42,9 @@ struct DaemonConfig {
   int max_cameras = 8;
   double frame_rate_hz = 0;  // 0 = the board's
   // CNN
-  std::string model;  // empty = the installed models/posenet.mcnn
-  int input_size_px = gpu::kDefaultInputSizePx;
+  std::string model;      // empty = the installed models/movenet-multipose.mcnn
+  int input_size_px = 0;  // 0 = the model's default (PoseNet 353, MoveNet 448)
+  gpu::InputFit input_fit = gpu::InputFit::kAuto;
   gpu::BackendRequest gpu = gpu::BackendRequest::kAuto;
   std::string gpu_device;  // empty = the board's preferred GPU, else the best one
   // Pipeline

@@ -121,6 +121,7 @@ Status Daemon::open_replay() {
   o.cnn.backend = config_.gpu;
   o.cnn.device = config_.gpu_device;
   o.cnn.input_size_px = config_.input_size_px;
+  o.cnn.input_fit = config_.input_fit;
   auto parts = tools::open_replay(o);
   if (!parts.ok()) return parts.error().with_context("replay");
   calibration_state_ = CalibrationState::kOk;
@@ -255,7 +256,8 @@ Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, dou
   source_kind_ = "cameras";
   pending_source_ = std::move(*src);
   if (Status s = open_trigger(disc, rate_hz); !s.ok()) return s;
-  if (Status s = open_cnn(static_cast<int>(disc.cameras.size()), disc.board.preferred_gpu);
+  if (Status s = open_cnn(static_cast<int>(disc.cameras.size()), disc.board.preferred_gpu,
+                          calibration ? calibration->cameras : std::vector<Camera>{});
       !s.ok()) {
     return s;
   }
@@ -280,12 +282,15 @@ Status Daemon::open_trigger(const hal::Discovery& disc, double rate_hz) {
   return {};
 }
 
-Status Daemon::open_cnn(int views, const std::string& preferred_gpu) {
+Status Daemon::open_cnn(int views, const std::string& preferred_gpu,
+                        const std::vector<Camera>& sized_views) {
   gpu::CnnOptions o;
   o.model = config_.model.empty() ? tools::default_model_path() : fs::path(config_.model);
   o.backend = config_.gpu;
   o.device = config_.gpu_device.empty() ? preferred_gpu : config_.gpu_device;
   o.input_size_px = config_.input_size_px;
+  o.input_fit = config_.input_fit;
+  tools::set_frame_size(o, sized_views);
   o.max_views = std::max(views, 1);
   auto det = gpu::CnnDetector::open(o);
   if (!det.ok()) return det.error();

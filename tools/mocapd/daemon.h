@@ -86,7 +86,9 @@ class Daemon {
                                                 const std::filesystem::path& board_dir,
                                                 Status& error);
   Status open_trigger(const hal::Discovery& disc, double rate_hz);
-  Status open_cnn(int views, const std::string& preferred_gpu);
+  // sized_views: the calibrated views (their frame size shapes the input); empty = unknown.
+  Status open_cnn(int views, const std::string& preferred_gpu,
+                  const std::vector<Camera>& sized_views);
   Status make_engine(const SkeletonTopology& topology, const Calibration& calibration,
                      const assoc::AssociationOptions& options);
   void log_status() const;

@@ -36,7 +36,8 @@ TEST(DaemonConfig, DefaultsAreTheDocumentedPorts) {
   EXPECT_EQ(c->http_port, 9871);
   EXPECT_EQ(c->gpu, gpu::BackendRequest::kAuto);
   EXPECT_EQ(c->drop_policy, DropPolicyChoice::kAuto);
-  EXPECT_EQ(c->input_size_px, gpu::kDefaultInputSizePx);
+  EXPECT_EQ(c->input_size_px, 0);  // the model's default
+  EXPECT_EQ(c->input_fit, gpu::InputFit::kAuto);
   EXPECT_TRUE(c->replay.empty());
 }
 
@@ -103,7 +104,16 @@ TEST(DaemonConfig, ChoicesBecomeEnumsAtTheBoundary) {
       << bad.error().message();
   auto small = load({"--input-size-px", "16"});
   ASSERT_FALSE(small.ok());
-  EXPECT_NE(small.error().message().find("[17, 1025]"), std::string::npos);
+  EXPECT_NE(small.error().message().find("0 (the model's default) or in [17, 1025]"),
+            std::string::npos)
+      << small.error().message();
+  auto fit = load({"--input-fit", "square"});
+  ASSERT_TRUE(fit.ok()) << fit.error().message();
+  EXPECT_EQ(fit->input_fit, gpu::InputFit::kSquare);
+  auto bad_fit = load({"--input-fit", "wide"});
+  ASSERT_FALSE(bad_fit.ok());
+  EXPECT_NE(bad_fit.error().message().find("auto, frame, square"), std::string::npos)
+      << bad_fit.error().message();
 }
 
 TEST(DaemonConfig, BooleanFlagsAndPrintConfigRoundTrip) {
