@@ -28,7 +28,7 @@ printf '\n== Main job: mocapd (no configuration) for 150 frames, read by mocap s
 run_daemon 5 --max-frames 150 --status-log-interval-s 2
 
 if [ -d "$DATA/pose2sim_multi/videos" ]; then
-  printf '\n== mocapd --replay %s (10 frames: videos -> GPU PoseNet -> 4D association -> stream)\n' \
+  printf '\n== mocapd --replay %s (10 frames: videos -> GPU MoveNet -> 4D association -> stream)\n' \
     "$DATA/pose2sim_multi"
   run_daemon 10 --replay "$DATA/pose2sim_multi" --max-frames 10
 fi
