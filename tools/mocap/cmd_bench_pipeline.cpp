@@ -17,6 +17,7 @@
 #include "runtime/net/stream_server.h"
 #include "runtime/pipeline/sinks.h"
 #include "tools/common/cli.h"
+#include "tools/common/input_fit_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
 #include "tools/mocap/commands.h"
@@ -107,11 +108,8 @@ int run_bench_pipeline(Args args) {
   p.option("--size", &size, "PX",
            "network input size (default: the model's, MoveNet 448, PoseNet 353; the long side with "
            "--input-fit frame)");
-  std::string input_fit = "auto";
-  p.option("--input-fit", &input_fit, "auto|frame|square",
-           "network input shape: frame (--size on the long side, the short side fitted to the "
-           "frames' aspect, no letterbox border), square (--size x --size) or auto (default: "
-           "frame for MoveNet, square for PoseNet)");
+  InputFitArg input_fit;
+  input_fit.add_to(p);
   p.option("--gpu", &gpu, "NAME", "auto (default), vulkan or cpu");
   p.option("--frames", &frames, "N", "frames per pass (default: the whole recording)");
   p.option("--passes", &passes, "N", "times the recording is run, each measured (default 1)");
@@ -133,9 +131,9 @@ int run_bench_pipeline(Args args) {
   o.cnn.model = model;
   o.cnn.backend = *request;
   o.cnn.input_size_px = size;
-  auto fit = gpu::parse_input_fit(input_fit);
+  auto fit = input_fit.get();
   if (!fit.ok()) {
-    std::fprintf(stderr, "mocap bench pipeline: --input-fit: %s\n", fit.error().message().c_str());
+    std::fprintf(stderr, "mocap bench pipeline: %s\n", fit.error().message().c_str());
     return 2;
   }
   o.cnn.input_fit = *fit;

@@ -19,6 +19,7 @@
 #include "runtime/pipeline/sinks.h"
 #include "runtime/skeleton/topology.h"
 #include "tools/common/cli.h"
+#include "tools/common/input_fit_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
 #include "tools/common/smoothing_args.h"
@@ -166,11 +167,8 @@ int run_replay(Args args) {
   p.option("--size", &size, "S",
            "network input size (the long side with --input-fit frame): MoveNet a multiple of 32 "
            "(default 448; see above), PoseNet 16k+1 (default 353)");
-  std::string input_fit = "auto";
-  p.option("--input-fit", &input_fit, "auto|frame|square",
-           "network input shape: frame (--size on the long side, the short side fitted to the "
-           "frames' aspect, no letterbox border), square (--size x --size) or auto (default: "
-           "frame for MoveNet, square for PoseNet)");
+  InputFitArg input_fit;
+  input_fit.add_to(p);
   p.option("--frames", &frames, "N", "process the first N frames only (default: all)");
   p.option("--backend", &backend, "NAME", "vulkan, cpu or auto (default: Vulkan, else CPU)");
   p.option("--device", &device, "NAME", "Vulkan device index or name substring");
@@ -192,8 +190,8 @@ int run_replay(Args args) {
   o.cnn.backend = *request;
   o.cnn.device = device;
   o.cnn.input_size_px = size;
-  auto fit = gpu::parse_input_fit(input_fit);
-  if (!fit.ok()) return fail(fit.error().with_context("--input-fit"));
+  auto fit = input_fit.get();
+  if (!fit.ok()) return fail(fit.error());
   o.cnn.input_fit = *fit;
   o.assoc.fit.enabled = !no_fit;
   auto smooth = smoothing.get();
