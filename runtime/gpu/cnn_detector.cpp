@@ -1,9 +1,15 @@
 #include "runtime/gpu/cnn_detector.h"
 
+#include <algorithm>
 #include <cstdio>
 
+#include "runtime/core/clock.h"
+#include "runtime/core/log.h"
 #include "runtime/nn/movenet.h"
+#include "runtime/nn/preprocess.h"
 #include "runtime/nn/tfjs_import.h"
+
+MOCAP_LOG_CATEGORY(Cnn);
 
 namespace mocap::gpu {
 
@@ -30,7 +36,18 @@ Status CnnOptions::validate() const {
   PoseDetectorOptions po;
   po.input_size_px = input_size_px == 0 ? kDefaultInputSizePx : input_size_px;
   po.max_views = max_views;
-  return po.validate();
+  if (Status s = po.validate(); !s.ok()) return s;
+  if (crop_model.empty()) return Status::Ok();
+  if (cameras.empty()) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "3D-guided crops need the cameras (a calibration) to project the tracked "
+                 "skeletons with; run without crops when the views are not calibrated");
+  }
+  CropRefinerOptions ro;
+  ro.input_size_px = crop_input_size_px;
+  if (Status s = ro.validate(); !s.ok()) return s;
+  if (Status s = crop_plan.validate(); !s.ok()) return s;
+  return crop_merge.validate();
 }
 
 Result<std::unique_ptr<CnnDetector>> CnnDetector::open(const CnnOptions& options) {
@@ -78,17 +95,139 @@ Result<std::unique_ptr<CnnDetector>> CnnDetector::open(const CnnOptions& options
   auto det = PoseDetector::create(*model, po, d->backend_.context.get());
   if (!det.ok()) return det.error();
   d->detector_ = std::move(*det);
+  if (Status s = d->open_crops(*model); !s.ok()) return s.error();
   return d;
 }
 
-Result<DetectionSet> CnnDetector::detect(const FrameSet& frames) {
-  return detector_->detect(frames);
+Status CnnDetector::open_crops(const nn::Model& detector_model) {
+  if (options_.crop_model.empty()) return Status::Ok();
+  const bool software = backend_.backend == PoseBackend::kCpu ||
+                        (backend_.context && backend_.context->device_info().is_cpu());
+  if (options_.crops_need_gpu && software) {
+    crops_off_reason_ = "3D-guided crops are off: the CNN runs on " + backend_.description +
+                        ", not a hardware GPU (ask for them explicitly to run them anyway)";
+    return Status::Ok();
+  }
+  Result<nn::Model> model = nn::load_model(options_.crop_model);
+  if (!model.ok() && options_.crops_need_gpu) {  // auto: the box runs without them
+    crops_off_reason_ = "3D-guided crops are off: " + model.error().message() +
+                        " (tools/setup.sh converts movenet-thunder.json)";
+    return Status::Ok();
+  }
+  if (!model.ok()) {
+    return model.error().with_context(
+        "crop model (convert movenet-thunder.json with tools/setup.sh, or leave crops off)");
+  }
+  if (model->name == detector_model.name) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "crop model '" + model->name +
+                     "' is the detector's own model; crops need a single-person model "
+                     "(movenet-thunder or movenet-lightning)");
+  }
+  CropRefinerOptions ro;
+  ro.backend = backend_.backend;
+  ro.input_size_px = options_.crop_input_size_px;
+  ro.max_crops = options_.crop_plan.max_crops < 16 ? options_.crop_plan.max_crops : 16;
+  auto r = CropRefiner::create(*model, ro, backend_.context.get());
+  if (!r.ok()) return r.error().with_context("crop model " + options_.crop_model.string());
+  refiner_ = std::move(*r);
+  crop_model_name_ = model->name;
+  const int S = options_.crop_input_size_px;
+  auto macs = model->multiply_adds({1, S, S, model->input_channels});
+  if (!macs.ok()) return macs.error().with_context("crop model at " + std::to_string(S) + " px");
+  macs_per_crop_ = *macs;
+  return Status::Ok();
 }
+
+void CnnDetector::observe_tracks(const SkeletonSet& skeletons) {
+  std::lock_guard<std::mutex> lock(tracks_mu_);
+  previous_ = std::move(latest_);
+  latest_ = skeletons;
+}
+
+Result<DetectionSet> CnnDetector::detect(const FrameSet& frames) {
+  Result<DetectionSet> set = detector_->detect(frames);
+  if (!set.ok() || refiner_ == nullptr) return set;
+  DetectionSet refined = *set;
+  if (Status s = refine_with_crops(frames, refined); !s.ok()) {
+    // The bottom-up detections are still good: the frame goes on without its crops.
+    ++total_crops_.errors;
+    if (total_crops_.errors <= 5 || total_crops_.errors % 1000 == 0) {
+      MOCAP_LOG(Cnn, Warn) << "3D-guided crops, frame " << frames.frame_id << ": "
+                           << s.error().message() << " (the frame goes on without them; "
+                           << total_crops_.errors << " so far)";
+    }
+    return set;
+  }
+  return refined;
+}
+
+Status CnnDetector::refine_with_crops(const FrameSet& frames, DetectionSet& set) {
+  const auto t0 = monotonic_ns();
+  std::optional<SkeletonSet> latest, previous;
+  {
+    std::lock_guard<std::mutex> lock(tracks_mu_);
+    latest = latest_;
+    previous = previous_;
+  }
+  last_crops_ = CropStats{};
+  if (!latest) return Status::Ok();
+  std::vector<int> view_ids;
+  std::vector<nn::FrameView> views;
+  for (const Frame& f : frames.frames) {
+    view_ids.push_back(f.view_id);
+    views.push_back(nn::frame_view(f));
+  }
+  auto plan = assoc::plan_crops(*latest, previous ? &*previous : nullptr, frames.timestamp_ns,
+                                options_.cameras, view_ids, options_.crop_plan);
+  if (!plan.ok()) return plan.error();
+  if (plan->empty()) return Status::Ok();
+  std::vector<CropRequest> requests;
+  for (const assoc::PlannedCrop& c : *plan) {
+    const auto at = std::find(view_ids.begin(), view_ids.end(), c.view_id);
+    requests.push_back(
+        {static_cast<int>(at - view_ids.begin()), c.center_x_px, c.center_y_px, c.side_px});
+  }
+  auto poses = refiner_->run(views, requests);
+  if (!poses.ok()) return poses.error();
+  if (Status s = merge_crops(*plan, *poses, set); !s.ok()) return s;
+  last_crops_.crops = static_cast<int>(plan->size());
+  last_crops_.ms = ms_between(t0, monotonic_ns());
+  total_crops_.crops += last_crops_.crops;
+  total_crops_.refined += last_crops_.refined;
+  total_crops_.added += last_crops_.added;
+  total_crops_.ms += last_crops_.ms;
+  return set.validate();
+}
+
+Status CnnDetector::merge_crops(const std::vector<assoc::PlannedCrop>& plan,
+                                const std::vector<CropPose>& poses, DetectionSet& set) {
+  for (ViewDetections& view : set.views) {
+    assoc::CropClaims claims = assoc::crop_claims(view);
+    for (std::size_t i = 0; i < plan.size(); ++i) {
+      if (plan[i].view_id != view.view_id) continue;
+      auto stats = assoc::merge_crop(view, claims, *set.topology, poses[i].joints, plan[i].side_px,
+                                     options_.crop_merge);
+      if (!stats.ok()) return stats.error();
+      last_crops_.refined += stats->refined;
+      last_crops_.added += stats->added;
+    }
+  }
+  return Status::Ok();
+}
+
+CropStats CnnDetector::last_crop_stats() const { return last_crops_; }
+CropStats CnnDetector::total_crop_stats() const { return total_crops_; }
 
 std::string CnnDetector::description() const {
   return (model_name_.empty() ? std::string("pose CNN") : model_name_) + " " +
          (shape_.width_px == shape_.height_px ? std::to_string(shape_.height_px) : shape_.text()) +
-         " px (" + gmacs_text(macs_per_view_) + " GMAC per view) on " + backend_.description;
+         " px (" + gmacs_text(macs_per_view_) + " GMAC per view)" +
+         (refiner_ ? " + " + crop_model_name_ + " crops " +
+                         std::to_string(refiner_->options().input_size_px) + " px (" +
+                         gmacs_text(macs_per_crop_) + " GMAC each)"
+                   : std::string()) +
+         " on " + backend_.description;
 }
 
 }  // namespace mocap::gpu

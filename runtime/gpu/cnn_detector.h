@@ -10,10 +10,17 @@
 
 #include <filesystem>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
+#include <vector>
 
+#include "runtime/assoc/crop_merge.h"
+#include "runtime/assoc/crop_plan.h"
 #include "runtime/core/error.h"
+#include "runtime/geometry/camera.h"
 #include "runtime/gpu/backend.h"
+#include "runtime/gpu/crop_refiner.h"
 #include "runtime/gpu/pose_detector.h"
 #include "runtime/pipeline/stages.h"
 
@@ -33,7 +40,28 @@ struct CnnOptions {
   int frame_width_px = 0;
   int frame_height_px = 0;
   int max_views = 1;  // views per frame (the network batch)
+  // 3D-guided crops (runtime/assoc/crop_plan.h): a MoveNet SinglePose model (empty: none) run
+  // on each tracked person's crop in each view, at crop_input_size_px, the cameras (indexed by
+  // view id) to project the skeletons with. Needs the pipeline to hand it the tracks.
+  std::filesystem::path crop_model;
+  int crop_input_size_px = kDefaultCropInputSizePx;
+  // Crops only where the CNN runs on a hardware GPU: on the CPU backend or a software Vulkan
+  // device (lavapipe) they stay off (crops_off_reason() says so). Thunder's ~10 crops per
+  // 4-view frame cost 2.7x the bottom-up detector on lavapipe (docs/crops.md).
+  bool crops_need_gpu = false;
+  std::vector<Camera> cameras;
+  assoc::CropPlanOptions crop_plan;
+  assoc::CropMergeOptions crop_merge;
   Status validate() const;
+};
+
+// What the crops did in the last frame, and in all frames so far.
+struct CropStats {
+  int crops = 0;
+  int refined = 0;  // bottom-up candidates moved to a crop's joint
+  int added = 0;    // candidates only a crop found
+  double ms = 0;    // the crop stage (plan, network, merge)
+  int errors = 0;   // frames whose crops failed (they went on with the bottom-up detections)
 };
 
 class CnnDetector final : public pipeline::Detector {
@@ -41,6 +69,8 @@ class CnnDetector final : public pipeline::Detector {
   static Result<std::unique_ptr<CnnDetector>> open(const CnnOptions& options);
 
   Result<DetectionSet> detect(const FrameSet& frames) override;
+  bool wants_tracks() const override { return refiner_ != nullptr; }
+  void observe_tracks(const SkeletonSet& skeletons) override;
   // e.g. "posenet 209x353 px (1.23 GMAC per view) on Vulkan on llvmpipe (LLVM 15.0.6, 256
   // bits) (CPU)".
   std::string description() const override;
@@ -55,13 +85,32 @@ class CnnDetector final : public pipeline::Detector {
   // Why "auto" runs on the CPU (empty when it does not).
   const std::string& fallback_reason() const { return backend_.fallback_reason; }
   const PoseDetector& pose_detector() const { return *detector_; }
+  // The crop stage's figures: the last frame's and the sum over all frames (crops on only).
+  CropStats last_crop_stats() const;
+  CropStats total_crop_stats() const;
+  // Why crops asked for with crops_need_gpu are off (empty: they are on, or were not asked).
+  const std::string& crops_off_reason() const { return crops_off_reason_; }
 
  private:
   CnnDetector() = default;
   CnnOptions options_;
-  BackendChoice backend_;                   // owns the Vulkan context the detector uses
+  BackendChoice backend_;  // owns the Vulkan context the detector uses
+  Status open_crops(const nn::Model& model);
+  Status refine_with_crops(const FrameSet& frames, DetectionSet& set);
+  Status merge_crops(const std::vector<assoc::PlannedCrop>& plan,
+                     const std::vector<CropPose>& poses, DetectionSet& set);
+
   std::unique_ptr<PoseDetector> detector_;  // destroyed before backend_
+  std::unique_ptr<CropRefiner> refiner_;    // destroyed before backend_
   std::string model_name_;
+  std::string crop_model_name_;
+  std::string crops_off_reason_;
+  double macs_per_crop_ = 0;
+  mutable std::mutex tracks_mu_;  // the tracks come from the assoc thread
+  std::optional<SkeletonSet> latest_;
+  std::optional<SkeletonSet> previous_;
+  CropStats last_crops_;
+  CropStats total_crops_;
   InputShape shape_;
   double macs_per_view_ = 0;
 };

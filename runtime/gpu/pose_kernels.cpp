@@ -168,12 +168,18 @@ std::size_t FramePreprocessor::output_floats() const {
 }
 
 Result<std::vector<nn::Letterbox>> FramePreprocessor::run(std::span<const nn::FrameView> frames) {
-  if (frames.empty() || static_cast<int>(frames.size()) > max_views_) {
-    return Error(ErrorCode::kInvalidArgument, std::string("frame pre-processing: ") +
-                                                  std::to_string(frames.size()) +
-                                                  std::string(" frames given, between 1 and ") +
-                                                  std::to_string(max_views_) + " expected");
+  std::vector<PreprocessItem> items;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const nn::FrameView& f = frames[i];
+    items.push_back(
+        {static_cast<int>(i), nn::letterbox_grid(f.width_px, f.height_px, width_px_, height_px_)});
   }
+  return run(frames, items);
+}
+
+// Validates the frames and copies their bytes into the staging buffer; each frame's byte
+// offset there.
+Result<std::vector<std::size_t>> FramePreprocessor::upload(std::span<const nn::FrameView> frames) {
   std::vector<std::size_t> base(frames.size());
   std::size_t total = 0;
   for (std::size_t i = 0; i < frames.size(); ++i) {
@@ -195,15 +201,35 @@ Result<std::vector<nn::Letterbox>> FramePreprocessor::run(std::span<const nn::Fr
   for (std::size_t i = 0; i < frames.size(); ++i) {
     std::memcpy(dst + base[i], frames[i].bytes.data(), frames[i].bytes.size());
   }
+  return base;
+}
+
+Result<std::vector<nn::Letterbox>> FramePreprocessor::run(std::span<const nn::FrameView> frames,
+                                                          std::span<const PreprocessItem> items) {
+  if (items.empty() || static_cast<int>(items.size()) > max_views_) {
+    return Error(ErrorCode::kInvalidArgument, std::string("frame pre-processing: ") +
+                                                  std::to_string(items.size()) +
+                                                  std::string(" inputs given, between 1 and ") +
+                                                  std::to_string(max_views_) + " expected");
+  }
+  for (const PreprocessItem& item : items) {
+    if (item.frame < 0 || item.frame >= static_cast<int>(frames.size())) {
+      return Error(ErrorCode::kInvalidArgument,
+                   "frame pre-processing: input of frame " + std::to_string(item.frame) + " but " +
+                       std::to_string(frames.size()) + " frames given");
+    }
+  }
+  auto base = upload(frames);
+  if (!base.ok()) return base.error();
   std::vector<nn::Letterbox> boxes;
   std::vector<PreprocessPush> pushes;
   bool used[3] = {false, false, false};
-  for (std::size_t i = 0; i < frames.size(); ++i) {
-    const nn::FrameView& f = frames[i];
-    const nn::LetterboxGrid g = nn::letterbox_grid(f.width_px, f.height_px, width_px_, height_px_);
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    const nn::FrameView& f = frames[static_cast<std::size_t>(items[i].frame)];
+    const nn::LetterboxGrid& g = items[i].grid;
     boxes.push_back(g.box);
     PreprocessPush pc{};
-    pc.src_base = static_cast<std::int32_t>(base[i]);
+    pc.src_base = static_cast<std::int32_t>((*base)[static_cast<std::size_t>(items[i].frame)]);
     pc.src_w = f.width_px;
     pc.src_h = f.height_px;
     pc.stride = nn::frame_stride_bytes(f);
@@ -227,9 +253,10 @@ Result<std::vector<nn::Letterbox>> FramePreprocessor::run(std::span<const nn::Fr
   }
   const auto t0 = monotonic_ns();
   Status s = ctx_.run_once([&](VkCommandBuffer cb) {
-    for (std::size_t i = 0; i < frames.size(); ++i) {
-      kernels_[format_index(frames[i].format)]->record(
-          cb, &pushes[i], u32(static_cast<long>(width_px_) * height_px_));
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      const nn::FrameView& f = frames[static_cast<std::size_t>(items[i].frame)];
+      kernels_[format_index(f.format)]->record(cb, &pushes[i],
+                                               u32(static_cast<long>(width_px_) * height_px_));
     }
     host_barrier(cb);
   });

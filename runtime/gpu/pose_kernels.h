@@ -48,6 +48,13 @@ class BoundKernel {
 // Camera frames -> the network input batch [max_views, S, S, 3] (nn::letterbox_frame on the
 // GPU). run() uploads every frame's bytes into one staging buffer and records one dispatch per
 // frame (batch index n = position in `frames`) in one submission.
+// One network input of a batch: frame `frame` of the frames given, through `grid` (a
+// letterbox, or a crop: nn::crop_grid).
+struct PreprocessItem {
+  int frame = 0;
+  nn::LetterboxGrid grid;
+};
+
 class FramePreprocessor {
  public:
   static Result<std::unique_ptr<FramePreprocessor>> create(Context& ctx, int width_px,
@@ -55,6 +62,10 @@ class FramePreprocessor {
   // Validates every frame first (nn::validate_frame; the error names the frame index), then
   // writes batch items 0..frames.size()-1 and returns their letterboxes.
   Result<std::vector<nn::Letterbox>> run(std::span<const nn::FrameView> frames);
+  // Batch item i from items[i] (1 to max_views items; a frame may feed several, e.g. the crops
+  // of the people in one view). Each frame is uploaded once.
+  Result<std::vector<nn::Letterbox>> run(std::span<const nn::FrameView> frames,
+                                         std::span<const PreprocessItem> items);
   // The batch written by run(): [max_views, height, width, 3] NHWC float32 (host-visible).
   std::span<const float> output() const;
   int width_px() const { return width_px_; }
@@ -64,6 +75,7 @@ class FramePreprocessor {
 
  private:
   explicit FramePreprocessor(Context& ctx) : ctx_(ctx) {}
+  Result<std::vector<std::size_t>> upload(std::span<const nn::FrameView> frames);
   std::size_t output_floats() const;
   Context& ctx_;
   int width_px_ = 0;

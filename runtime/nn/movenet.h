@@ -46,6 +46,11 @@ inline constexpr int kMoveNetInputMultiplePx = 32;
 // graph's Cast/Sub/Mul/Sub, fed with nn::letterbox_frame's [-1, 1] values), outputs at the
 // four heads above (the graph nodes' BiasAdd), named as above.
 TfjsImportOptions movenet_multipose_cut();
+// Where to cut movenet-thunder.json and movenet-lightning.json (SinglePose, one person per
+// crop): the same input node and the same four heads, whose nodes are numbered differently
+// (the graph has no box heads). The outputs get the same names, so is_movenet() holds; the
+// single-person decoding is movenet_single_person_cpu.
+TfjsImportOptions movenet_singlepose_cut();
 
 // Whether `model` has MoveNet's four heads (by output name).
 bool is_movenet(const Model& model);

@@ -32,33 +32,47 @@ std::size_t uz(long v) { return static_cast<std::size_t>(v); }
 }  // namespace
 
 LetterboxGrid letterbox_grid(int width_px, int height_px, int out_w_px, int out_h_px) {
-  LetterboxGrid g;
-  Letterbox& lb = g.box;
+  Letterbox lb;
   lb.scale =
       std::min(static_cast<double>(out_w_px) / width_px, static_cast<double>(out_h_px) / height_px);
-  const double content_w = width_px * lb.scale;
-  const double content_h = height_px * lb.scale;
-  lb.offset_x_px = 0.5 * (out_w_px - content_w);
-  lb.offset_y_px = 0.5 * (out_h_px - content_h);
-  // An output pixel shows the image when its centre lies on the content rectangle and its
-  // source position is within one pixel of the image.
-  auto inside = [&](int i, double offset, double content, int image_px) {
+  lb.offset_x_px = 0.5 * (out_w_px - width_px * lb.scale);
+  lb.offset_y_px = 0.5 * (out_h_px - height_px * lb.scale);
+  return crop_grid(lb, width_px, height_px, out_w_px, out_h_px);
+}
+
+Letterbox crop_letterbox(double center_x_px, double center_y_px, double side_px, int out_w_px,
+                         int out_h_px) {
+  Letterbox lb;
+  lb.scale = std::min(out_w_px, out_h_px) / side_px;
+  lb.offset_x_px = 0.5 * out_w_px - center_x_px * lb.scale;
+  lb.offset_y_px = 0.5 * out_h_px - center_y_px * lb.scale;
+  return lb;
+}
+
+LetterboxGrid crop_grid(const Letterbox& box, int width_px, int height_px, int out_w_px,
+                        int out_h_px) {
+  LetterboxGrid g;
+  g.box = box;
+  const Letterbox& lb = g.box;
+  // An output pixel shows the image when its centre lies on the image's rectangle (in network
+  // pixels) and its source position is within one pixel of the image.
+  auto inside = [&](int i, double offset, int image_px) {
     const double s = (i + 0.5 - offset) / lb.scale - 0.5;
-    return s > -1.0 && s < image_px && i + 0.5 >= offset && i + 0.5 <= offset + content;
+    return s > -1.0 && s < image_px && i + 0.5 >= offset && i + 0.5 <= offset + image_px * lb.scale;
   };
-  auto range = [&](int out_px, double offset, double content, int image_px, int& begin, int& end) {
+  auto range = [&](int out_px, double offset, int image_px, int& begin, int& end) {
     begin = out_px;
     end = out_px;
     for (int i = 0; i < out_px; ++i) {
-      if (inside(i, offset, content, image_px)) {
+      if (inside(i, offset, image_px)) {
         if (begin == out_px) begin = i;
         end = i + 1;
       }
     }
     if (begin == out_px) begin = end = 0;
   };
-  range(out_w_px, lb.offset_x_px, content_w, width_px, g.x_begin, g.x_end);
-  range(out_h_px, lb.offset_y_px, content_h, height_px, g.y_begin, g.y_end);
+  range(out_w_px, lb.offset_x_px, width_px, g.x_begin, g.x_end);
+  range(out_h_px, lb.offset_y_px, height_px, g.y_begin, g.y_end);
   return g;
 }
 
@@ -141,6 +155,17 @@ void yuv_to_rgb_bt601_limited(float y, float u, float v, float rgb[3]) {
 
 Result<Letterbox> letterbox_frame(const FrameView& frame, Tensor& out, int n) {
   if (Status st = validate_frame(frame); !st.ok()) return st.error();
+  return resample_frame(
+      frame, letterbox_grid(frame.width_px, frame.height_px, out.shape.w, out.shape.h), out, n);
+}
+
+Result<Letterbox> resample_frame(const FrameView& frame, const LetterboxGrid& g, Tensor& out,
+                                 int n) {
+  if (Status st = validate_frame(frame); !st.ok()) return st.error();
+  if (!(g.box.scale > 0) || !std::isfinite(g.box.scale) || !std::isfinite(g.box.offset_x_px) ||
+      !std::isfinite(g.box.offset_y_px)) {
+    return invalid("the mapping into the network input needs a finite scale > 0");
+  }
   const Shape& s = out.shape;
   if (s.c != 3 || s.h <= 0 || s.w <= 0 || n < 0 || n >= s.n ||
       static_cast<long>(out.data.size()) != s.elements()) {
@@ -174,7 +199,6 @@ Result<Letterbox> letterbox_frame(const FrameView& frame, Tensor& out, int n) {
       }
     }
   };
-  const LetterboxGrid g = letterbox_grid(width_px, height_px, s.w, s.h);
   const Letterbox& lb = g.box;
   for (int y = 0; y < s.h; ++y) {
     // Image coordinate of this output pixel's centre.

@@ -43,6 +43,16 @@ struct LetterboxGrid {
 };
 LetterboxGrid letterbox_grid(int width_px, int height_px, int out_w_px, int out_h_px);
 
+// A crop: the square of side side_px image pixels centred on (center_x_px, center_y_px),
+// scaled to fill min(out_w, out_h) and centred in the out_w x out_h input. Parts of the square
+// outside the image are black border, as in a letterbox.
+Letterbox crop_letterbox(double center_x_px, double center_y_px, double side_px, int out_w_px,
+                         int out_h_px);
+// The grid of any mapping (a letterbox or a crop) of a width x height image into an
+// out_w x out_h input: the output columns and rows whose centres fall on the image.
+LetterboxGrid crop_grid(const Letterbox& box, int width_px, int height_px, int out_w_px,
+                        int out_h_px);
+
 // A camera frame's bytes as pre-processing reads them (no ownership).
 //  RGB24: 3 bytes per pixel (R, G, B).
 //  YUYV:  4 bytes per pixel pair (Y0, U, Y1, V); width must be even.
@@ -80,6 +90,12 @@ void yuv_to_rgb_bt601_limited(float y, float u, float v, float rgb[3]);
 
 // Writes batch item `n` of `out` (shape [N, H, W, 3], allocated by the caller).
 Result<Letterbox> letterbox_frame(const FrameView& frame, Tensor& out, int n = 0);
+
+// The general form both use: batch item `n` of `out` through `grid` (letterbox_grid or
+// crop_grid of this frame's size and out's), the pixels outside it black.
+// shaders/preprocess_frame.comp takes the same grid, so GPU crops are tested against this.
+Result<Letterbox> resample_frame(const FrameView& frame, const LetterboxGrid& grid, Tensor& out,
+                                 int n = 0);
 
 // letterbox_frame of a packed RGB24 image.
 Result<Letterbox> letterbox_rgb8(std::span<const std::uint8_t> rgb, int width_px, int height_px,

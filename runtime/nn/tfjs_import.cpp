@@ -69,10 +69,16 @@ const std::set<std::string, std::less<>>& supported_ops() {
   return ops;
 }
 
-// Ops allowed between a cut input node and the Placeholder (TfjsImportOptions::input_node).
+// Ops allowed between a cut input node and the Placeholder (TfjsImportOptions::input_node):
+// elementwise with constant operands, and the batch-axis reshapes of a one-image batch
+// (checked by Importer::keeps_one_image).
 const std::set<std::string, std::less<>>& elementwise_input_ops() {
   static const std::set<std::string, std::less<>> ops = {"Cast", "Sub",   "Mul",
                                                          "Add",  "AddV2", "RealDiv"};
+  return ops;
+}
+const std::set<std::string, std::less<>>& batch_reshape_input_ops() {
+  static const std::set<std::string, std::less<>> ops = {"Unpack", "ExpandDims", "Squeeze"};
   return ops;
 }
 
@@ -245,6 +251,10 @@ class Importer {
   Status map_placeholder(const TfNode& n);
   // The cut input node (TfjsImportOptions::input_node): its Placeholder's shape, no layer.
   Status map_cut_input(const TfNode& n);
+  // Unpack (axis 0, num 1), ExpandDims at axis 0 and Squeeze of axis 0: the reshapes a graph
+  // does on the batch axis of its one image (MoveNet SinglePose's in-graph resize, folded away
+  // at its declared size), which keep the values of an [1, H, W, C] image as they are.
+  bool keeps_one_image(const TfNode& n) const;
   Result<std::array<std::int64_t, 4>> declared_shape(const TfNode& placeholder) const;
   void set_input(const TfNode& n, const std::array<std::int64_t, 4>& size);
   Status map_size_op(const TfNode& n);
@@ -931,16 +941,53 @@ Status Importer::map_placeholder(const TfNode& n) {
   return Status::Ok();
 }
 
+bool Importer::keeps_one_image(const TfNode& n) const {
+  auto int_attr = [&](const char* key) -> std::optional<std::int64_t> {
+    const Json* a = find_attr(n, key);
+    const Json* i = a != nullptr ? field_of(*a, "i") : nullptr;
+    if (i == nullptr) return std::nullopt;
+    if (i->is_number_integer()) return i->get<std::int64_t>();
+    if (i->is_string()) {
+      std::int64_t v = 0;
+      const std::string& t = i->get_ref<const std::string&>();
+      auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+      if (ec == std::errc() && p == t.data() + t.size()) return v;
+    }
+    return std::nullopt;
+  };
+  if (n.op == "Unpack") return int_attr("axis").value_or(-1) == 0 && int_attr("num") == 1;
+  if (n.op == "Squeeze") {
+    Result<std::optional<std::vector<std::int64_t>>> dims = attr_ints(n, "squeeze_dims");
+    return dims.ok() && *dims && **dims == std::vector<std::int64_t>{0};
+  }
+  if (n.op == "ExpandDims" && n.inputs.size() == 2) {
+    // The walk runs before the constants are mapped: read the weight itself.
+    auto dim = weights_.find(n.inputs[1]);
+    return dim != weights_.end() && dim->second.is_int &&
+           dim->second.ints == std::vector<std::int32_t>{0};
+  }
+  return false;
+}
+
 Status Importer::map_cut_input(const TfNode& n) {
-  // Walk up to the Placeholder; every step is an elementwise op with constant other operands.
+  // Walk up to the Placeholder; every step is an elementwise op with constant other operands
+  // or a reshape of the one image's batch axis.
   const TfNode* at = &n;
   for (std::size_t steps = 0; at->op != "Placeholder"; ++steps) {
     if (steps > nodes_.size()) return node_error(n, "is part of a cycle");
-    if (!elementwise_input_ops().contains(at->op)) {
+    const bool reshape = batch_reshape_input_ops().contains(at->op);
+    if (reshape && !keeps_one_image(*at)) {
+      return node_error(*at,
+                        "lies between the input node '" + n.name +
+                            "' and the Placeholder and reshapes more than the batch axis of "
+                            "one image",
+                        ErrorCode::kUnsupported);
+    }
+    if (!reshape && !elementwise_input_ops().contains(at->op)) {
       return node_error(*at,
                         "lies between the input node '" + n.name +
                             "' and the Placeholder and is not an elementwise op (Cast, Sub, "
-                            "Mul, Add, AddV2, RealDiv)",
+                            "Mul, Add, AddV2, RealDiv) or a batch-axis reshape of one image",
                         ErrorCode::kUnsupported);
     }
     const TfNode* next = nullptr;

@@ -29,6 +29,7 @@ struct Pipeline::Captured {
 
 struct Pipeline::Detected {
   DetectionSet detections;
+  bool from_cnn = false;  // counted by detected_
   std::int64_t source_ns = 0;
   std::int64_t queued_ns = 0;  // when it entered the assoc queue
   double source_ms = 0;
@@ -168,7 +169,7 @@ void Pipeline::source_loop() {
     std::uint64_t dropped = 0;
     bool queued = true;
     if (item.detections) {
-      Detected d{std::move(*item.detections), t1, t1, ms_between(t0, t1), 0.0};
+      Detected d{std::move(*item.detections), false, t1, t1, ms_between(t0, t1), 0.0};
       queued = assoc_queue_->push(std::move(d), &dropped);
       metrics_.dropped(0, dropped);
     } else if (item.frames) {
@@ -195,6 +196,8 @@ void Pipeline::cnn_loop() {
            " source gave images but there is no detector");
       return;
     }
+    wait_for_tracks();
+    if (stop_) break;
     const std::int64_t t0 = monotonic_ns();
     Result<DetectionSet> det = parts_.detector->detect(c->frames);
     const std::int64_t t1 = monotonic_ns();
@@ -209,14 +212,35 @@ void Pipeline::cnn_loop() {
     }
     metrics_.add_latency(MetricsRecorder::kCnnWait, ms_between(c->source_ns, t0));
     metrics_.add_latency(MetricsRecorder::kCnn, ms_between(t0, t1));
-    Detected d{std::move(*det), c->source_ns, t1, c->source_ms, ms_between(t0, t1)};
+    Detected d{std::move(*det), true, c->source_ns, t1, c->source_ms, ms_between(t0, t1)};
     c.reset();  // the frame buffers go back to the driver now
     std::uint64_t dropped = 0;
+    {
+      std::lock_guard<std::mutex> lock(tracks_mu_);
+      ++detected_;
+    }
     const bool queued = assoc_queue_->push(std::move(d), &dropped);
     metrics_.dropped(0, dropped);
     if (!queued) break;
   }
   assoc_queue_->close();
+}
+
+void Pipeline::wait_for_tracks() {
+  if (parts_.detector == nullptr || !parts_.detector->wants_tracks() ||
+      options_.drop_policy != DropPolicy::kBlock) {
+    return;
+  }
+  std::unique_lock<std::mutex> lock(tracks_mu_);
+  while (!stop_ && associated_ < detected_) {
+    tracks_cv_.wait_for(lock, std::chrono::milliseconds(kPollMs));
+  }
+}
+
+void Pipeline::frame_associated() {
+  std::lock_guard<std::mutex> lock(tracks_mu_);
+  ++associated_;
+  tracks_cv_.notify_all();
 }
 
 bool Pipeline::associate_and_sink(Detected& d) {
@@ -236,6 +260,9 @@ bool Pipeline::associate_and_sink(Detected& d) {
       return true;
     }
     f.result = std::move(*r);
+    if (parts_.detector != nullptr && parts_.detector->wants_tracks()) {
+      parts_.detector->observe_tracks(f.result->skeletons);
+    }
   }
   const std::int64_t t1 = monotonic_ns();
   f.assoc_ms = ms_between(t0, t1);
@@ -262,7 +289,10 @@ void Pipeline::assoc_loop() {
       if (assoc_queue_->drained()) break;
       continue;
     }
-    if (!associate_and_sink(*d)) return;
+    const bool from_cnn = d->from_cnn;
+    const bool ok = associate_and_sink(*d);
+    if (from_cnn) frame_associated();
+    if (!ok) return;
   }
   finish(!stop_ && !metrics_.failed());
 }

@@ -82,6 +82,10 @@ class Pipeline {
   void assoc_loop();
   // Runs the engine and the sinks on one frame; false when a sink failed (the pipeline stops).
   bool associate_and_sink(Detected& d);
+  // Detector::wants_tracks with DropPolicy::kBlock: the cnn thread waits until every frame it
+  // handed on was associated (or the pipeline stops).
+  void wait_for_tracks();
+  void frame_associated();
   void fail(const std::string& why);
   void finish(bool ended);
   void set_thread_priority();
@@ -98,6 +102,10 @@ class Pipeline {
   bool started_ = false;
   bool done_ = false;
   std::uint64_t assoc_errors_ = 0;  // the assoc thread's only
+  std::mutex tracks_mu_;
+  std::condition_variable tracks_cv_;
+  std::uint64_t detected_ = 0;    // frames the cnn thread queued for association
+  std::uint64_t associated_ = 0;  // of those, frames the assoc thread finished
 };
 
 }  // namespace mocap::pipeline

@@ -57,6 +57,12 @@ class Detector {
   virtual Result<DetectionSet> detect(const FrameSet& frames) = 0;
   // What runs the detector, e.g. "PoseNet 353 px, Vulkan on llvmpipe".
   virtual std::string description() const = 0;
+  // A detector that uses the tracked skeletons (3D-guided crops) says so; the pipeline then
+  // hands it every frame's skeletons (observe_tracks, on the assoc thread) and, when no frame
+  // may be dropped (a replay), detects a frame only after the frames before it were
+  // associated, so a replay gives the same result on every run.
+  virtual bool wants_tracks() const { return false; }
+  virtual void observe_tracks(const SkeletonSet& /*skeletons*/) {}
 };
 
 // ----------------------------------------------------------------------------- sink

@@ -62,6 +62,8 @@ struct Floors {
   // bone-length std of that id.
   int far_frames;
   double far_bone_std_mm;
+  const char* crop_model = nullptr;  // under models/: 3D-guided crops (null: none)
+  int crop_size_px = 0;
 };
 // PoseNet 353 (square), measured 2026-12-01 with limb sanity and the smoother on: loo 47.7 px,
 // bone std woman 3.2 / man 14.4 mm, jitter woman 25 / man 138 m/s^2.
@@ -70,6 +72,11 @@ constexpr Floors kPoseNet353{"posenet.mcnn", 353, 52, 18, 35, 165, 0, 0};
 // 24.4 px, bone std woman 1.2 / man 2.0 / bystander 3.4 mm, jitter woman 6 / man 18 /
 // bystander 11 m/s^2, the bystander in 100 of 100 frames under one id.
 constexpr Floors kMoveNet448{"movenet-multipose.mcnn", 448, 27, 5, 10, 25, 95, 8};
+// The same with 3D-guided crops, MoveNet Thunder 256 (docs/crops.md), measured 2026-12-02: loo
+// 22.6 px, bone std man 1.8 / woman 0.9 / bystander 3.4 mm, jitter man 18 / woman 7 / bystander
+// 4 m/s^2. Its loo floor is below what the detector alone measures (24.4 px).
+constexpr Floors kMoveNet448Thunder{"movenet-multipose.mcnn", 448, 23.5, 3, 10, 22, 95, 6,
+                                    "movenet-thunder.mcnn",   256};
 constexpr int kMaxStrayFrames = 20;
 
 // Where each person of each frame was (by id), and the per-frame head counts.
@@ -123,8 +130,12 @@ struct Places {
 void replay_and_check(const Floors& floors) {
   MOCAP_REQUIRE_DATA(data, "pose2sim_multi");
   const fs::path model = fs::path(MOCAP_SOURCE_DIR) / "models" / floors.model;
-  if (!fs::exists(model)) {
-    MOCAP_SKIP_OR_FAIL_IN_CI(model.string() + " missing (tools/setup.sh)");
+  const fs::path crop_model =
+      floors.crop_model ? fs::path(MOCAP_SOURCE_DIR) / "models" / floors.crop_model : fs::path();
+  for (const fs::path& m : {model, crop_model}) {
+    if (!m.empty() && !fs::exists(m)) {
+      MOCAP_SKIP_OR_FAIL_IN_CI(m.string() + " missing (tools/setup.sh)");
+    }
   }
   {
     auto ctx = gpu::Context::create(gpu::GpuOptions{});
@@ -144,6 +155,11 @@ void replay_and_check(const Floors& floors) {
   co.input_size_px = floors.input_size_px;
   co.frame_width_px = cameras[0].width_px();  // as the tools do (all four views are 1088x1920)
   co.frame_height_px = cameras[0].height_px();
+  if (!crop_model.empty()) {
+    co.crop_model = crop_model;
+    co.crop_input_size_px = floors.crop_size_px;
+    co.cameras = cameras;
+  }
   auto cnn = gpu::CnnDetector::open(co);
   ASSERT_TRUE(cnn.ok()) << cnn.error().message();
   auto engine = assoc::Engine::create(coco17_topology(), cameras, assoc::posenet_coco17_options());
@@ -203,6 +219,14 @@ void replay_and_check(const Floors& floors) {
       "%d frames), tracks %zu, reprojection median %.2f px p90 %.2f px, cnn %.0f ms/frame\n",
       man_id, man_frames, woman_id, woman_frames, places.far_ids.size(), places.stray_frames,
       sum.tracks.size(), med, percentile(errors, 0.9), median(sum.cnn_ms));
+  if (!crop_model.empty()) {
+    // The crops ran: about one per (person, view) seen, and they refined most joints.
+    const gpu::CropStats crops = (*cnn)->total_crop_stats();
+    std::printf("e2e crops: %d, %d joints refined, %d added\n", crops.crops, crops.refined,
+                crops.added);
+    EXPECT_GE(crops.crops, 8 * 99) << "two performers in 4 views, the bystander in 2";
+    EXPECT_GE(crops.refined, 10 * crops.crops);
+  }
 
   // Label-free quality floors (docs/quality.md), measured with PoseNet 353: the performers'
   // bones hold their length and the woman, standing, does not shake.
@@ -241,6 +265,11 @@ TEST(ReplayE2e, Pose2SimMultiTwoPeopleTrackedWithStableIds) { replay_and_check(k
 
 // The default detector: the bystander too.
 TEST(ReplayE2e, Pose2SimMultiMoveNetTracksAllThreeWithStableIds) { replay_and_check(kMoveNet448); }
+
+// With 3D-guided crops (Thunder; on lavapipe ~3 s per frame, ~5 minutes for the clip).
+TEST(ReplayE2e, Pose2SimMultiThunderCropsTrackAllThreeMoreAccurately) {
+  replay_and_check(kMoveNet448Thunder);
+}
 
 }  // namespace
 }  // namespace mocap::eval

@@ -25,6 +25,7 @@
 #include "runtime/image/image.h"
 #include "runtime/nn/cpu_ops.h"
 #include "runtime/nn/movenet.h"
+#include "runtime/nn/movenet_single.h"
 #include "runtime/nn/preprocess.h"
 #include "runtime/nn/tfjs_import.h"
 #include "runtime/skeleton/topology.h"
@@ -52,11 +53,10 @@ void write_bytes(const fs::path& p, const void* data, std::size_t bytes) {
 }
 
 // Whether the graph has every node of the cut (a model file of another version may not).
-bool has_cut_nodes(const fs::path& model_json) {
+bool has_cut_nodes(const fs::path& model_json, const nn::TfjsImportOptions& cut) {
   std::string text(static_cast<std::size_t>(fs::file_size(model_json)), '\0');
   std::ifstream(model_json, std::ios::binary)
       .read(text.data(), static_cast<std::streamsize>(text.size()));
-  const nn::TfjsImportOptions cut = nn::movenet_multipose_cut();
   if (text.find("\"" + cut.input_node + "\"") == std::string::npos) return false;
   return std::all_of(cut.outputs.begin(), cut.outputs.end(), [&](const nn::TfjsOutput& o) {
     return text.find("\"" + o.node + "\"") != std::string::npos;
@@ -83,11 +83,18 @@ Input letterboxed(const image::ImageRgb8& img, int size) {
 
 class MoveNetTfjsTest : public ::testing::Test {
  protected:
+  MoveNetTfjsTest() = default;
+  // SinglePose (Thunder): its graph, cut and reference heads.
+  explicit MoveNetTfjsTest(const std::string& model)
+      : model_json_(kSource / "models" / (model + ".json")),
+        cut_(nn::movenet_singlepose_cut()),
+        heads_("singlepose") {}
+
   void SetUp() override {
     if (!fs::exists(model_json_)) {
-      MOCAP_SKIP_OR_FAIL_IN_CI("models/movenet-multipose.json missing (tools/fetch_models.sh)");
+      MOCAP_SKIP_OR_FAIL_IN_CI(model_json_.string() + " missing (tools/fetch_models.sh)");
     }
-    if (!has_cut_nodes(model_json_)) {
+    if (!has_cut_nodes(model_json_, cut_)) {
       MOCAP_SKIP_OR_FAIL_IN_CI(model_json_.string() + " lacks the head nodes of the cut");
     }
     if (!fs::exists(kSource / "tools/tfjs_ref/node_modules") ||
@@ -110,11 +117,14 @@ class MoveNetTfjsTest : public ::testing::Test {
     const std::string cmd = "node '" + (kSource / "tools/tfjs_ref/movenet_ref.mjs").string() +
                             "' --model '" + model_json_.string() + "' --input-" + kind + " '" +
                             input.string() + "' --size " + std::to_string(size) + " --out '" +
-                            out.string() + "' --backend cpu 2>/dev/null >/dev/null";
+                            out.string() + "' --heads " + heads_ +
+                            " --backend cpu 2>/dev/null >/dev/null";
     ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
   }
 
   const fs::path model_json_ = kSource / "models/movenet-multipose.json";
+  const nn::TfjsImportOptions cut_ = nn::movenet_multipose_cut();
+  const std::string heads_ = "multipose";
   const std::vector<std::string> photos_ = {"messi5.jpg", "basketball1.png"};
   fs::path tmp_;
 };
@@ -236,6 +246,104 @@ TEST_F(MoveNetTfjsTest, DecodingFindsThePackagesKeypoints) {
     std::printf(
         "[ movenet ] %s: of the package's %d confident keypoints %d are candidates, %d within "
         "%.0f px of one\n",
+        photo.c_str(), confident, exact, near, static_cast<double>(kNearPx));
+    EXPECT_GT(confident, 0);
+    EXPECT_GE(2 * exact, confident);
+    EXPECT_GE(10 * near, 9 * confident);
+  }
+}
+
+// MoveNet SinglePose Thunder (the 3D-guided crops' model, runtime/gpu/crop_refiner.h): the same
+// checks at its input size, 256.
+class ThunderTfjsTest : public MoveNetTfjsTest {
+ protected:
+  ThunderTfjsTest() : MoveNetTfjsTest("movenet-thunder") {}
+  static constexpr int kSize = 256;
+};
+
+TEST_F(ThunderTfjsTest, VulkanAndCpuHeadsMatchTfjsOnPhotos) {
+  auto model = nn::import_tfjs(model_json_, cut_);
+  ASSERT_TRUE(model.ok()) << model.error().message();
+  GpuOptions go;
+  go.validation = true;
+  auto ctx = Context::create(go);
+  if (!ctx.ok()) MOCAP_SKIP_OR_FAIL_IN_CI("no Vulkan device: " + ctx.error().message());
+  NetworkOptions no;
+  no.height_px = no.width_px = kSize;
+  auto net = Network::create(**ctx, *model, no);
+  ASSERT_TRUE(net.ok()) << net.error().message();
+  for (const auto& photo : photos_) {
+    SCOPED_TRACE(photo);
+    auto img = image::load_image(kSource / ".cache/photos" / photo);
+    ASSERT_TRUE(img.ok()) << img.error().message();
+    const Input in = letterboxed(*img, kSize);
+    write_bytes(tmp_ / "input.f32", in.f32.data.data(), in.f32.data.size() * 4);
+    reference("f32", tmp_ / "input.f32", kSize, tmp_ / "ref");
+    ASSERT_TRUE((*net)->run(in.f32.data).ok());
+    auto cpu = nn::run_model_cpu(*model, in.f32);
+    ASSERT_TRUE(cpu.ok()) << cpu.error().message();
+    for (std::size_t o = 0; o < model->outputs.size(); ++o) {
+      const std::string& name = model->outputs[o].name;
+      const std::vector<float> ref = read_f32(tmp_ / "ref" / (name + ".f32"));
+      nn::Tensor got;
+      ASSERT_TRUE((*net)->read_output(o, got).ok());
+      const double err = ::mocap::testing::max_relative_error(got.data, ref);
+      const double cerr = ::mocap::testing::max_relative_error(
+          (*cpu)[static_cast<std::size_t>(model->outputs[o].value)].data, ref);
+      EXPECT_LT(err, kTolerance) << "vulkan " << name;
+      EXPECT_LT(cerr, kTolerance) << "cpu " << name;
+      std::printf("[ thunder ] %s %-19s vulkan rel err %.2e  cpu rel err %.2e\n", photo.c_str(),
+                  name.c_str(), err, cerr);
+    }
+  }
+  EXPECT_EQ((*ctx)->validation_errors(), 0);
+}
+
+// The package's single-person decoding (fed the uint8 photo) against ours
+// (nn::movenet_single_person_cpu) on the Vulkan heads: the same person, and each keypoint the
+// package scores >= 0.3 at (or, where the centre weighting differs, within a cell of) ours,
+// with the same score.
+TEST_F(ThunderTfjsTest, DecodingFindsThePackagesKeypoints) {
+  auto model = nn::import_tfjs(model_json_, cut_);
+  ASSERT_TRUE(model.ok()) << model.error().message();
+  auto ctx = Context::create(GpuOptions{});
+  if (!ctx.ok()) MOCAP_SKIP_OR_FAIL_IN_CI("no Vulkan device: " + ctx.error().message());
+  constexpr float kExactPx = 0.01f;
+  constexpr float kNearPx = 4.f;
+  NetworkOptions no;
+  no.height_px = no.width_px = kSize;
+  auto net = Network::create(**ctx, *model, no);
+  ASSERT_TRUE(net.ok()) << net.error().message();
+  for (const auto& photo : photos_) {
+    SCOPED_TRACE(photo);
+    auto img = image::load_image(kSource / ".cache/photos" / photo);
+    ASSERT_TRUE(img.ok()) << img.error().message();
+    const Input in = letterboxed(*img, kSize);
+    write_bytes(tmp_ / "input.u8", in.u8.data(), in.u8.size());
+    reference("u8", tmp_ / "input.u8", kSize, tmp_ / "full");
+    const std::vector<float> package = read_f32(tmp_ / "full/keypoints.f32");
+    ASSERT_EQ(package.size(), 17u * 3u);
+    ASSERT_TRUE((*net)->run(in.f32.data).ok());
+    nn::Tensor heads[4];
+    for (std::size_t o = 0; o < 4; ++o) ASSERT_TRUE((*net)->read_output(o, heads[o]).ok());
+    auto pose = nn::movenet_single_person_cpu(heads[0], heads[1], heads[2], heads[3], 0, kSize);
+    ASSERT_TRUE(pose.ok()) << pose.error().message();
+    int confident = 0, exact = 0, near = 0;
+    for (std::size_t k = 0; k < 17; ++k) {
+      if (package[3 * k + 2] < 0.3f) continue;
+      ++confident;
+      const nn::SinglePoseJoint& j = pose->joints[k];
+      const float d =
+          std::hypot(j.x_net_px - package[3 * k + 1] * kSize, j.y_net_px - package[3 * k] * kSize);
+      if (d < kNearPx) ++near;
+      if (d < kExactPx) {
+        ++exact;
+        EXPECT_NEAR(j.score, package[3 * k + 2], 1e-4f) << "joint " << k;
+      }
+    }
+    std::printf(
+        "[ thunder ] %s: of the package's %d confident keypoints %d are ours exactly, %d within "
+        "%.0f px\n",
         photo.c_str(), confident, exact, near, static_cast<double>(kNearPx));
     EXPECT_GT(confident, 0);
     EXPECT_GE(2 * exact, confident);

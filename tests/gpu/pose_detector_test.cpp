@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "runtime/gpu/cnn_detector.h"
+#include "runtime/gpu/crop_refiner.h"
 #include "runtime/gpu/pose_detector.h"
 #include "runtime/image/image.h"
 #include "runtime/nn/model_file.h"
@@ -128,6 +129,21 @@ class MoveNetDetectorTest : public PoseDetectorTest {
   }
 };
 
+// MoveNet SinglePose Thunder on crops (runtime/gpu/crop_refiner.h).
+class CropRefinerTest : public PoseDetectorTest {
+ protected:
+  void SetUp() override {
+    const fs::path json = kSource / "models/movenet-thunder.json";
+    if (!fs::exists(json)) {
+      MOCAP_SKIP_OR_FAIL_IN_CI("models/movenet-thunder.json missing (tools/fetch_models.sh)");
+    }
+    auto m = nn::import_tfjs(json, nn::movenet_singlepose_cut());
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    model_ = std::move(*m);
+    open_device();
+  }
+};
+
 int count_in(const std::vector<JointCandidate>& list, const Box& b, float min_score) {
   return static_cast<int>(std::count_if(list.begin(), list.end(), [&](const JointCandidate& c) {
     return c.score > min_score && b.contains(c);
@@ -182,6 +198,39 @@ TEST(CnnDetectorOpen, MoveNetSizeNotAMultipleOf32NamesTheRule) {
   ASSERT_TRUE(def.ok()) << def.error().message();
   EXPECT_EQ((*def)->input_shape(), (InputShape{256, 448}));
   EXPECT_NE((*def)->description().find("256x448 px"), std::string::npos) << (*def)->description();
+}
+
+// Crops need the cameras and a single-person model; opened, the description says so and the
+// detector asks the pipeline for the tracks. Before any track, detections are the bottom-up
+// ones alone.
+TEST(CnnDetectorOpen, CropsNeedCamerasAndASinglePersonModel) {
+  const fs::path model = kSource / "models/movenet-multipose.mcnn";
+  const fs::path thunder = kSource / "models/movenet-thunder.mcnn";
+  if (!fs::exists(model) || !fs::exists(thunder)) {
+    MOCAP_SKIP_OR_FAIL_IN_CI("models/movenet-multipose.mcnn or movenet-thunder.mcnn missing");
+  }
+  CnnOptions o;
+  o.model = model;
+  o.backend = BackendRequest::kCpu;
+  o.input_size_px = 64;
+  o.crop_model = thunder;
+  auto no_cameras = CnnDetector::open(o);
+  ASSERT_FALSE(no_cameras.ok());
+  EXPECT_NE(no_cameras.error().message().find("cameras"), std::string::npos);
+  o.cameras = {Camera()};
+  o.crop_model = model;
+  auto same = CnnDetector::open(o);
+  ASSERT_FALSE(same.ok());
+  EXPECT_NE(same.error().message().find("single-person"), std::string::npos);
+  o.crop_model = thunder;
+  o.crop_input_size_px = 100;
+  EXPECT_FALSE(CnnDetector::open(o).ok());
+  o.crop_input_size_px = 64;
+  auto det = CnnDetector::open(o);
+  ASSERT_TRUE(det.ok()) << det.error().message();
+  EXPECT_TRUE((*det)->wants_tracks());
+  EXPECT_NE((*det)->description().find("movenet-thunder crops 64 px"), std::string::npos)
+      << (*det)->description();
 }
 
 TEST_F(MoveNetDetectorTest, SizesMustBeMultiplesOf32) {
@@ -325,6 +374,55 @@ TEST_F(PoseDetectorTest, TwoViewBatchMatchesSingleViews) {
   auto r = (*det)->detect({&bad, 1}, {&id, 1});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message().find("even"), std::string::npos) << r.error().message();
+}
+
+// A crop around each photo's main person (from its hand-read box) finds that person's face,
+// shoulders and hips, on both backends alike (one batch of both crops; the crops map back to
+// image pixels); a crop off the frame or of a frame not given is an error, not a crash.
+TEST_F(CropRefinerTest, FindsThePersonInItsCropOnBothBackends) {
+  std::vector<image::ImageRgb8> images;
+  std::vector<nn::FrameView> views;
+  std::vector<CropRequest> crops;
+  for (const Photo& p : photos())
+    images.push_back(*image::load_image(kSource / ".cache/photos" / p.file));
+  for (std::size_t i = 0; i < images.size(); ++i) {
+    const image::ImageRgb8& img = images[i];
+    views.push_back(nn::FrameView{img.rgb, img.width_px, img.height_px, 0, PixelFormat::kRGB24});
+    const Box& b = photos()[i].people[0];
+    crops.push_back({static_cast<int>(i), 0.5 * static_cast<double>(b.x0 + b.x1),
+                     0.5 * static_cast<double>(b.y0 + b.y1),
+                     1.1 * static_cast<double>(std::max(b.x1 - b.x0, b.y1 - b.y0))});
+  }
+  std::vector<std::vector<CropPose>> by_backend;
+  for (PoseBackend backend : {PoseBackend::kVulkan, PoseBackend::kCpu}) {
+    CropRefinerOptions o;
+    o.backend = backend;
+    auto r = CropRefiner::create(model_, o, ctx_.get());
+    ASSERT_TRUE(r.ok()) << r.error().message();
+    auto poses = (*r)->run(views, crops);
+    ASSERT_TRUE(poses.ok()) << poses.error().message();
+    ASSERT_EQ(poses->size(), crops.size());
+    by_backend.push_back(std::move(*poses));
+    const CropRequest bad_side[1] = {{0, 10, 10, 0}};
+    EXPECT_FALSE((*r)->run(views, bad_side).ok());
+    const CropRequest bad_frame[1] = {{5, 10, 10, 100}};
+    EXPECT_FALSE((*r)->run(views, bad_frame).ok());
+  }
+  for (std::size_t i = 0; i < crops.size(); ++i) {
+    const Photo& p = photos()[i];
+    SCOPED_TRACE(p.file);
+    const std::vector<JointCandidate>& j = by_backend[0][i].joints;
+    ASSERT_EQ(j.size(), 17u);
+    EXPECT_TRUE(p.face.contains(j[0])) << j[0].x_px << ", " << j[0].y_px;
+    EXPECT_TRUE(p.shoulders.contains(j[5]) && p.shoulders.contains(j[6]));
+    EXPECT_TRUE(p.hips.contains(j[11]) && p.hips.contains(j[12]));
+    for (std::size_t k = 0; k < j.size(); ++k) {
+      const JointCandidate& c = by_backend[1][i].joints[k];
+      EXPECT_NEAR(j[k].x_px, c.x_px, 0.5f) << "joint " << k;
+      EXPECT_NEAR(j[k].y_px, c.y_px, 0.5f) << "joint " << k;
+      EXPECT_NEAR(j[k].score, c.score, 1e-3f) << "joint " << k;
+    }
+  }
 }
 
 }  // namespace

@@ -113,6 +113,40 @@ TEST_F(PoseKernelsTest, PreprocessReadsThePaddedNv12PlaneOffset) {
   EXPECT_LT(max_abs_diff((*pre)->output().subspan(item, item), ref.data), 2e-3);
 }
 
+// Crops (3D-guided crops: several crops of one frame in a batch, crop grids reaching past the
+// image's edges) on the GPU as nn::resample_frame gives them; a crop of a frame not given is
+// an error.
+TEST_F(PoseKernelsTest, PreprocessCropsMatchTheCpuReference) {
+  std::mt19937 rng(11);
+  std::vector<TestFrame> frames;
+  frames.push_back(random_frame(PixelFormat::kRGB24, 60, 40, 60 * 3 + 4, rng));
+  frames.push_back(random_frame(PixelFormat::kNV12, 48, 64, 48, rng));
+  const nn::FrameView views[2] = {frames[0].view, frames[1].view};
+  constexpr int kS = 32;
+  const std::vector<PreprocessItem> items = {
+      {0, nn::crop_grid(nn::crop_letterbox(30, 20, 24, kS, kS), 60, 40, kS, kS)},    // inside
+      {0, nn::crop_grid(nn::crop_letterbox(2, 38, 30, kS, kS), 60, 40, kS, kS)},     // a corner
+      {1, nn::crop_grid(nn::crop_letterbox(24, 10, 70, kS, kS), 48, 64, kS, kS)},    // upscaled?
+      {1, nn::crop_grid(nn::crop_letterbox(400, 400, 10, kS, kS), 48, 64, kS, kS)},  // off it
+  };
+  auto pre = FramePreprocessor::create(*ctx_, kS, kS, 4);
+  ASSERT_TRUE(pre.ok()) << pre.error().message();
+  auto boxes = (*pre)->run(views, items);
+  ASSERT_TRUE(boxes.ok()) << boxes.error().message();
+  nn::Tensor ref({4, kS, kS, 3});
+  const std::size_t item = static_cast<std::size_t>(kS) * kS * 3;
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    auto lb = nn::resample_frame(views[items[i].frame], items[i].grid, ref, static_cast<int>(i));
+    ASSERT_TRUE(lb.ok()) << lb.error().message();
+    EXPECT_DOUBLE_EQ((*boxes)[i].offset_x_px, lb->offset_x_px);
+    const double err = max_abs_diff((*pre)->output().subspan(i * item, item),
+                                    std::span<const float>(ref.data).subspan(i * item, item));
+    EXPECT_LT(err, 2e-3) << "crop " << i;
+  }
+  const PreprocessItem stray[1] = {{2, items[0].grid}};
+  EXPECT_FALSE((*pre)->run(views, stray).ok());
+}
+
 TEST_F(PoseKernelsTest, PreprocessRejectsBadFrames) {
   auto pre = FramePreprocessor::create(*ctx_, 17, 17, 2);
   ASSERT_TRUE(pre.ok());

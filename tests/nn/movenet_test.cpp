@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "runtime/msg/messages.h"
+#include "runtime/nn/movenet_single.h"
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::nn {
@@ -169,6 +170,45 @@ TEST_F(MoveNetDecodeTest, BadShapesAndOptionsAreErrors) {
     EXPECT_FALSE(o.validate().ok());
   }
   EXPECT_TRUE(MoveNetOptions().validate().ok());
+}
+
+// MoveNet SinglePose decoding (runtime/nn/movenet_single.h): the centre nearest the middle wins
+// over a stronger one at the border, and each joint is the peak near where that centre
+// regresses it, not the strongest one elsewhere, plus its offset.
+TEST(MoveNetSingleDecodeTest, CentreNearTheMiddleAndJointsNearTheirRegression) {
+  Tensor heatmap({1, kGrid, kGrid, kJoints});
+  Tensor center({1, kGrid, kGrid, 1});
+  Tensor regression({1, kGrid, kGrid, 2 * kJoints});
+  Tensor offsets({1, kGrid, kGrid, 2 * kJoints});
+  std::fill(heatmap.data.begin(), heatmap.data.end(), kLow);
+  std::fill(center.data.begin(), center.data.end(), kLow);
+  center.at(0, 8, 7, 0) = 2.f;                  // the crop's person
+  center.at(0, 1, 1, 0) = 5.f;                  // a stronger one in the corner
+  regression.at(0, 8, 7, 2 * kShoulder) = 2.f;  // shoulder at (10, 6)
+  regression.at(0, 8, 7, 2 * kShoulder + 1) = -1.f;
+  heatmap.at(0, 10, 6, kShoulder) = 2.f;
+  heatmap.at(0, 2, 14, kShoulder) = 6.f;  // someone else's, far from the regression
+  offsets.at(0, 10, 6, 2 * kShoulder) = 0.25f;
+  offsets.at(0, 10, 6, 2 * kShoulder + 1) = -0.5f;
+  auto pose = movenet_single_person_cpu(heatmap, center, regression, offsets, 0, kInputPx);
+  ASSERT_TRUE(pose.ok()) << pose.error().message();
+  EXPECT_NEAR(pose->center_score, 1.f / (1.f + std::exp(-2.f)), 1e-6f);
+  ASSERT_EQ(pose->joints.size(), static_cast<std::size_t>(kJoints));
+  const SinglePoseJoint& s = pose->joints[kShoulder];
+  EXPECT_FLOAT_EQ(s.y_net_px, 10.25f * 4.f);
+  EXPECT_FLOAT_EQ(s.x_net_px, 5.5f * 4.f);
+  EXPECT_NEAR(s.score, 1.f / (1.f + std::exp(-2.f)), 1e-6f);
+  EXPECT_LT(pose->joints[kElbow].score, 0.01f);  // no peak anywhere: a low score
+}
+
+TEST(MoveNetSingleDecodeTest, BadShapesAreErrors) {
+  Tensor heatmap({1, 4, 4, 17}), center({1, 4, 4, 1}), reg({1, 4, 4, 34}), off({1, 4, 4, 34});
+  EXPECT_TRUE(movenet_single_person_cpu(heatmap, center, reg, off, 0, 16).ok());
+  EXPECT_FALSE(movenet_single_person_cpu(heatmap, center, reg, off, 1, 16).ok());  // item
+  EXPECT_FALSE(movenet_single_person_cpu(heatmap, Tensor({1, 4, 4, 2}), reg, off, 0, 16).ok());
+  EXPECT_FALSE(movenet_single_person_cpu(heatmap, center, Tensor({1, 4, 3, 34}), off, 0, 16).ok());
+  EXPECT_FALSE(movenet_single_person_cpu(heatmap, center, reg, Tensor({1, 4, 4, 17}), 0, 16).ok());
+  EXPECT_FALSE(movenet_single_person_cpu(heatmap, center, reg, off, 0, 2).ok());  // input < H
 }
 
 }  // namespace

@@ -52,6 +52,54 @@ TEST(PreprocessTest, FrameViewCarriesStrideAndUvPlaneOffset) {
   EXPECT_FALSE(validate_frame(frame_view(empty)).ok());
 }
 
+// A crop (nn::crop_letterbox / crop_grid / resample_frame): the square around a centre, scaled
+// to the input; where it leaves the image, black border, as in a letterbox.
+TEST(PreprocessTest, CropsMapASquareAroundTheCentre) {
+  // 8x8 image, R = 10 x + y, G = 0, B = 255.
+  std::vector<std::uint8_t> rgb;
+  for (int y = 0; y < 8; ++y) {
+    for (int x = 0; x < 8; ++x) {
+      rgb.insert(rgb.end(), {static_cast<std::uint8_t>(10 * x + y), 0, 255});
+    }
+  }
+  const FrameView f{rgb, 8, 8, 0, PixelFormat::kRGB24};
+  Tensor out({2, 4, 4, 3});
+  // Side 4 around (4, 4) into 4x4: scale 1, input pixel (x, y) shows image (x + 2, y + 2).
+  const Letterbox inside = crop_letterbox(4, 4, 4, 4, 4);
+  EXPECT_DOUBLE_EQ(inside.scale, 1.0);
+  EXPECT_DOUBLE_EQ(inside.offset_x_px, -2.0);
+  const LetterboxGrid g = crop_grid(inside, 8, 8, 4, 4);
+  EXPECT_EQ(g.x_begin, 0);
+  EXPECT_EQ(g.x_end, 4);
+  ASSERT_TRUE(resample_frame(f, g, out, 0).ok());
+  EXPECT_FLOAT_EQ(out.at(0, 0, 0, 0), norm(10 * 2 + 2));
+  EXPECT_FLOAT_EQ(out.at(0, 3, 1, 0), norm(10 * 3 + 5));
+  EXPECT_DOUBLE_EQ(inside.image_x(0.5), 2.5);
+
+  // Around the corner (0, 0): the left and top halves are off the image, black.
+  const LetterboxGrid corner = crop_grid(crop_letterbox(0, 0, 4, 4, 4), 8, 8, 4, 4);
+  EXPECT_EQ(corner.x_begin, 2);
+  EXPECT_EQ(corner.y_begin, 2);
+  ASSERT_TRUE(resample_frame(f, corner, out, 1).ok());
+  EXPECT_FLOAT_EQ(out.at(1, 0, 0, 0), -1.f);
+  EXPECT_FLOAT_EQ(out.at(1, 1, 3, 2), -1.f);
+  EXPECT_FLOAT_EQ(out.at(1, 2, 2, 0), norm(0));
+  EXPECT_FLOAT_EQ(out.at(1, 3, 3, 2), norm(255));
+
+  // Entirely off the image: nothing shows; a degenerate mapping is an error.
+  const LetterboxGrid off = crop_grid(crop_letterbox(100, 100, 4, 4, 4), 8, 8, 4, 4);
+  EXPECT_EQ(off.x_end - off.x_begin, 0);
+  LetterboxGrid bad = g;
+  bad.box.scale = 0;
+  EXPECT_FALSE(resample_frame(f, bad, out, 0).ok());
+
+  // A letterbox is the crop_grid of its own mapping.
+  const LetterboxGrid lb = letterbox_grid(8, 4, 6, 6);
+  const LetterboxGrid same = crop_grid(lb.box, 8, 4, 6, 6);
+  EXPECT_EQ(lb.y_begin, same.y_begin);
+  EXPECT_EQ(lb.y_end, same.y_end);
+}
+
 TEST(PreprocessTest, LetterboxBordersAndMapping) {
   // 4x2 image into 4x4: scale 1, content rows 1..2, rows 0 and 3 black.
   std::vector<std::uint8_t> rgb(4 * 2 * 3, 200);

@@ -517,6 +517,42 @@ TEST_F(TfjsCutTest, CutsAtTheNormalisedInputAndTheHeads) {
   }
 }
 
+// MoveNet SinglePose's input: the Cast image is unstacked, expanded and squeezed on its batch
+// axis (an in-graph resize folded away) before the normalisation; those reshapes of a one-image
+// batch are accepted on the way to the Placeholder, any other axis is not.
+TEST_F(TfjsCutTest, BatchAxisReshapesOfTheOneImageAreAccepted) {
+  auto build = [&](const std::string& unpack_axis, int expand_dim) {
+    g_ = TfjsGraph();
+    g_.placeholder("input", {1, 8, 8, 3}, "DT_INT32");
+    g_.node("cast", "Cast", {"input"});
+    g_.node("unstack", "Unpack", {"cast"},
+            Json{{"axis", Json{{"i", unpack_axis}}}, {"num", Json{{"i", "1"}}}});
+    g_.const_i("dim", {}, {expand_dim});
+    g_.node("expand", "ExpandDims", {"unstack", "dim"});
+    g_.node("squeeze", "Squeeze", {"expand"},
+            Json{{"squeeze_dims", Json{{"list", Json{{"i", Json::array({"0"})}}}}}});
+    g_.const_i("dim0", {}, {0});
+    g_.node("stack", "ExpandDims", {"squeeze", "dim0"});
+    g_.const_f("one", {}, {1.f});
+    g_.node("norm", "Sub", {"stack", "one"});
+    g_.const_f("w", {1, 1, 3, 2}, ramp(6, 0.f, 1.f));
+    g_.node("head", "Conv2D", {"norm", "w"}, conv_attrs(1, "SAME"));
+    return g_.write(dir_);
+  };
+  TfjsImportOptions o;
+  o.input_node = "norm";
+  o.outputs = {{"head", ""}};
+  Result<Model> r = import_tfjs(build("0", 0), o);
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  EXPECT_EQ(r->layers.size(), 1u);
+  r = import_tfjs(build("1", 0), o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_THAT(r.error().message(), AllOf(HasSubstr("'unstack'"), HasSubstr("batch axis")));
+  r = import_tfjs(build("0", 2), o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_THAT(r.error().message(), HasSubstr("'expand'"));
+}
+
 TEST_F(TfjsCutTest, WithoutTheCutTheUnsupportedPartsAreNamed) {
   build_cut_graph();
   const std::filesystem::path json = g_.write(dir_);

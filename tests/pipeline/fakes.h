@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "runtime/pipeline/stages.h"
+#include "runtime/skeleton/topology.h"
 
 namespace mocap::testing {
 
@@ -109,6 +110,49 @@ class FakeDetector final : public pipeline::Detector {
  private:
   std::set<std::uint64_t> fail_on_;
   int delay_ms_;
+};
+
+// A detector that uses the tracks (as 3D-guided crops do): records, per frame it detects, the
+// frame id of the newest skeletons it was handed (-1: none yet). Its detections carry
+// `topology` (null: none) and no candidates.
+class TrackingDetector final : public pipeline::Detector {
+ public:
+  explicit TrackingDetector(const SkeletonTopology* topology, int delay_ms = 0)
+      : topology_(topology), delay_ms_(delay_ms) {}
+  Result<DetectionSet> detect(const FrameSet& frames) override {
+    if (delay_ms_ > 0) std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms_));
+    DetectionSet d;
+    d.frame_id = frames.frame_id;
+    d.timestamp_ns = frames.timestamp_ns;
+    d.topology = topology_;
+    for (const Frame& f : frames.frames) {
+      ViewDetections v;
+      v.view_id = f.view_id;
+      v.width_px = f.width_px;
+      v.height_px = f.height_px;
+      if (topology_ != nullptr) {
+        v.candidates.resize(static_cast<std::size_t>(topology_->joint_count()));
+        v.affinities.resize(static_cast<std::size_t>(topology_->limb_count()));
+      }
+      d.views.push_back(std::move(v));
+    }
+    std::lock_guard<std::mutex> lock(mu_);
+    seen.push_back(newest_);
+    return d;
+  }
+  std::string description() const override { return "tracking detector"; }
+  bool wants_tracks() const override { return true; }
+  void observe_tracks(const SkeletonSet& skeletons) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    newest_ = static_cast<long>(skeletons.frame_id);
+  }
+  std::vector<long> seen;  // read after the pipeline finished
+
+ private:
+  const SkeletonTopology* topology_;
+  int delay_ms_;
+  std::mutex mu_;
+  long newest_ = -1;
 };
 
 }  // namespace mocap::testing

@@ -18,7 +18,9 @@
 #include "runtime/pipeline/pipeline.h"
 #include "runtime/pipeline/sinks.h"
 #include "runtime/sim/simulator_source.h"
+#include "runtime/skeleton/topology.h"
 #include "tests/pipeline/fakes.h"
+#include "tests/support/cameras.h"
 
 namespace mocap::pipeline {
 namespace {
@@ -370,6 +372,36 @@ TEST(Pipeline, TheEngineAssociatesTheSimulatorAndItsErrorsSkipAFrame) {
   EXPECT_EQ(m.errors, 5u);
   EXPECT_EQ(m.frames_out, 0u);
   EXPECT_TRUE(persons.empty());
+}
+
+// A detector that uses the tracks gets every frame's skeletons, and in a replay (block policy)
+// frame t is detected only after frame t-1 was associated: it sees exactly t-1's skeletons, on
+// every run, however slow the association. Without an engine nothing is observed, and nothing
+// waits forever.
+TEST(Pipeline, ATrackingDetectorSeesThePreviousFramesSkeletonsInAReplay) {
+  Camera cam = testing::ring_camera(0, 4, 1.5, Eigen::Vector3d(0, 0, 1));
+  auto engine = assoc::Engine::create(coco17_topology(), {cam, cam}, assoc::AssociationOptions{});
+  ASSERT_TRUE(engine.ok()) << engine.error().message();
+  testing::TrackingDetector detector(&coco17_topology(), 1);
+  Recorder rec;
+  CallbackSink sink = rec.sink(3);  // association slower than detection
+  auto p = make(std::make_unique<FakeSource>(FakeSource::Options{.frames = 12, .images = true}),
+                &detector, {&sink}, blocking(), engine->get());
+  ASSERT_TRUE(p->start().ok());
+  ASSERT_TRUE(p->wait(30000));
+  EXPECT_TRUE(p->metrics().ended) << p->metrics().error;
+  ASSERT_EQ(detector.seen.size(), 12u);
+  for (std::size_t t = 0; t < detector.seen.size(); ++t) {
+    EXPECT_EQ(detector.seen[t], static_cast<long>(t) - 1) << "frame " << t;
+  }
+
+  testing::TrackingDetector alone(&coco17_topology());
+  auto q = make(std::make_unique<FakeSource>(FakeSource::Options{.frames = 5, .images = true}),
+                &alone, {&sink}, blocking());
+  ASSERT_TRUE(q->start().ok());
+  ASSERT_TRUE(q->wait(30000));
+  EXPECT_TRUE(q->metrics().ended);
+  EXPECT_EQ(alone.seen, std::vector<long>(5, -1));
 }
 
 // The paced simulator: frame k is due k periods after start() and not given before; a caller

@@ -23,6 +23,8 @@ fs::path default_model_path() { return share_path("models") / "movenet-multipose
 fs::path model_path_for(const std::string& name_or_file) {
   if (name_or_file == "posenet") return share_path("models") / "posenet.mcnn";
   if (name_or_file == "movenet") return share_path("models") / "movenet-multipose.mcnn";
+  if (name_or_file == "thunder") return share_path("models") / "movenet-thunder.mcnn";
+  if (name_or_file == "lightning") return share_path("models") / "movenet-lightning.mcnn";
   return name_or_file;
 }
 

@@ -15,8 +15,9 @@ std::filesystem::path share_path(const std::string& sub);
 // docs/quality.md).
 std::filesystem::path default_model_path();
 
-// A --model argument: the names "posenet" and "movenet" (share_path("models")/posenet.mcnn and
-// movenet-multipose.mcnn, which tools/setup.sh converts), anything else a file path.
+// A --model or --crops argument: the names "posenet", "movenet", "thunder" and "lightning"
+// (share_path("models")/posenet.mcnn, movenet-multipose.mcnn, movenet-thunder.mcnn and
+// movenet-lightning.mcnn, which tools/setup.sh converts), anything else a file path.
 std::filesystem::path model_path_for(const std::string& name_or_file);
 
 }  // namespace mocap::tools

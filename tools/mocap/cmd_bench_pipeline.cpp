@@ -17,6 +17,7 @@
 #include "runtime/net/stream_server.h"
 #include "runtime/pipeline/sinks.h"
 #include "tools/common/cli.h"
+#include "tools/common/crop_args.h"
 #include "tools/common/input_fit_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
@@ -110,6 +111,8 @@ int run_bench_pipeline(Args args) {
            "--input-fit frame)");
   InputFitArg input_fit;
   input_fit.add_to(p);
+  CropArgs crops;
+  crops.add_to(p);
   p.option("--gpu", &gpu, "NAME", "auto (default), vulkan or cpu");
   p.option("--frames", &frames, "N", "frames per pass (default: the whole recording)");
   p.option("--passes", &passes, "N", "times the recording is run, each measured (default 1)");
@@ -137,6 +140,10 @@ int run_bench_pipeline(Args args) {
     return 2;
   }
   o.cnn.input_fit = *fit;
+  if (Status s = crops.apply(o.cnn); !s.ok()) {
+    std::fprintf(stderr, "mocap bench pipeline: %s\n", s.error().message().c_str());
+    return 2;
+  }
 
   std::vector<double> fps, e2e, overlap;
   for (int pass = 1; pass <= passes; ++pass) {

@@ -113,8 +113,9 @@ void print_model(const nn::Model& m, int size_px) {
 Result<nn::TfjsImportOptions> cut_options(const std::string& name) {
   if (name.empty()) return nn::TfjsImportOptions{};
   if (name == "movenet-multipose") return nn::movenet_multipose_cut();
+  if (name == "movenet-singlepose") return nn::movenet_singlepose_cut();
   return Error(ErrorCode::kInvalidArgument,
-               "--cut '" + name + "' is unknown (known: movenet-multipose)");
+               "--cut '" + name + "' is unknown (known: movenet-multipose, movenet-singlepose)");
 }
 
 Status check_size(int size_px) {
@@ -143,7 +144,8 @@ int run_convert(Args args) {
                     std::to_string(kDefaultInputSize_px) + ")");
   parser.option("--cut", &cut, "NAME",
                 "import a known graph cut at its heads: movenet-multipose (MoveNet MultiPose "
-                "from the normalised image to its four heads, runtime/nn/movenet.h)");
+                "from the normalised image to its four heads, runtime/nn/movenet.h) or "
+                "movenet-singlepose (MoveNet Thunder or Lightning, the same four heads)");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (tfjs.empty() || out.empty()) {
     std::fprintf(stderr, "error: --tfjs and --out are required (see mocap model convert --help)\n");

@@ -19,6 +19,7 @@
 #include "runtime/pipeline/sinks.h"
 #include "runtime/skeleton/topology.h"
 #include "tools/common/cli.h"
+#include "tools/common/crop_args.h"
 #include "tools/common/input_fit_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
@@ -151,6 +152,20 @@ void print_quality(const eval::QualityReport& q) {
   }
 }
 
+void print_crops(const gpu::CnnDetector& detector, long frames) {
+  if (!detector.wants_tracks()) return;
+  const gpu::CropStats t = detector.total_crop_stats();
+  const double n = frames > 0 ? static_cast<double>(frames) : 1.0;
+  std::printf(
+      "crops: %d (%.1f per frame), %d bottom-up joints refined, %d joints only the crops found, "
+      "%.0f ms per frame\n",
+      t.crops, t.crops / n, t.refined, t.added, t.ms / n);
+  if (t.errors > 0) {
+    std::printf("crops failed in %d frames (they went on with the bottom-up detections)\n",
+                t.errors);
+  }
+}
+
 }  // namespace
 
 int run_replay(Args args) {
@@ -169,6 +184,8 @@ int run_replay(Args args) {
            "(default 448; see above), PoseNet 16k+1 (default 353)");
   InputFitArg input_fit;
   input_fit.add_to(p);
+  CropArgs crops;
+  crops.add_to(p);
   p.option("--frames", &frames, "N", "process the first N frames only (default: all)");
   p.option("--backend", &backend, "NAME", "vulkan, cpu or auto (default: Vulkan, else CPU)");
   p.option("--device", &device, "NAME", "Vulkan device index or name substring");
@@ -193,6 +210,7 @@ int run_replay(Args args) {
   auto fit = input_fit.get();
   if (!fit.ok()) return fail(fit.error());
   o.cnn.input_fit = *fit;
+  if (Status s = crops.apply(o.cnn); !s.ok()) return fail(s.error());
   o.assoc.fit.enabled = !no_fit;
   auto smooth = smoothing.get();
   if (!smooth.ok()) return fail(smooth.error());
@@ -203,6 +221,9 @@ int run_replay(Args args) {
   std::printf("replay: %s, %d views, %lld frames, %s\n", data.c_str(), views,
               static_cast<long long>(parts->source->frame_count()),
               parts->detector->description().c_str());
+  if (!parts->detector->crops_off_reason().empty()) {
+    std::printf("%s\n", parts->detector->crops_off_reason().c_str());
+  }
 
   std::unique_ptr<pipeline::MessageFileSink> file;
   if (!skeletons_out.empty()) {
@@ -239,6 +260,7 @@ int run_replay(Args args) {
                 static_cast<unsigned long long>(m.errors));
   }
   if (file) std::printf("stream messages written to %s\n", skeletons_out.c_str());
+  print_crops(*parts->detector, sum.frames);
   const eval::QualityReport q = quality->finish();
   print_quality(q);
   if (!quality_out.empty()) {

@@ -192,6 +192,17 @@ std::vector<OptionSpec> make_options() {
       std::vector<std::pair<std::string, gpu::InputFit>>{{"auto", gpu::InputFit::kAuto},
                                                          {"frame", gpu::InputFit::kFrame},
                                                          {"square", gpu::InputFit::kSquare}}));
+  v.push_back(string_opt(
+      "crops", "model",
+      "3D-guided crops: each tracked person's skeleton, projected into every view, gives a crop "
+      "that a single-person model refines: auto (thunder on a hardware GPU, none on the CPU "
+      "or a software device such as lavapipe), none, thunder (MoveNet Thunder), lightning "
+      "(the fast one) or a model file; needs a calibration",
+      &DaemonConfig::crops));
+  v.push_back(int_opt("crop_input_size_px", "px",
+                      "crop model input size, a multiple of 32; 0 = the model's (Thunder 256, "
+                      "Lightning 192)",
+                      &DaemonConfig::crop_input_size_px, 0, 1024));
   using gpu::BackendRequest;
   v.push_back(enum_opt(
       "gpu", "backend",

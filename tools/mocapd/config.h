@@ -45,6 +45,11 @@ struct DaemonConfig {
   std::string model;      // empty = the installed models/movenet-multipose.mcnn
   int input_size_px = 0;  // 0 = the model's default (PoseNet 353, MoveNet 448)
   gpu::InputFit input_fit = gpu::InputFit::kAuto;
+  // 3D-guided crops (runtime/assoc/crop_plan.h): auto (thunder on a hardware GPU, none on a
+  // software device), none, thunder, lightning or a model file; on only when the cameras are
+  // calibrated.
+  std::string crops = "auto";
+  int crop_input_size_px = 0;  // 0 = the crop model's (Thunder 256, Lightning 192)
   gpu::BackendRequest gpu = gpu::BackendRequest::kAuto;
   std::string gpu_device;  // empty = the board's preferred GPU, else the best one
   // Pipeline

