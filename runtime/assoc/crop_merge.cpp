@@ -45,8 +45,8 @@ int nearest_unclaimed(const ViewDetections& view, const CropClaims& claims, int 
 }
 
 // Appends a candidate of joint j, growing the matrices of the limbs that have j.
-int add_candidate(ViewDetections& view, CropClaims& claims, const SkeletonTopology& topology,
-                  int j, const JointCandidate& c) {
+int add_candidate(ViewDetections& view, CropClaims& claims, const SkeletonTopology& topology, int j,
+                  const JointCandidate& c) {
   auto& cands = view.candidates[static_cast<std::size_t>(j)];
   cands.push_back(c);
   claims[static_cast<std::size_t>(j)].push_back(false);
@@ -83,8 +83,7 @@ Result<CropMergeStats> merge_crop(ViewDetections& view, CropClaims& claims,
   if (Status s = options.validate(); !s.ok()) return s.error();
   const auto J = static_cast<std::size_t>(topology.joint_count());
   if (joints.size() != J || view.candidates.size() != J || claims.size() != J ||
-      view.affinities.size() != static_cast<std::size_t>(topology.limb_count()) ||
-      !(side_px > 0)) {
+      view.affinities.size() != static_cast<std::size_t>(topology.limb_count()) || !(side_px > 0)) {
     return invalid("a crop of " + std::to_string(joints.size()) + " joints into a view of " +
                    std::to_string(view.candidates.size()) + " joint types and " +
                    std::to_string(view.affinities.size()) + " limbs (topology " + topology.name() +
@@ -98,8 +97,8 @@ Result<CropMergeStats> merge_crop(ViewDetections& view, CropClaims& claims,
     if (!(c.score >= options.min_score) || !std::isfinite(c.x_px) || !std::isfinite(c.y_px)) {
       continue;
     }
-    const int i = nearest_unclaimed(view, claims, static_cast<int>(j), c,
-                                    options.match_radius * side_px);
+    const int i =
+        nearest_unclaimed(view, claims, static_cast<int>(j), c, options.match_radius * side_px);
     if (i >= 0) {
       JointCandidate& b = view.candidates[j][static_cast<std::size_t>(i)];
       const float w = c.score / (c.score + b.score);

@@ -47,8 +47,8 @@ struct Scored {
 };
 
 // The crop of `joints` in `camera`, when enough of them project inside its image.
-std::optional<Scored> crop_in_view(const std::vector<Eigen::Vector3d>& joints,
-                                   const Camera& camera, const CropPlanOptions& o) {
+std::optional<Scored> crop_in_view(const std::vector<Eigen::Vector3d>& joints, const Camera& camera,
+                                   const CropPlanOptions& o) {
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   int projected = 0, inside = 0;
   for (const Eigen::Vector3d& X : joints) {
@@ -92,16 +92,16 @@ Status CropPlanOptions::validate() const {
   return Status::Ok();
 }
 
-Result<std::vector<PlannedCrop>> plan_crops(const SkeletonSet& latest,
-                                            const SkeletonSet* previous, std::int64_t target_ns,
+Result<std::vector<PlannedCrop>> plan_crops(const SkeletonSet& latest, const SkeletonSet* previous,
+                                            std::int64_t target_ns,
                                             const std::vector<Camera>& cameras,
                                             const std::vector<int>& view_ids,
                                             const CropPlanOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
   std::vector<Scored> all;
   for (const PersonSkeleton& p : latest.persons) {
-    const auto observed = std::count_if(p.confidence.begin(), p.confidence.end(),
-                                        [](float c) { return c > 0.f; });
+    const auto observed =
+        std::count_if(p.confidence.begin(), p.confidence.end(), [](float c) { return c > 0.f; });
     if (observed < options.min_observed_joints) continue;
     const std::vector<Eigen::Vector3d> joints =
         predict(p, latest.timestamp_ns, find_person(previous, p.person_id),

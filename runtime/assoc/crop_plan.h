@@ -44,8 +44,8 @@ struct PlannedCrop {
 
 // The crops for the frame at target_ns in views `view_ids` (camera indices into `cameras`;
 // ids without a camera are skipped). `previous` may be null or hold other persons.
-Result<std::vector<PlannedCrop>> plan_crops(const SkeletonSet& latest,
-                                            const SkeletonSet* previous, std::int64_t target_ns,
+Result<std::vector<PlannedCrop>> plan_crops(const SkeletonSet& latest, const SkeletonSet* previous,
+                                            std::int64_t target_ns,
                                             const std::vector<Camera>& cameras,
                                             const std::vector<int>& view_ids,
                                             const CropPlanOptions& options);

@@ -1,6 +1,6 @@
 // What selects and sizes the pose CNN, without any Vulkan type: the backend a user asks for and
 // the network input size, each defined once here (the config, the CLI tools and the detector
-// read them from here).
+// read them from here; runtime/gpu/cnn_options.cpp).
 #pragma once
 
 #include <string>

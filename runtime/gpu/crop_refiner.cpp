@@ -95,9 +95,9 @@ Result<std::vector<CropPose>> CropRefiner::run(std::span<const nn::FrameView> fr
     }
     const nn::FrameView& f = frames[static_cast<std::size_t>(c.frame)];
     const int S = options_.input_size_px;
-    items.push_back({c.frame, nn::crop_grid(nn::crop_letterbox(c.center_x_px, c.center_y_px,
-                                                               c.side_px, S, S),
-                                            f.width_px, f.height_px, S, S)});
+    items.push_back(
+        {c.frame, nn::crop_grid(nn::crop_letterbox(c.center_x_px, c.center_y_px, c.side_px, S, S),
+                                f.width_px, f.height_px, S, S)});
   }
   std::vector<CropPose> out;
   const auto chunk = static_cast<std::size_t>(options_.max_crops);
@@ -143,8 +143,7 @@ Result<std::vector<nn::Tensor>> CropRefiner::network_vulkan(std::span<const nn::
   if (Status s = (*b)->net->run((*b)->pre->output()); !s.ok()) return s.error();
   std::vector<nn::Tensor> heads(4);
   for (int h = 0; h < 4; ++h) {
-    if (Status s = (*b)->net->read_output(heads_[h], heads[static_cast<std::size_t>(h)]);
-        !s.ok()) {
+    if (Status s = (*b)->net->read_output(heads_[h], heads[static_cast<std::size_t>(h)]); !s.ok()) {
       return s.error();
     }
   }

@@ -32,7 +32,7 @@ inline constexpr int kDefaultCropInputSizePx = 256;
 struct CropRefinerOptions {
   PoseBackend backend = PoseBackend::kVulkan;
   int input_size_px = kDefaultCropInputSizePx;  // multiple of 32 in [32, 1024]
-  int max_crops = 8;                             // network batch, [1, 16]
+  int max_crops = 8;                            // network batch, [1, 16]
   Status validate() const;
 };
 

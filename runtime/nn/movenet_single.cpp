@@ -36,8 +36,8 @@ Cell best_weighted_cell(const Tensor& t, int n, int c, float ty, float tx) {
 }  // namespace
 
 Result<SinglePose> movenet_single_person_cpu(const Tensor& heatmap, const Tensor& center,
-                                             const Tensor& regression, const Tensor& offsets,
-                                             int n, int input_h_px) {
+                                             const Tensor& regression, const Tensor& offsets, int n,
+                                             int input_h_px) {
   const Shape& hs = heatmap.shape;
   auto same_grid = [&](const Shape& s) { return s.n == hs.n && s.h == hs.h && s.w == hs.w; };
   if (!heatmap.well_formed() || !center.well_formed() || !regression.well_formed() ||
@@ -48,9 +48,8 @@ Result<SinglePose> movenet_single_person_cpu(const Tensor& heatmap, const Tensor
                  "MoveNet single pose: heads heatmap " + hs.text() + ", centre " +
                      center.shape.text() + ", regression " + regression.shape.text() +
                      " and offsets " + offsets.shape.text() +
-                     " must be [N,H,W,J], [N,H,W,1], [N,H,W,2J] twice, item " +
-                     std::to_string(n) + " in them, input " + std::to_string(input_h_px) +
-                     " px >= H");
+                     " must be [N,H,W,J], [N,H,W,1], [N,H,W,2J] twice, item " + std::to_string(n) +
+                     " in them, input " + std::to_string(input_h_px) + " px >= H");
   }
   const float stride_px = static_cast<float>(input_h_px) / static_cast<float>(hs.h);
   const Cell c = best_weighted_cell(center, n, 0, 0.5f * static_cast<float>(hs.h),

@@ -27,14 +27,14 @@ struct SinglePoseJoint {
 };
 
 struct SinglePose {
-  float center_score = 0;  // sigmoid of the chosen centre cell
+  float center_score = 0;               // sigmoid of the chosen centre cell
   std::vector<SinglePoseJoint> joints;  // [joint], the heatmap's channel order (COCO-17)
 };
 
 // Batch item n of the four heads ([N, H, W, J], [N, H, W, 1], [N, H, W, 2J] twice; the
 // input is input_h_px high, so the stride is input_h_px / H).
 Result<SinglePose> movenet_single_person_cpu(const Tensor& heatmap, const Tensor& center,
-                                             const Tensor& regression, const Tensor& offsets,
-                                             int n, int input_h_px);
+                                             const Tensor& regression, const Tensor& offsets, int n,
+                                             int input_h_px);
 
 }  // namespace mocap::nn

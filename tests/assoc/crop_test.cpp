@@ -78,8 +78,8 @@ TEST(CropPlanTest, PredictsAtConstantVelocity) {
 TEST(CropPlanTest, NoCropOutOfViewBarelySeenOrUnobserved) {
   PersonSkeleton unobserved = standing(2, 0, 0);
   std::fill(unobserved.confidence.begin(), unobserved.confidence.end(), 0.f);
-  const SkeletonSet s = frame(0, {standing(1, 0, 3),   // far to the side: outside the image
-                                  standing(3, 8, 0),   // behind the camera
+  const SkeletonSet s = frame(0, {standing(1, 0, 3),  // far to the side: outside the image
+                                  standing(3, 8, 0),  // behind the camera
                                   unobserved});
   auto plan = plan_crops(s, nullptr, 0, cameras(), {0, 5}, {});  // view 5 has no camera
   ASSERT_TRUE(plan.ok());
@@ -112,7 +112,7 @@ TEST(CropMergeTest, RefinesNearCandidatesAddsMissingOnesAndLinksThem) {
   ViewDetections v = view_with_candidates();
   CropClaims claims = crop_claims(v);
   std::vector<JointCandidate> crop(kJoints, JointCandidate{0, 0, 0.1f});  // mostly unsure
-  crop[0] = {104, 98, 0.8f};    // near the nose: refined
+  crop[0] = {104, 98, 0.8f};                                              // near the nose: refined
   crop[5] = {160, 150, 0.5f};   // near the first shoulder: refined
   crop[6] = {250, 150, 0.9f};   // r_shoulder: none found bottom-up, added
   crop[7] = {500, 500, 0.35f};  // l_elbow: not sure enough to add

@@ -30,7 +30,7 @@ inline Status set_crops(const std::string& crops, int size_px, gpu::CnnOptions& 
   }
   const std::string model = crops == "auto" ? "thunder" : crops;
   cnn.crop_model = model_path_for(model);
-  cnn.crop_input_size_px = size_px != 0             ? size_px
+  cnn.crop_input_size_px = size_px != 0           ? size_px
                            : model == "lightning" ? kLightningInputSizePx
                                                   : gpu::kDefaultCropInputSizePx;
   return Status::Ok();
