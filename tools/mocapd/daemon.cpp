@@ -467,6 +467,11 @@ std::string Daemon::health_json() const {
                       {"file", calibration_file_},
                       {"views", cameras_.size()}};
   j["gpu"] = {{"backend", gpu_backend_}, {"device", gpu_description_}};
+  if (detector_) {
+    // The network(s) and their input, the 3D-guided crops when on, or why auto left them off.
+    j["gpu"]["detector"] = detector_->description();
+    if (!detector_->crops_off_reason().empty()) j["gpu"]["crops"] = detector_->crops_off_reason();
+  }
   j["output"] = engine_ ? "skeletons" : "detections";
   json p;
   p["frames_in"] = m.frames_in;
