@@ -146,9 +146,9 @@ void print_quality(const eval::QualityReport& q) {
   for (const eval::PersonQuality& p : q.persons) {
     std::printf(
         "  id %d: %d frames, bone std %.1f mm (worst %s %.1f), limb jitter %.0f m/s^2 (%zu), "
-        "loo %.1f px\n",
+        "loo %.1f px (%zu)\n",
         p.id, p.frames, p.bone_std_mm, p.worst_bone.empty() ? "-" : p.worst_bone.c_str(),
-        p.worst_bone_std_mm, p.jitter_m_s2, p.jitter_samples, p.loo_reprojection_px);
+        p.worst_bone_std_mm, p.jitter_m_s2, p.jitter_samples, p.loo_reprojection_px, p.loo_samples);
   }
 }
 
