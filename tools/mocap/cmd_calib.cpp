@@ -1,8 +1,10 @@
-// mocap calib show|check FILE: print or validate a calibration file.
+// mocap calib show|check FILE: print or validate a calibration file; mocap calib compare
+// REFERENCE FILE: how far FILE's cameras are from REFERENCE's (runtime/calib/compare.h).
 #include <cstdio>
 #include <string>
 #include <string_view>
 
+#include "runtime/calib/compare.h"
 #include "runtime/geometry/calibration.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
@@ -11,11 +13,14 @@ namespace mocap::tools {
 namespace {
 
 constexpr const char* kUsage =
-    "usage: mocap calib <show|check> FILE   (mocap calib <show|check> --help for details)\n"
+    "usage: mocap calib <show|check> FILE | compare REFERENCE FILE   (mocap calib <subcommand> "
+    "--help for details)\n"
     "\n"
     "subcommands:\n"
-    "  show   print each view of a calibration file (intrinsics, distortion, camera centre)\n"
-    "  check  validate a calibration file; exit code 1 when it is invalid\n";
+    "  show     print each view of a calibration file (intrinsics, distortion, camera centre)\n"
+    "  check    validate a calibration file; exit code 1 when it is invalid\n"
+    "  compare  per camera rotation and centre error of FILE against REFERENCE after aligning "
+    "their camera centres\n";
 
 int run_show(Args args) {
   std::string file;
@@ -72,10 +77,46 @@ int run_check(Args args) {
   return 0;
 }
 
+int run_compare(Args args) {
+  std::string reference, file;
+  cli::ArgParser parser(
+      "mocap calib compare",
+      "Compare FILE's cameras with REFERENCE's, matched by view id. FILE's world frame is "
+      "aligned onto REFERENCE's by the least-squares similarity of the camera centres (scale, "
+      "rotation, translation; nothing else), then per camera: the rotation error in degrees, "
+      "the centre error in metres and the focal ratio FILE / REFERENCE. Needs 3 or more "
+      "cameras not on one line. The last line is max_rotation_deg=X.XX median_center_m=X.XXX.");
+  parser.positional("REFERENCE", &reference, "calibration JSON file taken as right");
+  parser.positional("FILE", &file, "calibration JSON file to check, e.g. a self-calibration");
+  if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
+  Result<Calibration> ref = load_calibration(reference);
+  Result<Calibration> got = ref.ok() ? load_calibration(file) : ref;
+  if (!got.ok()) {
+    std::fprintf(stderr, "error: %s\n", got.error().message().c_str());
+    return 1;
+  }
+  auto c = calib::compare_calibrations(*ref, *got);
+  if (!c.ok()) {
+    std::fprintf(stderr, "error: %s\n", c.error().message().c_str());
+    return 1;
+  }
+  std::printf("%s against %s: %zu cameras, scale %.6f (FILE units to REFERENCE metres)\n",
+              file.c_str(), reference.c_str(), c->cameras.size(), c->scale);
+  std::printf("view        rotation_deg  center_m  focal_ratio\n");
+  for (const calib::CameraComparison& cam : c->cameras) {
+    std::printf("%-10s  %12.3f  %8.3f  %11.4f\n", cam.view_id.c_str(), cam.rotation_deg,
+                cam.center_m, cam.focal_ratio);
+  }
+  std::printf("max_rotation_deg=%.2f median_center_m=%.3f\n", c->max_rotation_deg,
+              c->median_center_m);
+  return 0;
+}
+
 }  // namespace
 
 int run_calib(Args args) {
-  static constexpr cli::Subcommand kSubcommands[] = {{"show", run_show}, {"check", run_check}};
+  static constexpr cli::Subcommand kSubcommands[] = {
+      {"show", run_show}, {"check", run_check}, {"compare", run_compare}};
   return cli::dispatch_subcommand("mocap calib", kUsage, kSubcommands, args);
 }
 

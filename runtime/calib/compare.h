@@ -1,0 +1,40 @@
+// Two calibrations of the same cameras compared (`mocap calib compare`): how far a calibration
+// (a self-calibration, issue 23) is from a reference. The two world frames differ by a
+// similarity (scale, rotation, translation: a self-calibration knows neither the reference's
+// origin and axes nor, without a prior, its scale), so FILE's camera centres are first aligned
+// onto the reference's by the least-squares similarity (Umeyama 1991) — from the centres only,
+// never from anything the cameras saw. Per camera then: the rotation error (degrees) between
+// the reference's orientation and FILE's carried into the reference frame, the centre error
+// (metres, after the alignment) and the focal ratio (FILE / reference).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "runtime/core/error.h"
+#include "runtime/geometry/calibration.h"
+
+namespace mocap::calib {
+
+struct CameraComparison {
+  std::string view_id;
+  double rotation_deg = 0;
+  double center_m = 0;
+  double focal_ratio = 1;  // (fx + fy) of FILE over the reference's
+};
+
+struct CalibrationComparison {
+  std::vector<CameraComparison> cameras;  // the reference's order
+  double scale = 1;                       // FILE units x scale = reference metres
+  double max_rotation_deg = 0;
+  double median_center_m = 0;
+  double max_center_m = 0;
+};
+
+// Matches the cameras by view id (every reference view must be in `file`; extra ones in `file`
+// are an error too: they would be silently ignored). Needs at least 3 cameras whose centres are
+// not on one line (fewer fix no similarity); the error names the problem.
+Result<CalibrationComparison> compare_calibrations(const Calibration& reference,
+                                                   const Calibration& file);
+
+}  // namespace mocap::calib
