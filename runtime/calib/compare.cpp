@@ -6,6 +6,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "runtime/core/stats.h"
+
 namespace mocap::calib {
 
 namespace {
@@ -39,12 +41,6 @@ bool spans_a_plane(const Eigen::Matrix3Xd& p) {
 double angle_deg(const Eigen::Matrix3d& R) {
   const Eigen::Vector3d axis(R(2, 1) - R(1, 2), R(0, 2) - R(2, 0), R(1, 0) - R(0, 1));
   return std::atan2(0.5 * axis.norm(), 0.5 * (R.trace() - 1.0)) * 180.0 / std::numbers::pi;
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 }  // namespace

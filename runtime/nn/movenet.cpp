@@ -15,8 +15,6 @@ Error invalid(const std::string& what) {
 constexpr int kMaxCenterWindowCells = 15;
 constexpr int kMaxCenters = 64;
 
-float sigmoid(float logit) { return 1.f / (1.f + std::exp(-logit)); }
-
 // Whether cell (y, x) of channel 0 is the maximum of its window (ties: smaller index wins).
 bool window_maximum(const Tensor& t, int n, int y, int x, int half) {
   const float v = t.at(n, y, x, 0);
@@ -68,21 +66,6 @@ AffinityMatrix shared_center_affinity(const std::vector<std::vector<float>>& ga,
   return m;
 }
 
-Status check_heads(const Tensor& heatmap, const Tensor& center, const Tensor& regression,
-                   const Tensor& offsets) {
-  const Shape& hs = heatmap.shape;
-  auto same_grid = [&](const Shape& s) { return s.n == hs.n && s.h == hs.h && s.w == hs.w; };
-  if (!heatmap.well_formed() || !center.well_formed() || !regression.well_formed() ||
-      !offsets.well_formed() || !same_grid(center.shape) || !same_grid(regression.shape) ||
-      !same_grid(offsets.shape) || center.shape.c != 1 || regression.shape.c != 2 * hs.c ||
-      offsets.shape.c != 2 * hs.c) {
-    return invalid("heads heatmap " + hs.text() + ", centre " + center.shape.text() +
-                   ", regression " + regression.shape.text() + " and offsets " +
-                   offsets.shape.text() + " must be [N,H,W,J], [N,H,W,1], [N,H,W,2J] twice");
-  }
-  return Status::Ok();
-}
-
 }  // namespace
 
 TfjsImportOptions movenet_multipose_cut() {
@@ -118,6 +101,21 @@ bool is_movenet(const Model& model) {
     }
   }
   return true;
+}
+
+Status check_movenet_heads(const Tensor& heatmap, const Tensor& center, const Tensor& regression,
+                           const Tensor& offsets) {
+  const Shape& hs = heatmap.shape;
+  auto same_grid = [&](const Shape& s) { return s.n == hs.n && s.h == hs.h && s.w == hs.w; };
+  if (!heatmap.well_formed() || !center.well_formed() || !regression.well_formed() ||
+      !offsets.well_formed() || !same_grid(center.shape) || !same_grid(regression.shape) ||
+      !same_grid(offsets.shape) || center.shape.c != 1 || regression.shape.c != 2 * hs.c ||
+      offsets.shape.c != 2 * hs.c) {
+    return invalid("heads heatmap " + hs.text() + ", centre " + center.shape.text() +
+                   ", regression " + regression.shape.text() + " and offsets " +
+                   offsets.shape.text() + " must be [N,H,W,J], [N,H,W,1], [N,H,W,2J] twice");
+  }
+  return Status::Ok();
 }
 
 Status MoveNetOptions::validate() const {
@@ -157,7 +155,7 @@ Result<std::vector<MoveNetCenter>> movenet_centers_cpu(const Tensor& center, int
       if (!(v >= threshold) || !window_maximum(center, n, y, x, options.center_window_cells / 2)) {
         continue;
       }
-      out.push_back(MoveNetCenter{y * center.shape.w + x, sigmoid(v)});
+      out.push_back(MoveNetCenter{y * center.shape.w + x, movenet_sigmoid(v)});
     }
   }
   std::stable_sort(out.begin(), out.end(), [](const MoveNetCenter& a, const MoveNetCenter& b) {
@@ -188,7 +186,9 @@ Result<std::vector<MoveNetView>> movenet_postprocess_cpu(
     const Tensor& heatmap, const Tensor& center, const Tensor& regression, const Tensor& offsets,
     int input_size_px, const SkeletonTopology& topology, const MoveNetOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
-  if (Status s = check_heads(heatmap, center, regression, offsets); !s.ok()) return s.error();
+  if (Status s = check_movenet_heads(heatmap, center, regression, offsets); !s.ok()) {
+    return s.error();
+  }
   if (topology.joint_count() != heatmap.shape.c || input_size_px <= 0) {
     return invalid("topology " + topology.name() + " has " +
                    std::to_string(topology.joint_count()) + " joints, the heatmap " +

@@ -19,6 +19,7 @@
 // pixel centres at +0.5, which is what Letterbox maps back to the image.
 #pragma once
 
+#include <cmath>
 #include <vector>
 
 #include "runtime/core/error.h"
@@ -54,6 +55,15 @@ TfjsImportOptions movenet_singlepose_cut();
 
 // Whether `model` has MoveNet's four heads (by output name).
 bool is_movenet(const Model& model);
+
+// The heads' shapes as the decodings read them (MultiPose and SinglePose alike): heatmap
+// [N,H,W,J], centre [N,H,W,1], regression and offsets [N,H,W,2J], all well formed; the error
+// names the four shapes.
+Status check_movenet_heads(const Tensor& heatmap, const Tensor& center, const Tensor& regression,
+                           const Tensor& offsets);
+
+// A head's logit as a score (the graph applies Sigmoid after the cut).
+inline float movenet_sigmoid(float logit) { return 1.f / (1.f + std::exp(-logit)); }
 
 struct MoveNetOptions {
   // Joint candidates: score_threshold and max_candidates_per_joint as for PoseNet;
