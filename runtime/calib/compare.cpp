@@ -74,6 +74,8 @@ Result<CalibrationComparison> compare_calibrations(const Calibration& reference,
   out.scale = std::cbrt(sR.determinant());
   const Eigen::Matrix3d Ra = sR / out.scale;
   const Eigen::Vector3d t = T.topRightCorner<3, 1>();
+  out.rotation = Ra;
+  out.translation_m = t;
   std::vector<double> center_errors;
   for (std::size_t i = 0; i < reference.size(); ++i) {
     const Camera& r = reference.cameras[i];
@@ -90,6 +92,16 @@ Result<CalibrationComparison> compare_calibrations(const Calibration& reference,
     out.cameras.push_back(c);
   }
   out.median_center_m = median(center_errors);
+  return out;
+}
+
+Calibration align_to_reference(const Calibration& file, const CalibrationComparison& c) {
+  Calibration out = file;
+  for (Camera& cam : out.cameras) {
+    const Eigen::Matrix3d R = cam.R() * c.rotation.transpose();
+    const Eigen::Vector3d t = c.scale * cam.t_m() - R * c.translation_m;
+    cam.set_pose(R, t);
+  }
   return out;
 }
 

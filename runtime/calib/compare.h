@@ -8,6 +8,8 @@
 // (metres, after the alignment) and the focal ratio (FILE / reference).
 #pragma once
 
+#include <Eigen/Core>
+
 #include <string>
 #include <vector>
 
@@ -26,6 +28,9 @@ struct CameraComparison {
 struct CalibrationComparison {
   std::vector<CameraComparison> cameras;  // the reference's order
   double scale = 1;                       // FILE units x scale = reference metres
+  // The similarity FILE -> reference: X_ref = scale * rotation * X_file + translation_m.
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d translation_m = Eigen::Vector3d::Zero();
   double max_rotation_deg = 0;
   double median_center_m = 0;
   double max_center_m = 0;
@@ -36,5 +41,10 @@ struct CalibrationComparison {
 // not on one line (fewer fix no similarity); the error names the problem.
 Result<CalibrationComparison> compare_calibrations(const Calibration& reference,
                                                    const Calibration& file);
+
+// FILE's cameras carried into the reference's world frame by the comparison's similarity
+// (poses only; metres of the reference). What `mocap eval shelf --calibration` scores with: the
+// frames are related through the camera centres alone, never through what the cameras saw.
+Calibration align_to_reference(const Calibration& file, const CalibrationComparison& comparison);
 
 }  // namespace mocap::calib

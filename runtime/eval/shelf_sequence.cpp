@@ -14,7 +14,8 @@ namespace mocap {
 
 Result<ShelfRun> run_shelf_sequence(const std::filesystem::path& data_dir,
                                     const ShelfRunOptions& options) {
-  auto calib = load_calibration(data_dir / "calibration.json");
+  Result<Calibration> calib = options.calibration ? Result<Calibration>(*options.calibration)
+                                                  : load_calibration(data_dir / "calibration.json");
   if (!calib.ok()) return calib.error();
   const int n_cams = static_cast<int>(calib->cameras.size());
   for (std::size_t i = 0; i < calib->view_ids.size(); ++i) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <vector>
 
 #include "runtime/assoc/engine.h"
@@ -11,6 +12,7 @@
 #include "runtime/core/error.h"
 #include "runtime/eval/shelf_mapping.h"
 #include "runtime/eval/shelf_pcp.h"
+#include "runtime/geometry/calibration.h"
 #include "runtime/io/shelf_gt.h"
 
 namespace mocap {
@@ -20,6 +22,8 @@ struct ShelfRunOptions {
   assoc::AssociationOptions association;
   Shelf15MappingOptions mapping;
   int repeat = 1;  // run the sequence this many times (benchmarks; tracks reset in between)
+  // Cameras to use instead of <data>/calibration.json (already in Shelf's world frame).
+  std::optional<Calibration> calibration;
 };
 
 struct ShelfFrameTiming {
@@ -35,7 +39,8 @@ struct ShelfRun {
   std::vector<double> rss_mb_after_repetition;  // resident memory after each repetition
 };
 
-// Loads <data>/calibration.json and <data>/detection/<v>.txt and runs the engine on body19.
+// Loads <data>/calibration.json (or uses options.calibration) and <data>/detection/<v>.txt and runs
+// the engine on body19.
 Result<ShelfRun> run_shelf_sequence(const std::filesystem::path& data_dir,
                                     const ShelfRunOptions& options);
 

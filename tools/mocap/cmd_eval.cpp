@@ -1,4 +1,4 @@
-// mocap eval shelf --data DIR [--views 0,2,4] [--estimates-out FILE]
+// mocap eval shelf --data DIR [--views 0,2,4] [--calibration FILE] [--estimates-out FILE]
 // mocap eval shelf-ceiling --data DIR [--views 0,2,4] [--max-reprojection-px PX]
 #include <algorithm>
 #include <cstdio>
@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include "runtime/calib/compare.h"
 #include "runtime/core/data_dir.h"
 #include "runtime/eval/shelf_ceiling.h"
 #include "runtime/eval/shelf_pcp.h"
@@ -20,10 +21,25 @@
 namespace mocap::tools {
 namespace {
 
+// `file`'s cameras in the frame of Shelf's calibration, by the similarity of the centres.
+Result<Calibration> shelf_frame_calibration(const std::filesystem::path& shelf_calibration,
+                                            const std::string& file) {
+  auto ref = load_calibration(shelf_calibration);
+  if (!ref.ok()) return ref.error();
+  auto got = load_calibration(file);
+  if (!got.ok()) return got.error();
+  auto c = calib::compare_calibrations(*ref, *got);
+  if (!c.ok()) return c.error();
+  std::printf(
+      "calibration %s: max rotation %.2f deg, median centre %.3f m from Shelf's (scale %.4f)\n",
+      file.c_str(), c->max_rotation_deg, c->median_center_m, c->scale);
+  return calib::align_to_reference(*got, *c);
+}
+
 int eval_shelf(Args args) {
   std::string data = (default_data_dir() / "shelf").string();
   std::string views_text;
-  std::string estimates_out;
+  std::string estimates_out, calibration;
   bool per_frame = false;
   bool no_fit = false;
   cli::ArgParser p("mocap eval shelf",
@@ -34,6 +50,10 @@ int eval_shelf(Args args) {
            "Shelf folder with calibration.json, detection/<v>.txt and gt.txt (default: "
            "$MOCAP_DATA_DIR/shelf)");
   p.option("--views", &views_text, "LIST", "comma-separated view ids to use (default: all)");
+  p.option("--calibration", &calibration, "FILE",
+           "score with this calibration (e.g. `mocap calibrate people --shelf`) instead of "
+           "Shelf's: its world frame is mapped onto Shelf's by the similarity of the camera "
+           "centres only, never by the ground truth");
   p.option("--estimates-out", &estimates_out, "FILE",
            "write the estimates in the gt.txt format (15 Shelf joints, metres, id = track id)");
   p.flag("--per-frame", &per_frame, "print per-frame person counts and timings");
@@ -63,6 +83,14 @@ int eval_shelf(Args args) {
     }
   }
   const std::filesystem::path dir(data);
+  if (!calibration.empty()) {
+    auto mapped = shelf_frame_calibration(dir / "calibration.json", calibration);
+    if (!mapped.ok()) {
+      std::fprintf(stderr, "error: --calibration: %s\n", mapped.error().message().c_str());
+      return 1;
+    }
+    opt.calibration = std::move(*mapped);
+  }
   auto gt = load_shelf_gt(dir / "gt.txt");
   if (!gt.ok()) {
     std::fprintf(stderr, "error: %s\n", gt.error().message().c_str());

@@ -17,7 +17,8 @@ struct Command {
 
 // clang-format off
 const Command kCommands[] = {
-  {"calib",   "show or check a calibration file",                        mocap::tools::run_calib, nullptr},
+  {"calib",   "show, check or compare calibration files",                 mocap::tools::run_calib, nullptr},
+  {"calibrate", "calibrate the cameras from people walking (no board)",   mocap::tools::run_calibrate, nullptr},
   {"eval",    "evaluate the association engine on a benchmark (shelf)",   mocap::tools::run_eval, nullptr},
   {"bench",   "benchmarks: assoc, cnn, pipeline",                         mocap::tools::run_bench, nullptr},
   {"infer",   "run the pose CNN on a tensor or an image",                 mocap::tools::run_infer, nullptr},

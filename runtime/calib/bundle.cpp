@@ -1,0 +1,124 @@
+#include "runtime/calib/bundle.h"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+#include <ceres/sphere_manifold.h>
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+
+namespace mocap::calib {
+
+namespace {
+
+struct Reprojection {
+  Reprojection(const Eigen::Vector2d& px, double weight, double fx_px, double fy_px, double cx_px,
+               double cy_px)
+      : u(px.x()), v(px.y()), w(weight), fx(fx_px), fy(fy_px), cx(cx_px), cy(cy_px) {}
+  template <typename T>
+  bool operator()(const T* aa, const T* t, const T* s, const T* X, T* r) const {
+    T Xc[3];
+    ceres::AngleAxisRotatePoint(aa, X, Xc);
+    Xc[0] += t[0], Xc[1] += t[1], Xc[2] += t[2];
+    if (Xc[2] < T(1e-9)) Xc[2] = T(1e-9);
+    r[0] = T(w) * (s[0] * T(fx) * Xc[0] / Xc[2] + T(cx) - T(u));
+    r[1] = T(w) * (s[0] * T(fy) * Xc[1] / Xc[2] + T(cy) - T(v));
+    return true;
+  }
+  double u, v, w, fx, fy, cx, cy;
+};
+
+struct BoneLength {
+  explicit BoneLength(double weight) : w(weight) {}
+  template <typename T>
+  bool operator()(const T* a, const T* b, const T* L, T* r) const {
+    const T d2 = (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                 (a[2] - b[2]) * (a[2] - b[2]) + T(1e-12);
+    r[0] = T(w) * (sqrt(d2) / L[0] - T(1));
+    return true;
+  }
+  double w;
+};
+
+}  // namespace
+
+Eigen::Matrix3d rotation_of(const BundleCamera& c) {
+  const double angle = c.angle_axis.norm();
+  if (angle < 1e-15) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, c.angle_axis / angle).toRotationMatrix();
+}
+
+double reprojection_px(const BundleProblem& p, const BundleObservation& o) {
+  const BundleCamera& c = p.cameras[static_cast<std::size_t>(o.camera)];
+  const Eigen::Vector3d Xc = rotation_of(c) * p.points[static_cast<std::size_t>(o.point)] + c.t;
+  if (Xc.z() <= 1e-9) return std::numeric_limits<double>::infinity();
+  const Eigen::Vector2d px(c.focal_scale * c.fx * Xc.x() / Xc.z() + c.cx,
+                           c.focal_scale * c.fy * Xc.y() / Xc.z() + c.cy);
+  return (px - o.px).norm();
+}
+
+BundleSummary run_bundle(BundleProblem& p, const BundleOptions& o) {
+  ceres::Problem::Options po;
+  po.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(po);
+  std::vector<bool> point_used(p.points.size(), false);
+  for (const BundleObservation& ob : p.observations) {
+    const auto pi = static_cast<std::size_t>(ob.point);
+    BundleCamera& c = p.cameras[static_cast<std::size_t>(ob.camera)];
+    if (!ob.inlier || !c.registered || !p.point_valid[pi]) continue;
+    auto* cost = new ceres::AutoDiffCostFunction<Reprojection, 2, 3, 3, 1, 3>(
+        new Reprojection(ob.px, std::sqrt(ob.weight), c.fx, c.fy, c.cx, c.cy));
+    problem.AddResidualBlock(cost, new ceres::HuberLoss(o.huber_px), c.angle_axis.data(),
+                             c.t.data(), &c.focal_scale, p.points[pi].data());
+    point_used[pi] = true;
+  }
+  if (o.bone_weight > 0) {
+    for (const BundleBone& b : p.bones) {
+      const auto a = static_cast<std::size_t>(b.point_a), c = static_cast<std::size_t>(b.point_b);
+      if (!point_used[a] || !point_used[c]) continue;
+      auto* cost =
+          new ceres::AutoDiffCostFunction<BoneLength, 1, 3, 3, 1>(new BoneLength(o.bone_weight));
+      problem.AddResidualBlock(cost, new ceres::HuberLoss(1.0), p.points[a].data(),
+                               p.points[c].data(), &p.lengths[static_cast<std::size_t>(b.length)]);
+      problem.SetParameterLowerBound(&p.lengths[static_cast<std::size_t>(b.length)], 0, 1e-6);
+    }
+  }
+  for (std::size_t i = 0; i < p.cameras.size(); ++i) {
+    BundleCamera& c = p.cameras[i];
+    if (!c.registered || !problem.HasParameterBlock(c.t.data())) continue;
+    if (!o.estimate_focal) {
+      problem.SetParameterBlockConstant(&c.focal_scale);
+    } else {
+      problem.SetParameterLowerBound(&c.focal_scale, 0, 0.2);
+      problem.SetParameterUpperBound(&c.focal_scale, 0, 5.0);
+    }
+    if (static_cast<int>(i) == o.fixed_camera) {
+      problem.SetParameterBlockConstant(c.angle_axis.data());
+      problem.SetParameterBlockConstant(c.t.data());
+    } else if (static_cast<int>(i) == o.scale_camera) {
+      problem.SetManifold(c.t.data(), new ceres::SphereManifold<3>());
+    }
+  }
+  BundleSummary s;
+  if (problem.NumResidualBlocks() == 0) return s;
+  ceres::Solver::Options so;
+  // Few cameras: the reduced camera system is small and dense, unless bone terms couple points.
+  so.linear_solver_type = o.bone_weight > 0 ? ceres::ITERATIVE_SCHUR : ceres::DENSE_SCHUR;
+  so.preconditioner_type = ceres::SCHUR_JACOBI;
+  so.max_num_iterations = o.max_iterations;
+  so.num_threads = o.threads;
+  so.function_tolerance = 1e-5;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary sum;
+  ceres::Solve(so, &problem, &sum);
+  s.initial_cost = sum.initial_cost;
+  s.final_cost = sum.final_cost;
+  s.iterations = static_cast<int>(sum.iterations.size());
+  s.converged = sum.termination_type == ceres::CONVERGENCE;
+  return s;
+}
+
+}  // namespace mocap::calib

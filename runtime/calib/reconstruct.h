@@ -1,0 +1,78 @@
+// The cameras and the people's joints from the matched 2D people (issue 23, step 4): every
+// (person group, frame, joint) is one 3D point; the strongest view pair starts the
+// reconstruction (relative pose from its essential matrix), then each further view is
+// registered against all the points triangulated so far (DLT PnP in RANSAC; no view hangs on
+// one pair), with a bundle adjustment after each. Then left/right swaps are settled per view
+// and frame by reprojection, outliers dropped, and the final adjustment adds the focal lengths
+// (when unknown) and the bone-length term.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "runtime/calib/bundle.h"
+#include "runtime/calib/matching.h"
+#include "runtime/calib/people2d.h"
+#include "runtime/core/error.h"
+
+namespace mocap {
+class SkeletonTopology;
+}
+
+namespace mocap::calib {
+
+struct ReconstructOptions {
+  double pnp_threshold_px = 8;  // PnP RANSAC inlier reprojection
+  int pnp_iterations = 300;
+  int min_registration_points = 30;  // a view needs this many points seen by others
+  double outlier_factor = 4;         // observations beyond max(factor x median, min) are dropped
+  double outlier_min_px = 8;
+  double bone_weight = 20;  // residual weight of a 1 (100 %) bone-length deviation
+  bool estimate_focal = false;
+  int threads = 1;
+  std::uint64_t seed = 1;
+};
+
+// One person group at one frame, as each view sees it.
+struct PersonFrame {
+  int group = -1;
+  int frame = -1;
+  std::vector<const Person2D*> pose;  // [view], null where the view does not see it
+  std::vector<bool> mirrored;         // [view]: take that view's pose left/right swapped
+  std::vector<int> tracklet;          // [view]: the tracklet the pose is from (-1 none)
+  int first_point = 0;                // its joints are points first_point + j
+};
+
+struct Reconstruction {
+  BundleProblem problem;
+  std::vector<PersonFrame> person_frames;
+  std::vector<int> point_joint;  // joint type of each point
+  int swaps = 0;                 // (view, person frame) poses taken mirrored
+  int dropped_observations = 0;
+};
+
+// tracklets[view] (keypoints already undistorted, frames thinned as wanted); cameras[view]
+// carry fx, fy, cx, cy (focal estimate when unknown). Fails naming the view that could not be
+// registered.
+Result<Reconstruction> reconstruct(const std::vector<std::vector<Tracklet>>& tracklets,
+                                   const std::vector<ViewPairMatch>& pairs,
+                                   const std::vector<PersonGroup>& groups,
+                                   std::vector<BundleCamera> cameras,
+                                   const std::vector<std::string>& view_names,
+                                   const SkeletonTopology& topology,
+                                   const ReconstructOptions& options);
+
+// How well the other views register (inliers of their tracklets' association in 3D) against
+// the points of the pair_rank-th strongest view pair (0: the strongest) reconstructed with
+// these cameras: near 1 only when the focal lengths are
+// right (a wrong focal gives a projectively distorted reconstruction). The self-calibration
+// sweeps unknown focal lengths with it: the fundamental matrices alone cannot give them when
+// the cameras' optical axes meet at one point (Bougnoux 1998), the usual rig aimed at the
+// middle of the room.
+double registration_score(const std::vector<std::vector<Tracklet>>& tracklets,
+                          const std::vector<ViewPairMatch>& pairs,
+                          const std::vector<PersonGroup>& groups, std::vector<BundleCamera> cameras,
+                          const SkeletonTopology& topology, const ReconstructOptions& options,
+                          int pair_rank = 0);
+
+}  // namespace mocap::calib

@@ -1,0 +1,103 @@
+// `mocap calibrate people` as the user runs it: the simulator (last line, the file, the JSON
+// report, the result against the true rig with `mocap calib compare`), bad arguments and an
+// unwritable output named; on Shelf (CI has the data) the targets: cameras within 1.2 degrees
+// and 5 cm of Shelf's calibration, and `mocap eval shelf --calibration` at >= 96.5 strict PCP.
+#include <gtest/gtest.h>
+
+#include <regex>
+#include <string>
+
+#include "runtime/geometry/calibration.h"
+#include "runtime/io/text_scan.h"
+#include "tests/support/data.h"
+#include "tests/support/subprocess.h"
+#include "tests/support/temp_dir.h"
+
+namespace mocap {
+namespace {
+
+const std::string kBin = std::string(MOCAP_BIN_DIR) + "/mocap";
+
+double last_value(const std::string& out, const std::string& key) {
+  const std::regex re(key + "=([0-9.]+)");
+  std::smatch m;
+  std::string last;
+  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
+       ++it) {
+    last = (*it)[1];
+  }
+  return last.empty() ? -1 : std::stod(last);
+}
+
+TEST(CalibrateCliTest, SyntheticWritesCalibrationAndReport) {
+  testing::TestTempDir dir("calibrate_cli");
+  const std::string out = (dir.path() / "cal.json").string();
+  const std::string truth = (dir.path() / "truth.json").string();
+  const std::string report = (dir.path() / "report.json").string();
+  auto r = testing::run_process(
+      {kBin, "calibrate", "people", "--synthetic", "--views", "4", "--people", "2", "--seconds",
+       "16", "--out", out, "--truth-out", truth, "--report", report},
+      dir.path(), "calibrate", 600000);
+  ASSERT_EQ(r.exit_code, 0) << r.how() << "\n" << r.out << r.err;
+  EXPECT_TRUE(
+      std::regex_search(r.out, std::regex("\ncalibration_reprojection_px=[0-9]+\\.[0-9]{2}\n$")))
+      << r.out;
+  EXPECT_LT(last_value(r.out, "calibration_reprojection_px"), 3.0);
+  EXPECT_TRUE(load_calibration(out).ok());
+  auto json = io::read_text_file(report);
+  ASSERT_TRUE(json.ok());
+  EXPECT_NE(json->find("\"ok\": true"), std::string::npos);
+  auto c =
+      testing::run_process({kBin, "calib", "compare", truth, out}, dir.path(), "compare", 60000);
+  ASSERT_EQ(c.exit_code, 0) << c.out << c.err;
+  EXPECT_LE(last_value(c.out, "max_rotation_deg"), 0.3) << c.out;
+  EXPECT_LE(last_value(c.out, "median_center_m"), 0.02) << c.out;
+}
+
+TEST(CalibrateCliTest, BadArgumentsAndUnwritableOutputAreNamed) {
+  testing::TestTempDir dir("calibrate_cli_bad");
+  auto none = testing::run_process({kBin, "calibrate", "people", "--out", "x.json"}, dir.path(),
+                                   "none", 60000);
+  EXPECT_EQ(none.exit_code, 1);
+  EXPECT_NE(none.err.find("exactly one of"), std::string::npos) << none.err;
+  auto height = testing::run_process(
+      {kBin, "calibrate", "people", "--synthetic", "--height-m", "7", "--out", "x.json"},
+      dir.path(), "height", 60000);
+  EXPECT_EQ(height.exit_code, 1);
+  EXPECT_NE(height.err.find("--height-m"), std::string::npos) << height.err;
+  const std::string missing = (dir.path() / "no-such-dir" / "cal.json").string();
+  auto unwritable = testing::run_process({kBin, "calibrate", "people", "--synthetic", "--views",
+                                          "3", "--seconds", "8", "--out", missing},
+                                         dir.path(), "unwritable", 600000);
+  EXPECT_EQ(unwritable.exit_code, 1) << unwritable.out;
+  EXPECT_NE(unwritable.err.find("no-such-dir"), std::string::npos) << unwritable.err;
+  auto bad_keypoints =
+      testing::run_process({kBin, "calibrate", "people", "--keypoints", missing, "--out", "x.json"},
+                           dir.path(), "keypoints", 60000);
+  EXPECT_EQ(bad_keypoints.exit_code, 1);
+  EXPECT_NE(bad_keypoints.err.find("cal.json"), std::string::npos) << bad_keypoints.err;
+}
+
+TEST(CalibrateCliTest, ShelfWithinTargetsOfItsCalibration) {
+  MOCAP_REQUIRE_DATA(shelf, "shelf");
+  testing::TestTempDir dir("calibrate_shelf");
+  const std::string out = (dir.path() / "shelf_self.json").string();
+  auto r =
+      testing::run_process({kBin, "calibrate", "people", "--shelf", shelf.string(), "--out", out},
+                           dir.path(), "calibrate", 900000);
+  ASSERT_EQ(r.exit_code, 0) << r.how() << "\n" << r.out << r.err;
+  auto c =
+      testing::run_process({kBin, "calib", "compare", (shelf / "calibration.json").string(), out},
+                           dir.path(), "compare", 60000);
+  ASSERT_EQ(c.exit_code, 0) << c.out << c.err;
+  EXPECT_LE(last_value(c.out, "max_rotation_deg"), 1.2) << c.out;  // measured 1.07
+  EXPECT_LE(last_value(c.out, "median_center_m"), 0.05) << c.out;  // measured 0.023
+  auto e =
+      testing::run_process({kBin, "eval", "shelf", "--data", shelf.string(), "--calibration", out},
+                           dir.path(), "eval", 600000);
+  ASSERT_EQ(e.exit_code, 0) << e.out << e.err;
+  EXPECT_GE(last_value(e.out, "avg_pcp"), 96.5) << e.out;  // measured 97.27
+}
+
+}  // namespace
+}  // namespace mocap

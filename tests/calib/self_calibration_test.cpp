@@ -1,0 +1,314 @@
+// Self-calibration (runtime/calib/self_calibration.h) on the simulator with exact ground truth:
+// cameras, focal lengths and the floor recovered; left/right swaps and false candidates
+// injected; the refusals (nobody moved, a view that saw nobody, too few frames, one camera);
+// a person walking one straight line is refused or warned about, never garbage. The parts:
+// the eight-point / essential estimate, 2D people and tracklets, the keypoint file.
+#include "runtime/calib/self_calibration.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <random>
+#include <string>
+
+#include "runtime/calib/compare.h"
+#include "runtime/calib/epipolar.h"
+#include "runtime/sim/simulator.h"
+#include "runtime/skeleton/topology.h"
+
+namespace mocap::calib {
+namespace {
+
+struct SimRun {
+  Calibration truth;
+  std::unique_ptr<KeypointCollector> keypoints;
+  std::vector<CameraPrior> priors;
+};
+
+// Options of a run: how many seconds, what to do to each frame's detections.
+struct SimSpec {
+  int views = 5;
+  int people = 2;
+  double seconds = 20;
+  bool keep_intrinsics = false;
+  double false_candidates_per_joint = 0.1;
+  double swap_rate = 0;  // (view, person, frame) poses rendered left/right swapped
+  int blind_view = -1;   // this view's detections are emptied
+  bool frozen = false;   // every frame shows frame 0 (nobody moves)
+};
+
+// Swaps each l_/r_ joint pair's candidates of one person in one view.
+void swap_person(sim::RenderedFrame& f, std::size_t view, int person,
+                 const std::vector<int>& mirror) {
+  ViewDetections& v = f.detections.views[view];
+  for (std::size_t j = 0; j < mirror.size(); ++j) {
+    const auto m = static_cast<std::size_t>(mirror[j]);
+    if (m <= j) continue;
+    int cj = -1, cm = -1;
+    for (std::size_t c = 0; c < f.truth_person[view][j].size(); ++c) {
+      if (f.truth_person[view][j][c] == person) cj = static_cast<int>(c);
+    }
+    for (std::size_t c = 0; c < f.truth_person[view][m].size(); ++c) {
+      if (f.truth_person[view][m][c] == person) cm = static_cast<int>(c);
+    }
+    if (cj < 0 || cm < 0) continue;
+    std::swap(v.candidates[j][static_cast<std::size_t>(cj)].x_px,
+              v.candidates[m][static_cast<std::size_t>(cm)].x_px);
+    std::swap(v.candidates[j][static_cast<std::size_t>(cj)].y_px,
+              v.candidates[m][static_cast<std::size_t>(cm)].y_px);
+  }
+}
+
+SimRun simulate(const SimSpec& spec) {
+  sim::RigOptions rig;
+  rig.views = spec.views;
+  sim::SceneOptions scene;
+  scene.people = spec.people;
+  scene.enter_leave = false;
+  sim::DetectionNoiseOptions noise;
+  noise.false_candidates_per_joint = spec.false_candidates_per_joint;
+  auto simulator = sim::Simulator::create(rig, scene, noise, body19_topology());
+  EXPECT_TRUE(simulator.ok());
+  SimRun run;
+  run.truth = simulator->rig();
+  std::vector<int> ids;
+  for (std::size_t v = 0; v < run.truth.size(); ++v) {
+    ids.push_back(static_cast<int>(v));
+    CameraPrior p{run.truth.view_ids[v], run.truth.cameras[v].width_px(),
+                  run.truth.cameras[v].height_px(), std::nullopt};
+    if (spec.keep_intrinsics) p.intrinsics = run.truth.cameras[v];
+    run.priors.push_back(p);
+  }
+  run.keypoints = std::make_unique<KeypointCollector>(body19_topology(), ids, People2DOptions{});
+  const std::vector<int> mirror = mirror_joints(body19_topology());
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0, 1);
+  auto first = simulator->next();
+  EXPECT_TRUE(first.ok());
+  const int frames = static_cast<int>(spec.seconds * scene.frame_rate_hz);
+  for (int f = 0; f < frames; ++f) {
+    sim::RenderedFrame r = spec.frozen || f == 0 ? *first : *simulator->next();
+    for (std::size_t v = 0; v < r.detections.views.size(); ++v) {
+      for (int person = 0; person < spec.people; ++person) {
+        if (spec.swap_rate > 0 && u(rng) < spec.swap_rate) swap_person(r, v, person, mirror);
+      }
+      if (static_cast<int>(v) == spec.blind_view) {
+        for (auto& c : r.detections.views[v].candidates) c.clear();
+        for (auto& a : r.detections.views[v].affinities) a = AffinityMatrix(0, 0);
+      }
+    }
+    run.keypoints->add(r.detections);
+  }
+  return run;
+}
+
+// Compares with the truth; also checks the floor: +z up and z = 0 on the floor after the
+// similarity (camera heights within 5 cm of the truth's).
+void expect_close_to_truth(const SimRun& run, const Calibration& got, double max_rotation_deg,
+                           double max_center_m, double max_focal_error) {
+  auto c = compare_calibrations(run.truth, got);
+  ASSERT_TRUE(c.ok()) << c.error().message();
+  EXPECT_LE(c->max_rotation_deg, max_rotation_deg);
+  EXPECT_LE(c->median_center_m, max_center_m);
+  for (const CameraComparison& cam : c->cameras) {
+    EXPECT_NEAR(cam.focal_ratio, 1.0, max_focal_error) << "view " << cam.view_id;
+  }
+  const double tilt_deg =
+      std::acos(std::clamp((c->rotation * Eigen::Vector3d::UnitZ()).z(), -1.0, 1.0)) * 180 / M_PI;
+  EXPECT_LT(tilt_deg, 1.0) << "the floor's normal is off";
+  for (std::size_t v = 0; v < got.size(); ++v) {
+    EXPECT_NEAR(got.cameras[v].center_m().z() * c->scale, run.truth.cameras[v].center_m().z(), 0.05)
+        << "camera " << v << " height above the floor";
+  }
+}
+
+TEST(SelfCalibrationTest, FiveViewsTwoPeopleFocalUnknown) {
+  const SimRun run = simulate({});
+  auto r = self_calibrate(*run.keypoints, run.priors, {});
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  ASSERT_TRUE(r->calibration) << r->quality.refusal;
+  expect_close_to_truth(run, *r->calibration, 0.3, 0.02, 0.01);
+  EXPECT_LT(r->quality.median_px, 3.0);
+  EXPECT_EQ(r->quality.views.size(), 5u);
+  for (const ViewQuality& v : r->quality.views) EXPECT_TRUE(v.focal_estimated);
+  EXPECT_TRUE(r->quality.floor_from_ankle_plane);
+  EXPECT_GT(r->quality.walked_area_m2, 1.0);
+}
+
+TEST(SelfCalibrationTest, LeftRightSwapsAndFalseCandidates) {
+  SimSpec spec;
+  spec.keep_intrinsics = true;
+  spec.swap_rate = 0.05;
+  spec.false_candidates_per_joint = 0.4;  // 2 people: 20 % of the candidates are false
+  const SimRun run = simulate(spec);
+  auto r = self_calibrate(*run.keypoints, run.priors, {});
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  ASSERT_TRUE(r->calibration) << r->quality.refusal;
+  expect_close_to_truth(run, *r->calibration, 0.3, 0.02, 1e-12);
+  EXPECT_GT(r->quality.left_right_swaps, 0) << "the injected swaps were not found";
+}
+
+TEST(SelfCalibrationTest, RefusesWhenNobodyMoved) {
+  SimSpec spec;
+  spec.frozen = true;
+  spec.seconds = 4;
+  const SimRun run = simulate(spec);
+  auto r = self_calibrate(*run.keypoints, run.priors, {});
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  EXPECT_FALSE(r->calibration);
+  EXPECT_NE(r->quality.refusal.find("nobody moved"), std::string::npos) << r->quality.refusal;
+}
+
+TEST(SelfCalibrationTest, NamesTheViewThatSawNobody) {
+  SimSpec spec;
+  spec.blind_view = 2;
+  spec.seconds = 4;
+  const SimRun run = simulate(spec);
+  auto r = self_calibrate(*run.keypoints, run.priors, {});
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  EXPECT_FALSE(r->calibration);
+  EXPECT_NE(r->quality.refusal.find("view 2 saw nobody"), std::string::npos) << r->quality.refusal;
+  EXPECT_NE(r->quality.refusal.find("camera 2"), std::string::npos);
+}
+
+TEST(SelfCalibrationTest, RefusesTooFewFramesAndOneCamera) {
+  SimSpec spec;
+  spec.seconds = 0.4;  // 10 frames
+  const SimRun run = simulate(spec);
+  auto r = self_calibrate(*run.keypoints, run.priors, {});
+  ASSERT_TRUE(r.ok());
+  EXPECT_FALSE(r->calibration);
+  EXPECT_NE(r->quality.refusal.find("too few frames"), std::string::npos) << r->quality.refusal;
+
+  KeypointCollector one(body19_topology(), {0}, People2DOptions{});
+  auto r1 = self_calibrate(one, {run.priors[0]}, {});
+  ASSERT_TRUE(r1.ok());
+  EXPECT_FALSE(r1->calibration);
+  EXPECT_NE(r1->quality.refusal.find("one camera"), std::string::npos);
+  // Priors that do not match the views are a caller error.
+  EXPECT_FALSE(self_calibrate(*run.keypoints, {run.priors[0]}, {}).ok());
+}
+
+TEST(SelfCalibrationTest, OnePersonOnAStraightLineIsRefusedOrWarnedNeverGarbage) {
+  // One person's walk with the path replaced by a straight line along x at constant speed.
+  sim::RigOptions rig;
+  sim::SceneOptions scene;
+  scene.people = 1;
+  scene.enter_leave = false;
+  auto s = sim::Scene::create(scene);
+  ASSERT_TRUE(s.ok());
+  auto calib = sim::make_ring_rig(rig);
+  ASSERT_TRUE(calib.ok());
+  sim::DetectionRenderer renderer;
+  sim::DetectionNoiseOptions noise;
+  KeypointCollector keypoints(body19_topology(), {0, 1, 2, 3, 4}, People2DOptions{});
+  std::vector<CameraPrior> priors;
+  for (std::size_t v = 0; v < calib->size(); ++v) {
+    priors.push_back({calib->view_ids[v], calib->cameras[v].width_px(),
+                      calib->cameras[v].height_px(), calib->cameras[v]});
+  }
+  for (int f = 0; f < 500; ++f) {
+    SkeletonSet truth = s->ground_truth();
+    for (PersonSkeleton& p : truth.persons) {
+      const Eigen::Vector3d pelvis = p.joints_m[0];
+      const Eigen::Vector3d at(-2.0 + 4.0 * (f % 250) / 250.0, 0.3, pelvis.z());
+      for (Eigen::Vector3d& j : p.joints_m)
+        j += Eigen::Vector3d(at.x() - pelvis.x(), at.y() - pelvis.y(), 0);
+    }
+    sim::RenderedFrame out;
+    ASSERT_TRUE(renderer.render(truth, *calib, body19_topology(), noise, 100 + f, out).ok());
+    keypoints.add(out.detections);
+    s->step();
+  }
+  auto r = self_calibrate(keypoints, priors, {});
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  if (!r->calibration) {
+    EXPECT_FALSE(r->quality.refusal.empty());
+    return;
+  }
+  EXPECT_FALSE(r->quality.warnings.empty()) << "a straight-line walk must at least be warned about";
+  auto c = compare_calibrations(*calib, *r->calibration);
+  ASSERT_TRUE(c.ok());
+  EXPECT_LE(c->max_rotation_deg, 1.0) << "accepted, so it must be right";
+}
+
+TEST(EpipolarTest, EssentialAndPoseFromExactPoints) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1, 0.1).normalized()).toRotationMatrix();
+  const Eigen::Vector3d t = Eigen::Vector3d(-1, 0.1, 0.2).normalized();
+  std::vector<Eigen::Vector2d> a, b;
+  for (int i = 0; i < 200; ++i) {
+    const Eigen::Vector3d X(u(rng), u(rng), 4 + u(rng));
+    a.push_back(X.hnormalized());
+    b.push_back((R * X + t).hnormalized());
+    if (i % 4 == 0) b.back() += Eigen::Vector2d(u(rng), u(rng)) * 0.2;  // 25 % outliers
+  }
+  RansacOptions o;
+  o.essential = true;
+  o.threshold_px = 1e-3;
+  const FundamentalFit fit = ransac_fundamental(a, b, o);
+  EXPECT_GE(fit.inlier_count, 150);
+  std::vector<Eigen::Vector2d> ia, ib;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (fit.inliers[i] != 0) ia.push_back(a[i]), ib.push_back(b[i]);
+  }
+  const RelativePose rp = relative_pose(fit.F, ia, ib);
+  EXPECT_LT(Eigen::AngleAxisd(rp.R.transpose() * R).angle(), 1e-6);
+  EXPECT_GT(rp.t.dot(t), 1 - 1e-9);
+  EXPECT_EQ(ransac_iterations(100, 100, 8, 300), 1);
+  EXPECT_EQ(ransac_iterations(0, 100, 8, 300), 300);
+}
+
+TEST(People2DTest, KeypointFileRoundTripAndBadInput) {
+  const SimRun run = simulate({.views = 2, .people = 2, .seconds = 1});
+  const std::string text = run.keypoints->to_json();
+  auto back = KeypointCollector::from_json(text, "kp.json", People2DOptions{});
+  ASSERT_TRUE(back.ok()) << back.error().message();
+  EXPECT_EQ(back->frame_count(), run.keypoints->frame_count());
+  EXPECT_EQ(back->view_ids(), run.keypoints->view_ids());
+  EXPECT_EQ(back->people(1).size(), run.keypoints->people(1).size());
+  EXPECT_EQ(back->frames_with_people(0), run.keypoints->frames_with_people(0));
+  EXPECT_EQ(back->width_px(1), run.keypoints->width_px(1));
+  for (const std::string& bad : std::vector<std::string>{
+           "", "[]", "{\"topology\": \"nope\"}", text.substr(0, text.size() / 2),
+           "{\"topology\": \"coco17\", \"views\": [0], \"sizes\": [[10, 10]], \"people\": [[[[1, "
+           "2]]]]}"}) {
+    auto r = KeypointCollector::from_json(bad, "kp.json", People2DOptions{});
+    ASSERT_FALSE(r.ok()) << bad;
+    EXPECT_NE(r.error().message().find("kp.json"), std::string::npos);
+  }
+  // An out-of-range score is read as not detected; NaN is not JSON at all.
+  std::string person = "[";
+  for (int j = 0; j < 17; ++j)
+    person += std::string(j ? ", " : "") + (j == 3 ? "1, 2, 2.5" : "1, 2, 0.5");
+  person += "]";
+  const std::string head = "{\"topology\": \"coco17\", \"views\": [0], \"sizes\": [[10, 10]], ";
+  auto odd = KeypointCollector::from_json(head + "\"people\": [[[" + person + "]]]}", "kp.json",
+                                          People2DOptions{});
+  ASSERT_TRUE(odd.ok()) << odd.error().message();
+  EXPECT_EQ(odd->people(0)[0][0].joints[3].score, 0.0);
+  EXPECT_EQ(odd->people(0)[0][0].joints[4].score, 0.5);
+  EXPECT_FALSE(
+      KeypointCollector::from_json(head + "\"people\": [[[[NaN]]]]}", "kp.json", People2DOptions{})
+          .ok());
+}
+
+TEST(People2DTest, ParsesAndTracksSimulatedPeople) {
+  const SimRun run =
+      simulate({.views = 2, .people = 2, .seconds = 4, .false_candidates_per_joint = 0.4});
+  int two = 0;
+  for (const auto& frame : run.keypoints->people(0)) two += frame.size() == 2 ? 1 : 0;
+  EXPECT_GT(two, 80) << "of 100 frames";
+  const auto tracklets = track_view_people(run.keypoints->people(0), 0, People2DOptions{});
+  ASSERT_GE(tracklets.size(), 2u);
+  std::size_t longest = 0;
+  for (const Tracklet& t : tracklets) longest = std::max(longest, t.frames.size());
+  EXPECT_GT(longest, 50u);
+}
+
+}  // namespace
+}  // namespace mocap::calib
