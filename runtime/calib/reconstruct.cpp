@@ -347,8 +347,8 @@ ViewAssociation associate_under(const Candidates& cands, const Eigen::Matrix3d& 
     int in = 0;
     for (std::size_t i = 0; i < cc.X.size(); ++i) {
       const Eigen::Vector3d q = R * cc.X[i] + t;
-      const double d = q.z() > 0 ? (q.hnormalized() - cc.x[i]).norm()
-                                 : std::numeric_limits<double>::infinity();
+      const double d =
+          q.z() > 0 ? (q.hnormalized() - cc.x[i]).norm() : std::numeric_limits<double>::infinity();
       e.push_back(d);
       in += d < 2 * thr;
     }
@@ -715,8 +715,7 @@ Result<Reconstruction> reconstruct(const std::vector<std::vector<Tracklet>>& tra
                                    const std::vector<PersonGroup>& groups,
                                    std::vector<BundleCamera> cameras,
                                    const std::vector<std::string>& view_names,
-                                   const SkeletonTopology& topology,
-                                   const ReconstructOptions& o) {
+                                   const SkeletonTopology& topology, const ReconstructOptions& o) {
   Reconstruction rec;
   rec.problem.cameras = std::move(cameras);
   for (BundleCamera& c : rec.problem.cameras) c.registered = false;

@@ -56,6 +56,7 @@ Status PipelineOptions::validate() const {
 
 Pipeline::Pipeline(PipelineParts parts, const PipelineOptions& options)
     : parts_(std::move(parts)),
+      engine_(parts_.engine),
       options_(options),
       cnn_queue_(std::make_unique<BoundedQueue<Captured>>(
           static_cast<std::size_t>(options.queue_depth), options.drop_policy)),
@@ -249,8 +250,8 @@ bool Pipeline::associate_and_sink(Detected& d) {
   f.source_ms = d.source_ms;
   f.cnn_ms = d.cnn_ms;
   const std::int64_t t0 = monotonic_ns();
-  if (parts_.engine != nullptr) {
-    Result<assoc::FrameResult> r = parts_.engine->process(d.detections);
+  if (assoc::Engine* engine = engine_.load(); engine != nullptr) {
+    Result<assoc::FrameResult> r = engine->process(d.detections);
     if (!r.ok()) {
       metrics_.error();
       if (should_log(++assoc_errors_)) {

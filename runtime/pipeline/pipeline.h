@@ -71,6 +71,10 @@ class Pipeline {
   bool finished() const;
   PipelineMetrics metrics() const { return metrics_.snapshot(); }
   const FrameSource& source() const { return *parts_.source; }
+  // Starts (or replaces) the association engine from the next frame on: a box that calibrated
+  // itself while streaming 2D detections switches to skeletons without a restart. The engine
+  // must outlive the pipeline; the one replaced must too (the assoc thread may be using it).
+  void set_engine(assoc::Engine* engine) { engine_.store(engine); }
 
  private:
   struct Captured;
@@ -91,6 +95,7 @@ class Pipeline {
   void set_thread_priority();
 
   PipelineParts parts_;
+  std::atomic<assoc::Engine*> engine_{nullptr};  // parts_.engine, or what set_engine() gave
   PipelineOptions options_;
   std::unique_ptr<BoundedQueue<Captured>> cnn_queue_;
   std::unique_ptr<BoundedQueue<Detected>> assoc_queue_;

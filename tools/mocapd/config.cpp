@@ -240,6 +240,18 @@ std::vector<OptionSpec> make_options() {
                       &DaemonConfig::sim_people, 0, 16));
   v.push_back(int_opt("sim_views", "cameras", "simulator board: virtual cameras",
                       &DaemonConfig::sim_views, 2, 16));
+  v.push_back(bool_opt("sim_calibrated",
+                       "simulator board: hand mocapd the virtual rig's calibration (false: the "
+                       "box calibrates itself from the simulated people, as with real cameras)",
+                       &DaemonConfig::sim_calibrated));
+  v.push_back(bool_opt("self_calibrate",
+                       "cameras without a usable calibration calibrate themselves from people "
+                       "walking in the room (docs/self-calibration.md), streaming 2D detections "
+                       "meanwhile; the result is written to <state_dir>/calibration.json",
+                       &DaemonConfig::self_calibrate));
+  v.push_back(int_opt("self_calibration_frames", "frames",
+                      "frames collected before each self-calibration attempt",
+                      &DaemonConfig::self_calibration_frames, 30, 100000));
   // Status
   v.push_back(double_opt("status_log_interval_s", "s",
                          "how often a status line is logged; 0 = never",

@@ -60,6 +60,9 @@ struct DaemonConfig {
   // Simulator (no camera)
   int sim_people = 2;
   int sim_views = 4;
+  bool sim_calibrated = true;  // false: the simulator keeps its rig to itself (self-calibration)
+  bool self_calibrate = true;  // cameras without a calibration calibrate from people walking
+  int self_calibration_frames = 250;  // frames collected before each self-calibration attempt
   // Status
   double status_log_interval_s = 30;
   std::string log;  // MOCAP_LOG syntax, e.g. "*:info,Pipeline:debug"

@@ -10,6 +10,7 @@
 #include "hal/gpio/trigger_line.h"
 #include "hal/rig_source.h"
 #include "runtime/assoc/options.h"
+#include "runtime/calib/background.h"
 #include "runtime/core/clock.h"
 #include "runtime/core/log.h"
 #include "runtime/gpu/cnn_detector.h"
@@ -93,6 +94,8 @@ std::string_view to_string(CalibrationState state) {
       return "invalid";
     case CalibrationState::kMismatch:
       return "mismatch";
+    case CalibrationState::kCalibrating:
+      return "calibrating";
   }
   return "?";
 }
@@ -185,6 +188,20 @@ Status Daemon::open_simulator(double rate_hz) {
   const Calibration calibration = (*src)->calibration();
   const SkeletonTopology& topology = (*src)->topology();
   pending_source_ = std::move(*src);
+  if (!config_.sim_calibrated) {
+    // The box calibrates itself from the simulated people, as it would with real cameras.
+    calibration_state_ = CalibrationState::kMissing;
+    calibration_file_.clear();
+    std::vector<int> ids;
+    std::vector<calib::CameraPrior> priors;
+    for (std::size_t v = 0; v < calibration.size(); ++v) {
+      ids.push_back(static_cast<int>(v));
+      priors.push_back({calibration.view_ids[v], calibration.cameras[v].width_px(),
+                        calibration.cameras[v].height_px(), std::nullopt});
+    }
+    start_self_calibration(topology, ids, priors, assoc::AssociationOptions{});
+    return {};
+  }
   return make_engine(topology, calibration, assoc::AssociationOptions{});
 }
 
@@ -268,8 +285,81 @@ Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, dou
       !s.ok()) {
     return s;
   }
-  if (!calibration) return {};
+  if (!calibration) {
+    if (config_.calibration.empty() && calibration_state_ == CalibrationState::kMissing) {
+      std::vector<int> ids;
+      std::vector<calib::CameraPrior> priors;
+      for (std::size_t v = 0; v < disc.cameras.size(); ++v) {
+        ids.push_back(static_cast<int>(v));
+        priors.push_back({std::to_string(v), 0, 0, std::nullopt});
+      }
+      start_self_calibration(coco17_topology(), ids, priors, assoc::posenet_coco17_options());
+    }
+    return {};
+  }
   return make_engine(coco17_topology(), *calibration, assoc::posenet_coco17_options());
+}
+
+void Daemon::start_self_calibration(const SkeletonTopology& topology, std::vector<int> view_ids,
+                                    std::vector<calib::CameraPrior> priors,
+                                    const assoc::AssociationOptions& options) {
+  if (!config_.self_calibrate) return;
+  calib::BackgroundCalibratorOptions bo;
+  bo.first_attempt_frames = config_.self_calibration_frames;
+  bo.retry_frames = config_.self_calibration_frames;
+  bo.max_frames = std::max(bo.max_frames, 4 * config_.self_calibration_frames);
+  calibrator_ = std::make_unique<calib::BackgroundCalibrator>(topology, std::move(view_ids),
+                                                              std::move(priors), bo);
+  calibration_topology_ = &topology;
+  calibration_assoc_options_ = options;
+  calibration_state_ = CalibrationState::kCalibrating;
+  // The "no calibration" problem becomes what the box is doing about it.
+  problems_.erase(std::remove_if(problems_.begin(), problems_.end(),
+                                 [](const std::string& p) {
+                                   return p.find("have no calibration") != std::string::npos;
+                                 }),
+                  problems_.end());
+  problems_.push_back(
+      "no calibration yet: calibrating from the people walking in the room (2D detections "
+      "meanwhile); walk around the whole area for about a minute (progress under "
+      "calibration.progress)");
+  MOCAP_LOG(Daemon, Warn) << problems_.back();
+}
+
+void Daemon::adopt_self_calibration(const calib::SelfCalibrationResult& result) {
+  const Calibration& cal = *result.calibration;
+  const fs::path path = fs::path(config_.state_dir) / "calibration.json";
+  std::error_code ec;
+  fs::create_directories(config_.state_dir, ec);
+  const Status written = calib::write_calibration_durably(cal, path);
+  auto eng = assoc::Engine::create(*calibration_topology_, cal.cameras, calibration_assoc_options_);
+  std::lock_guard<std::mutex> lock(state_mu_);
+  problems_.erase(std::remove_if(problems_.begin(), problems_.end(),
+                                 [](const std::string& p) {
+                                   return p.find("calibrating from the people") !=
+                                          std::string::npos;
+                                 }),
+                  problems_.end());
+  if (!eng.ok()) {
+    calibration_state_ = CalibrationState::kInvalid;
+    problems_.push_back("the self-calibration cannot drive the engine: " + eng.error().message());
+    MOCAP_LOG(Daemon, Error) << problems_.back();
+    return;
+  }
+  if (!written.ok()) {
+    problems_.push_back("self-calibrated, but the calibration is not saved (used until restart): " +
+                        written.error().message());
+    MOCAP_LOG(Daemon, Error) << problems_.back();
+  }
+  calibration_state_ = CalibrationState::kOk;
+  calibration_file_ = written.ok() ? path.string() : "(self-calibration, not saved)";
+  self_calibration_report_ = calib::quality_to_json(result.quality);
+  cameras_ = cal.cameras;
+  engine_ = std::move(*eng);
+  pipeline_->set_engine(engine_.get());
+  MOCAP_LOG(Daemon, Info) << "self-calibrated (" << result.quality.median_px
+                          << " px median reprojection): skeletons from now on, calibration "
+                          << calibration_file_;
 }
 
 Status Daemon::open_trigger(const hal::Discovery& disc, double rate_hz) {
@@ -364,6 +454,16 @@ Status Daemon::start() {
         });
     sinks.push_back(hook_sink_.get());
   }
+  if (calibrator_) {
+    calibration_sink_ = std::make_unique<pipeline::CallbackSink>(
+        "self-calibration", [this](const pipeline::PipelineFrame& f) {
+          if (f.result) return Status{};
+          calibrator_->add(f.detections);
+          if (auto r = calibrator_->take_result()) adopt_self_calibration(*r);
+          return Status{};
+        });
+    sinks.push_back(calibration_sink_.get());
+  }
   pipeline::PipelineOptions po;
   po.queue_depth = config_.queue_depth;
   po.realtime_priority = config_.realtime_priority;
@@ -447,7 +547,13 @@ pipeline::PipelineMetrics Daemon::metrics() const {
 
 // ---------------------------------------------------------------------------- status
 
+bool Daemon::calibrated() const {
+  std::lock_guard<std::mutex> lock(state_mu_);
+  return engine_ != nullptr;
+}
+
 std::string Daemon::health_json() const {
+  std::lock_guard<std::mutex> lock(state_mu_);
   json j;
   const pipeline::Pipeline* pipe = pipeline_view_.load();
   const pipeline::PipelineMetrics m = metrics();
@@ -466,6 +572,22 @@ std::string Daemon::health_json() const {
   j["calibration"] = {{"state", std::string(to_string(calibration_state_))},
                       {"file", calibration_file_},
                       {"views", cameras_.size()}};
+  if (calibrator_) {
+    const calib::CalibrationProgress cp = calibrator_->progress();
+    json views = json::object();
+    for (std::size_t v = 0; v < cp.view_ids.size(); ++v) {
+      views[cp.view_ids[v]] = cp.frames_with_people[v];
+    }
+    j["calibration"]["progress"] = {{"state", cp.state},
+                                    {"frames", cp.frames},
+                                    {"frames_with_people", views},
+                                    {"attempts", cp.attempts},
+                                    {"last_refusal", cp.last_refusal},
+                                    {"what_to_do", cp.hint}};
+  }
+  if (!self_calibration_report_.empty()) {
+    j["calibration"]["self_calibration"] = json::parse(self_calibration_report_, nullptr, false);
+  }
   j["gpu"] = {{"backend", gpu_backend_}, {"device", gpu_description_}};
   if (detector_) {
     // The network(s) and their input, the 3D-guided crops when on, or why auto left them off.

@@ -7,7 +7,10 @@
 //   int rc = d->run([] { return g_stop; });       // until the source ends or a stop request
 //
 // With cameras but no usable calibration the daemon still runs: it streams per-view 2D
-// detections and its status names the cameras and the fix. A calibration or config the user
+// detections, calibrates itself from the people walking in the room (state "calibrating",
+// progress in /health) and switches to skeletons once it has, writing
+// <state_dir>/calibration.json; with self_calibrate off its status names the cameras and the
+// fix. A calibration or config the user
 // named explicitly that cannot be used is an error at create().
 #pragma once
 
@@ -16,11 +19,13 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "runtime/calib/self_calibration.h"
 #include "runtime/core/error.h"
 #include "runtime/geometry/calibration.h"
 #include "runtime/pipeline/pipeline.h"
@@ -37,6 +42,10 @@ namespace mocap::hal {
 class TriggerMaster;
 struct Discovery;
 }  // namespace mocap::hal
+namespace mocap::calib {
+class BackgroundCalibrator;
+struct SelfCalibrationResult;
+}  // namespace mocap::calib
 
 namespace mocap::daemon {
 
@@ -45,7 +54,7 @@ struct DaemonHooks {
   std::function<void(const pipeline::PipelineFrame&)> on_frame;
 };
 
-enum class CalibrationState { kOk, kMissing, kInvalid, kMismatch };
+enum class CalibrationState { kOk, kMissing, kInvalid, kMismatch, kCalibrating };
 std::string_view to_string(CalibrationState state);  // "ok", "missing", ...
 
 class Daemon {
@@ -70,7 +79,7 @@ class Daemon {
   int http_port() const;
   pipeline::PipelineMetrics metrics() const;
   const std::vector<std::string>& problems() const { return problems_; }
-  bool calibrated() const { return engine_ != nullptr; }
+  bool calibrated() const;
   // The calibrated views (empty when not calibrated), in the engine's view order.
   const std::vector<Camera>& cameras() const { return cameras_; }
   const std::string& source_kind() const { return source_kind_; }
@@ -91,10 +100,19 @@ class Daemon {
                   const std::vector<Camera>& sized_views);
   Status make_engine(const SkeletonTopology& topology, const Calibration& calibration,
                      const assoc::AssociationOptions& options);
+  // No usable calibration: calibrate from people walking while streaming 2D detections
+  // (config self_calibrate); `priors` per view (image sizes may be 0: taken from the frames).
+  void start_self_calibration(const SkeletonTopology& topology, std::vector<int> view_ids,
+                              std::vector<calib::CameraPrior> priors,
+                              const assoc::AssociationOptions& options);
+  // On the assoc thread: the self-calibration's result written to <state_dir>/calibration.json
+  // and its engine started.
+  void adopt_self_calibration(const calib::SelfCalibrationResult& result);
   void log_status() const;
 
   DaemonConfig config_;
   DaemonHooks hooks_;
+  mutable std::mutex state_mu_;  // what adopt_self_calibration changes while health_json reads
   std::string source_kind_;
   std::string board_name_;
   CalibrationState calibration_state_ = CalibrationState::kMissing;
@@ -108,6 +126,11 @@ class Daemon {
   std::vector<Camera> cameras_;
   std::unique_ptr<gpu::CnnDetector> detector_;
   std::unique_ptr<assoc::Engine> engine_;
+  std::unique_ptr<calib::BackgroundCalibrator> calibrator_;
+  const SkeletonTopology* calibration_topology_ = nullptr;  // of the self-calibration's engine
+  assoc::AssociationOptions calibration_assoc_options_;
+  std::string self_calibration_report_;  // the quality JSON of the adopted self-calibration
+  std::unique_ptr<pipeline::CallbackSink> calibration_sink_;
   std::unique_ptr<pipeline::FrameSource> pending_source_;  // until start() hands it over
   std::unique_ptr<hal::TriggerMaster> trigger_;
   std::unique_ptr<net::StreamServer> server_;

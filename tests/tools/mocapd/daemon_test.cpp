@@ -21,6 +21,9 @@
 #include <vector>
 
 #include "hal/camera_source.h"
+#include "runtime/calib/compare.h"
+#include "runtime/geometry/calibration.h"
+#include "runtime/sim/simulator_source.h"
 #include "tests/support/line_client.h"
 #include "tests/support/temp_dir.h"
 #include "tools/mocapd/daemon.h"
@@ -115,6 +118,98 @@ TEST(DaemonSimulator, StreamsTheSimulatedPeopleWhenNoCameraIsAttached) {
   EXPECT_GE(h["pipeline"]["frames_out"].get<int>(), kMessages - 1);
   EXPECT_TRUE(h["pipeline"]["latency"]["end_to_end"].contains("p99_ms"));
   EXPECT_EQ(h["stream"]["clients"], 1);
+  (*d)->stop();
+}
+
+json health_of(const Daemon& d) {
+  return json::parse(testing::http_body(testing::http_get(d.http_port(), "/health")), nullptr,
+                     false);
+}
+
+// Waits until /health says the calibration is "ok" (true) or the time is up (false).
+bool wait_calibrated(const Daemon& d, int timeout_s, json& last) {
+  for (int i = 0; i < timeout_s * 4; ++i) {
+    last = health_of(d);
+    if (!last.is_discarded() && last["calibration"]["state"] == "ok") return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+  }
+  return false;
+}
+
+// Zero configuration: the simulator keeps its rig to itself, so the box has cameras and no
+// calibration; it streams 2D detections, shows its progress, calibrates itself in the
+// background, writes <state_dir>/calibration.json and switches to skeletons of both people.
+TEST(DaemonSimulator, CalibratesItselfFromThePeopleThenStreamsSkeletons) {
+  testing::TestTempDir dir("mocapd_selfcal");
+  DaemonConfig c = sim_config(dir);
+  c.sim_calibrated = false;
+  c.self_calibration_frames = 300;
+  auto d = Daemon::create(c);
+  ASSERT_TRUE(d.ok()) << d.error().message();
+  EXPECT_FALSE((*d)->calibrated());
+  ASSERT_TRUE((*d)->start().ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  json h = health_of(**d);
+  ASSERT_FALSE(h.is_discarded());
+  EXPECT_EQ(h["calibration"]["state"], "calibrating");
+  EXPECT_EQ(h["output"], "detections");
+  EXPECT_GT(h["calibration"]["progress"]["frames"].get<int>(), 0);
+  EXPECT_EQ(h["calibration"]["progress"]["frames_with_people"].size(), 4u);
+  EXPECT_FALSE(h["calibration"]["progress"]["what_to_do"].get<std::string>().empty());
+  ASSERT_TRUE(wait_calibrated(**d, 400, h)) << h.dump();
+  EXPECT_EQ(h["output"], "skeletons");
+  EXPECT_EQ(h["calibration"]["views"], 4);
+  EXPECT_TRUE(h["calibration"]["self_calibration"]["ok"].get<bool>());
+  EXPECT_LT(h["calibration"]["self_calibration"]["reprojection_median_px"].get<double>(), 3.0);
+  const fs::path file = fs::path(c.state_dir) / "calibration.json";
+  EXPECT_EQ(h["calibration"]["file"], file.string());
+  auto cal = load_calibration(file);
+  ASSERT_TRUE(cal.ok()) << cal.error().message();
+  EXPECT_EQ(cal->size(), 4u);
+  EXPECT_FALSE(fs::exists(file.string() + ".tmp"));
+  // Against the rig the simulator kept to itself.
+  auto sim = sim::SimulatorSource::open({});
+  ASSERT_TRUE(sim.ok());
+  auto cmp = calib::compare_calibrations((*sim)->calibration(), *cal);
+  ASSERT_TRUE(cmp.ok()) << cmp.error().message();
+  EXPECT_LE(cmp->max_rotation_deg, 0.5);
+  EXPECT_LE(cmp->median_center_m, 0.03);
+  // Skeletons of both people on the stream from now on.
+  testing::LineClient client((*d)->stream_port());
+  ASSERT_TRUE(client.connected());
+  int with_two = 0;
+  for (int i = 0; i < 60; ++i) {
+    auto line = client.read_line(30000);
+    ASSERT_TRUE(line) << "no message " << i;
+    json m = json::parse(*line, nullptr, false);
+    ASSERT_EQ(m["type"], "skeletons");
+    with_two += m["persons"].size() == 2 ? 1 : 0;
+  }
+  EXPECT_GE(with_two, 40);
+  (*d)->stop();
+}
+
+// A state folder that cannot be written: the calibration is still used (skeletons), /health
+// names the path, nothing half-written is left.
+TEST(DaemonSimulator, SelfCalibrationThatCannotBeSavedIsNamedAndStillUsed) {
+  testing::TestTempDir dir("mocapd_selfcal_ro");
+  DaemonConfig c = sim_config(dir);
+  c.sim_calibrated = false;
+  c.self_calibration_frames = 300;
+  const fs::path blocker = dir.path() / "not-a-folder";
+  std::ofstream(blocker) << "x";
+  c.state_dir = (blocker / "state").string();
+  auto d = Daemon::create(c);
+  ASSERT_TRUE(d.ok()) << d.error().message();
+  ASSERT_TRUE((*d)->start().ok());
+  json h;
+  ASSERT_TRUE(wait_calibrated(**d, 400, h)) << h.dump();
+  EXPECT_EQ(h["output"], "skeletons");
+  bool named = false;
+  for (const json& p : h["problems"]) {
+    named = named || p.get<std::string>().find("not saved") != std::string::npos;
+  }
+  EXPECT_TRUE(named) << h["problems"].dump();
   (*d)->stop();
 }
 
