@@ -43,7 +43,57 @@ struct BoneLength {
   double w;
 };
 
+// Reprojection of X (relative to the camera centre) in normalised coordinates: the centre is
+// held, only the rotation moves.
+struct NormalisedReprojection {
+  NormalisedReprojection(const Eigen::Vector3d& X, const Eigen::Vector2d& x) : X_(X), x_(x) {}
+  template <typename T>
+  bool operator()(const T* aa, T* r) const {
+    const T p[3] = {T(X_.x()), T(X_.y()), T(X_.z())};
+    T q[3];
+    ceres::AngleAxisRotatePoint(aa, p, q);
+    if (q[2] < T(1e-9)) q[2] = T(1e-9);
+    r[0] = q[0] / q[2] - T(x_.x());
+    r[1] = q[1] / q[2] - T(x_.y());
+    return true;
+  }
+  Eigen::Vector3d X_;
+  Eigen::Vector2d x_;
+};
+
 }  // namespace
+
+int refine_rotation_robust(const std::vector<Eigen::Vector3d>& X,
+                           const std::vector<Eigen::Vector2d>& x, const std::vector<double>& scales,
+                           Eigen::Matrix3d& R, Eigen::Vector3d& t) {
+  const Eigen::Vector3d centre = -R.transpose() * t;
+  Eigen::AngleAxisd a(R);
+  Eigen::Vector3d aa = a.angle() * a.axis();
+  for (double scale : scales) {
+    ceres::Problem problem;
+    for (std::size_t i = 0; i < X.size(); ++i) {
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<NormalisedReprojection, 2, 3>(
+                                   new NormalisedReprojection(X[i] - centre, x[i])),
+                               new ceres::CauchyLoss(scale), aa.data());
+    }
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_QR;
+    so.max_num_iterations = 30;
+    so.logging_type = ceres::SILENT;
+    ceres::Solver::Summary sum;
+    ceres::Solve(so, &problem, &sum);
+  }
+  const double angle = aa.norm();
+  R = angle < 1e-15 ? Eigen::Matrix3d::Identity()
+                    : Eigen::AngleAxisd(angle, aa / angle).toRotationMatrix();
+  t = -R * centre;
+  int in = 0;
+  for (std::size_t i = 0; i < X.size(); ++i) {
+    const Eigen::Vector3d q = R * X[i] + t;
+    in += q.z() > 0 && (q.hnormalized() - x[i]).norm() < scales.back();
+  }
+  return in;
+}
 
 Eigen::Matrix3d rotation_of(const BundleCamera& c) {
   const double angle = c.angle_axis.norm();

@@ -62,6 +62,15 @@ struct BundleSummary {
 // Adjusts the registered cameras and the valid points seen by them (inlier observations only).
 BundleSummary run_bundle(BundleProblem& problem, const BundleOptions& options);
 
+// A camera's rotation refined from a guess, its centre held (a bumped camera turns), against
+// world points and normalised image points that may be wrong (other people's joints):
+// Cauchy-robust least squares at each scale of `scales` (normalised units, large to small: the
+// far-off pairs stop pulling as the scale shrinks). t follows the rotation. Returns the
+// points within the last scale.
+int refine_rotation_robust(const std::vector<Eigen::Vector3d>& X,
+                           const std::vector<Eigen::Vector2d>& x, const std::vector<double>& scales,
+                           Eigen::Matrix3d& R, Eigen::Vector3d& t);
+
 // Reprojection (pixels) of an observation; +inf when the point is behind the camera.
 double reprojection_px(const BundleProblem& problem, const BundleObservation& o);
 Eigen::Matrix3d rotation_of(const BundleCamera& c);

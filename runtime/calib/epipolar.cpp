@@ -199,4 +199,100 @@ RelativePose relative_pose(const Eigen::Matrix3d& E, std::span<const Eigen::Vect
   return best;
 }
 
+// [R | t] from >= 6 world points and their normalised image points (DLT, conditioned).
+bool pnp_dlt(const std::vector<Eigen::Vector3d>& X, const std::vector<Eigen::Vector2d>& x,
+             Eigen::Matrix3d& R, Eigen::Vector3d& t) {
+  const std::size_t n = X.size();
+  if (n < 6) return false;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : X) mean += p;
+  mean /= static_cast<double>(n);
+  double s = 0;
+  for (const auto& p : X) s += (p - mean).norm();
+  s = s > 0 ? static_cast<double>(n) * std::sqrt(3.0) / s : 1.0;
+  Eigen::Matrix<double, 12, 12> AtA = Eigen::Matrix<double, 12, 12>::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector4d Xh = ((X[i] - mean) * s).homogeneous();
+    Eigen::Matrix<double, 12, 1> r0, r1;
+    r0 << Xh, Eigen::Vector4d::Zero(), -x[i].x() * Xh;
+    r1 << Eigen::Vector4d::Zero(), Xh, -x[i].y() * Xh;
+    AtA.selfadjointView<Eigen::Lower>().rankUpdate(r0);
+    AtA.selfadjointView<Eigen::Lower>().rankUpdate(r1);
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> es(
+      AtA.selfadjointView<Eigen::Lower>());
+  const Eigen::Matrix<double, 12, 1> v = es.eigenvectors().col(0);
+  Eigen::Matrix<double, 3, 4> P;
+  P << v.segment<4>(0).transpose(), v.segment<4>(4).transpose(), v.segment<4>(8).transpose();
+  // Undo the conditioning: X' = s (X - mean).
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  T.topLeftCorner<3, 3>() *= s;
+  T.topRightCorner<3, 1>() = -s * mean;
+  P = P * T;
+  Eigen::Matrix3d M = P.leftCols<3>();
+  if (M.determinant() < 0) P = -P, M = -M;
+  Eigen::JacobiSVD<Eigen::Matrix3d> ms(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  R = ms.matrixU() * ms.matrixV().transpose();
+  const double scale = ms.singularValues().mean();
+  if (!(scale > 0)) return false;
+  t = P.col(3) / scale;
+  return R.allFinite() && t.allFinite();
+}
+
+// [R | t] of a camera from world points and their normalised image points: DLT on 6-point
+// samples in RANSAC (inlier: reprojection < threshold, normalised units), refitted on the
+// inliers. Returns the inlier count (0 with fewer than 6 points).
+int pnp_ransac(const std::vector<Eigen::Vector3d>& X, const std::vector<Eigen::Vector2d>& x,
+               double thr, int iterations, std::uint64_t seed, Eigen::Matrix3d& best_R,
+               Eigen::Vector3d& best_t) {
+  if (X.size() < 6) return 0;
+  std::mt19937_64 rng(seed);
+  auto inliers_of = [&](const Eigen::Matrix3d& R, const Eigen::Vector3d& t, std::vector<int>* idx) {
+    int n = 0;
+    for (std::size_t i = 0; i < X.size(); ++i) {
+      const Eigen::Vector3d c = R * X[i] + t;
+      if (c.z() <= 0 || (c.hnormalized() - x[i]).norm() > thr) continue;
+      ++n;
+      if (idx != nullptr) idx->push_back(static_cast<int>(i));
+    }
+    return n;
+  };
+  int best = 0;
+  std::vector<Eigen::Vector3d> sX(6);
+  std::vector<Eigen::Vector2d> sx(6);
+  const int cap = iterations;
+  for (int it = 0; it < iterations; ++it) {
+    for (std::size_t k = 0; k < 6; ++k) {
+      const std::size_t i = static_cast<std::size_t>(rng() % X.size());
+      sX[k] = X[i];
+      sx[k] = x[i];
+    }
+    Eigen::Matrix3d R;
+    Eigen::Vector3d t;
+    if (!pnp_dlt(sX, sx, R, t)) continue;
+    const int n = inliers_of(R, t, nullptr);
+    if (n > best) {
+      best = n, best_R = R, best_t = t;
+      iterations = std::min(iterations, ransac_iterations(n, X.size(), 6, cap));
+    }
+  }
+  for (int refit = 0; refit < 2 && best >= 6; ++refit) {
+    std::vector<int> idx;
+    inliers_of(best_R, best_t, &idx);
+    std::vector<Eigen::Vector3d> iX;
+    std::vector<Eigen::Vector2d> ix;
+    for (int i : idx) {
+      iX.push_back(X[static_cast<std::size_t>(i)]);
+      ix.push_back(x[static_cast<std::size_t>(i)]);
+    }
+    Eigen::Matrix3d R;
+    Eigen::Vector3d t;
+    if (!pnp_dlt(iX, ix, R, t)) break;
+    const int n = inliers_of(R, t, nullptr);
+    if (n < best) break;
+    best = n, best_R = R, best_t = t;
+  }
+  return best;
+}
+
 }  // namespace mocap::calib

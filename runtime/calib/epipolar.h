@@ -60,4 +60,17 @@ RelativePose relative_pose(const Eigen::Matrix3d& E, std::span<const Eigen::Vect
 Eigen::Vector3d triangulate_normalized(std::span<const Eigen::Matrix<double, 3, 4>> poses,
                                        std::span<const Eigen::Vector2d> x);
 
+// [R | t] (world -> camera) from >= 6 world points and their normalised image points: the DLT
+// of the 3 x 4 projection (conditioned), its rotation part made orthonormal. false when the
+// points are degenerate.
+bool pnp_dlt(const std::vector<Eigen::Vector3d>& X, const std::vector<Eigen::Vector2d>& x,
+             Eigen::Matrix3d& R, Eigen::Vector3d& t);
+
+// The DLT on 6-point samples in RANSAC (inlier: reprojection < thr, normalised units; at most
+// `iterations`, fewer once the inlier ratio allows), refitted on the inliers. Returns the
+// inlier count (0 with fewer than 6 points); R, t untouched then.
+int pnp_ransac(const std::vector<Eigen::Vector3d>& X, const std::vector<Eigen::Vector2d>& x,
+               double thr, int iterations, std::uint64_t seed, Eigen::Matrix3d& best_R,
+               Eigen::Vector3d& best_t);
+
 }  // namespace mocap::calib

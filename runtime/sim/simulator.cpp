@@ -1,5 +1,9 @@
 #include "runtime/sim/simulator.h"
 
+#include <Eigen/Geometry>
+
+#include <cmath>
+
 #include <utility>
 
 namespace mocap::sim {
@@ -42,6 +46,17 @@ Result<RenderedFrame> Simulator::next() {
   RenderedFrame out;
   if (Status s = next(out); !s.ok()) return s.error();
   return out;
+}
+
+bool Simulator::turn_camera(std::size_t view, double degrees) {
+  if (view >= rig_.cameras.size()) return false;
+  Camera& cam = rig_.cameras[view];
+  const Eigen::Vector3d centre = cam.center_m();
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(degrees * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix() *
+      cam.R();
+  cam.set_pose(R, -R * centre);
+  return true;
 }
 
 }  // namespace mocap::sim

@@ -34,6 +34,9 @@ class Simulator {
   Status next(RenderedFrame& out);
 
   const Calibration& rig() const { return rig_; }
+  // Turns camera `view` about its own vertical (image y) axis by `degrees`, its centre kept:
+  // what a bumped camera does to the detections from the next frame on. false: no such view.
+  bool turn_camera(std::size_t view, double degrees);
   // Ground truth of the frame last returned by next() (frame 0 before the first call).
   SkeletonSet truth() const { return truth_; }
   const SkeletonSet& truth_ref() const { return truth_; }

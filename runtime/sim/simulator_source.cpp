@@ -19,6 +19,10 @@ Status SimulatorSourceOptions::validate() const {
     return Error(ErrorCode::kInvalidArgument,
                  "simulator people must be in [0, 16], got " + std::to_string(people));
   }
+  if (bump_view >= views || bump_frame < 0 || !(std::abs(bump_deg) <= 90)) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "simulator bump: bump_view must be < views, bump_frame >= 0 and |bump_deg| <= 90");
+  }
   if (views < 2 || views > 16) {
     return Error(ErrorCode::kInvalidArgument,
                  "simulator views must be in [2, 16], got " + std::to_string(views));
@@ -58,6 +62,9 @@ Result<pipeline::SourceStatus> SimulatorSource::next(pipeline::SourceItem& out, 
   const auto period_ns = static_cast<std::int64_t>(1e9 / options_.frame_rate_hz);
   const std::int64_t due = start_ns_ + static_cast<std::int64_t>(k) * period_ns;
   if (options_.paced && !sleep_until_ns(due, timeout_ms)) return pipeline::SourceStatus::kTimeout;
+  if (options_.bump_view >= 0 && static_cast<std::int64_t>(k) == options_.bump_frame) {
+    sim_->turn_camera(static_cast<std::size_t>(options_.bump_view), options_.bump_deg);
+  }
   Result<RenderedFrame> r = sim_->next();
   if (!r.ok()) return r.error();
   DetectionSet d = std::move(r->detections);

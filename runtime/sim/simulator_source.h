@@ -22,6 +22,11 @@ struct SimulatorSourceOptions {
   double frame_rate_hz = 30;  // (0, 1000]
   bool paced = true;          // false: no waiting between frames
   std::int64_t frames = -1;   // the source ends after this many; -1 = never
+  // A bumped camera: view bump_view turned by bump_deg about its vertical axis from frame
+  // bump_frame on (-1: none). Shows the calibration check at work.
+  int bump_view = -1;
+  std::int64_t bump_frame = 0;
+  double bump_deg = 0;
   Status validate() const;
 };
 

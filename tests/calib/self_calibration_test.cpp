@@ -10,9 +10,11 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <filesystem>
 #include <random>
 #include <string>
 
+#include "runtime/calib/background.h"
 #include "runtime/calib/compare.h"
 #include "runtime/calib/epipolar.h"
 #include "runtime/sim/simulator.h"
@@ -308,6 +310,68 @@ TEST(People2DTest, ParsesAndTracksSimulatedPeople) {
   std::size_t longest = 0;
   for (const Tracklet& t : tracklets) longest = std::max(longest, t.frames.size());
   EXPECT_GT(longest, 50u);
+}
+
+}  // namespace
+}  // namespace mocap::calib
+
+namespace mocap::calib {
+namespace {
+
+TEST(EpipolarTest, PnpRansacWithHalfOutliers) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.1, 1, 0.2).normalized()).toRotationMatrix();
+  const Eigen::Vector3d t(0.2, -0.1, 4);
+  std::vector<Eigen::Vector3d> X;
+  std::vector<Eigen::Vector2d> x;
+  for (int i = 0; i < 400; ++i) {
+    const Eigen::Vector3d p(u(rng), u(rng), 0.9 * u(rng));
+    X.push_back(p);
+    x.push_back((R * p + t).hnormalized() + Eigen::Vector2d(u(rng), u(rng)) * 0.001);
+    if (i % 2 == 0) x.back() = Eigen::Vector2d(u(rng), u(rng)) * 0.3;
+  }
+  Eigen::Matrix3d Rf;
+  Eigen::Vector3d tf;
+  const int n = pnp_ransac(X, x, 0.004, 2000, 1, Rf, tf);
+  EXPECT_GE(n, 190);
+  EXPECT_LT(Eigen::AngleAxisd(Rf * R.transpose()).angle(), 0.01);
+  EXPECT_LT((tf - t).norm(), 0.05);
+}
+
+}  // namespace
+}  // namespace mocap::calib
+
+namespace mocap::calib {
+namespace {
+
+// The durable write: the file replaced whole, the previous one kept as .bak, no temporary
+// left; a folder that cannot be written is named and the old file stays as it was.
+TEST(CalibrationFileTest, DurableWriteKeepsTheOldOneAsBackup) {
+  const auto dir = std::filesystem::temp_directory_path() / "mocap_durable_write_test";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  auto rig = sim::make_ring_rig({});
+  ASSERT_TRUE(rig.ok());
+  const auto path = dir / "calibration.json";
+  ASSERT_TRUE(write_calibration_durably(*rig, path).ok());
+  Calibration moved = *rig;
+  moved.cameras[0].set_pose(moved.cameras[0].R(),
+                            moved.cameras[0].t_m() + Eigen::Vector3d(0.1, 0, 0));
+  ASSERT_TRUE(write_calibration_durably(moved, path).ok());
+  auto now = load_calibration(path);
+  auto backup = load_calibration(path.string() + ".bak");
+  ASSERT_TRUE(now.ok() && backup.ok());
+  EXPECT_NEAR((now->cameras[0].t_m() - rig->cameras[0].t_m()).x(), 0.1, 1e-9);
+  EXPECT_NEAR((backup->cameras[0].t_m() - rig->cameras[0].t_m()).norm(), 0, 1e-9);
+  EXPECT_FALSE(std::filesystem::exists(path.string() + ".tmp"));
+  const auto bad = dir / "calibration.json" / "x.json";  // a file is not a folder
+  const Status s = write_calibration_durably(*rig, bad);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message().find("x.json"), std::string::npos);
+  EXPECT_TRUE(load_calibration(path).ok());
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

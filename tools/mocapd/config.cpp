@@ -240,6 +240,20 @@ std::vector<OptionSpec> make_options() {
                       &DaemonConfig::sim_people, 0, 16));
   v.push_back(int_opt("sim_views", "cameras", "simulator board: virtual cameras",
                       &DaemonConfig::sim_views, 2, 16));
+  v.push_back(int_opt("sim_bump_view", "camera",
+                      "simulator board: turn this virtual camera mid-run, as if bumped (-1: none)",
+                      &DaemonConfig::sim_bump_view, -1, 15));
+  v.push_back(double_opt("sim_bump_after_s", "s", "simulator board: when the camera is turned",
+                         &DaemonConfig::sim_bump_after_s, 0, 86400));
+  v.push_back(double_opt("sim_bump_deg", "degrees",
+                         "simulator board: how far the camera is turned (about its vertical axis)",
+                         &DaemonConfig::sim_bump_deg, -90, 90));
+  v.push_back(bool_opt("calibration_check",
+                       "watch each camera's reprojection residuals against the skeletons; a "
+                       "camera that moved is named in /health and its pose solved again in the "
+                       "background and swapped in (saved to <state_dir>/calibration.json unless "
+                       "the calibration was named)",
+                       &DaemonConfig::calibration_check));
   v.push_back(bool_opt("sim_calibrated",
                        "simulator board: hand mocapd the virtual rig's calibration (false: the "
                        "box calibrates itself from the simulated people, as with real cameras)",

@@ -60,8 +60,12 @@ struct DaemonConfig {
   // Simulator (no camera)
   int sim_people = 2;
   int sim_views = 4;
-  bool sim_calibrated = true;  // false: the simulator keeps its rig to itself (self-calibration)
-  bool self_calibrate = true;  // cameras without a calibration calibrate from people walking
+  int sim_bump_view = -1;         // simulator: this virtual camera is turned mid-run (-1: none)
+  double sim_bump_after_s = 10;   // ... this many seconds after the start
+  double sim_bump_deg = 3;        // ... by this many degrees about its vertical axis
+  bool calibration_check = true;  // watch each camera's residuals; re-solve a bumped one
+  bool sim_calibrated = true;     // false: the simulator keeps its rig to itself (self-calibration)
+  bool self_calibrate = true;     // cameras without a calibration calibrate from people walking
   int self_calibration_frames = 250;  // frames collected before each self-calibration attempt
   // Status
   double status_log_interval_s = 30;

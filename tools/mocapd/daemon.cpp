@@ -11,6 +11,7 @@
 #include "hal/rig_source.h"
 #include "runtime/assoc/options.h"
 #include "runtime/calib/background.h"
+#include "runtime/calib/monitor.h"
 #include "runtime/core/clock.h"
 #include "runtime/core/log.h"
 #include "runtime/gpu/cnn_detector.h"
@@ -174,6 +175,9 @@ Status Daemon::open_simulator(double rate_hz) {
   so.people = config_.sim_people;
   so.views = config_.sim_views;
   so.frame_rate_hz = rate_hz;
+  so.bump_view = config_.sim_bump_view;
+  so.bump_frame = static_cast<std::int64_t>(config_.sim_bump_after_s * rate_hz);
+  so.bump_deg = config_.sim_bump_deg;
   auto src = sim::SimulatorSource::open(so);
   if (!src.ok()) return src.error().with_context("simulator");
   calibration_state_ = CalibrationState::kOk;
@@ -326,6 +330,56 @@ void Daemon::start_self_calibration(const SkeletonTopology& topology, std::vecto
   MOCAP_LOG(Daemon, Warn) << problems_.back();
 }
 
+void Daemon::start_calibration_check() {
+  if (!config_.calibration_check || calibration_.size() == 0) return;
+  monitor_ =
+      std::make_unique<calib::CalibrationMonitor>(calibration_, calib::CalibrationMonitorOptions{});
+}
+
+// Whether a re-solved or self-made calibration is written to <state_dir>: not over one the
+// user named, not for a recording's or the simulator's own.
+bool Daemon::persists_calibration() const {
+  return config_.calibration.empty() && source_kind_ != "replay" &&
+         !(source_kind_ == "simulator" && config_.sim_calibrated);
+}
+
+void Daemon::adopt_resolved_camera(const calib::ResolvedCamera& r) {
+  Calibration cal = calibration_;
+  cal.cameras[r.view] = r.camera;
+  auto eng = assoc::Engine::create(*calibration_topology_, cal.cameras, calibration_assoc_options_);
+  if (!eng.ok()) {
+    MOCAP_LOG(Daemon, Error) << "camera " << cal.view_ids[r.view]
+                             << " was solved again but the engine refused it: "
+                             << eng.error().message();
+    return;
+  }
+  Status written;
+  const fs::path path = fs::path(config_.state_dir) / "calibration.json";
+  if (persists_calibration()) {
+    std::error_code ec;
+    fs::create_directories(config_.state_dir, ec);
+    written = calib::write_calibration_durably(cal, path);
+  }
+  std::lock_guard<std::mutex> lock(state_mu_);
+  calibration_ = cal;
+  cameras_ = cal.cameras;
+  // The engine the assoc thread used until now stays alive (this runs on that thread, after
+  // it; the pipeline only reads the new pointer from the next frame).
+  retired_engines_.push_back(std::move(engine_));
+  engine_ = std::move(*eng);
+  pipeline_->set_engine(engine_.get());
+  if (persists_calibration() && written.ok()) calibration_file_ = path.string();
+  if (!written.ok()) {
+    problems_.push_back(
+        "camera " + cal.view_ids[r.view] +
+        " was solved again but not saved (used until restart): " + written.error().message());
+  }
+  MOCAP_LOG(Daemon, Warn) << "camera " << cal.view_ids[r.view] << " moved: its pose was solved "
+                          << "again (" << r.inliers << " joints fit) and swapped in"
+                          << (persists_calibration() && written.ok() ? ", saved to " + path.string()
+                                                                     : std::string());
+}
+
 void Daemon::adopt_self_calibration(const calib::SelfCalibrationResult& result) {
   const Calibration& cal = *result.calibration;
   const fs::path path = fs::path(config_.state_dir) / "calibration.json";
@@ -355,8 +409,10 @@ void Daemon::adopt_self_calibration(const calib::SelfCalibrationResult& result) 
   calibration_file_ = written.ok() ? path.string() : "(self-calibration, not saved)";
   self_calibration_report_ = calib::quality_to_json(result.quality);
   cameras_ = cal.cameras;
+  calibration_ = cal;
   engine_ = std::move(*eng);
   pipeline_->set_engine(engine_.get());
+  start_calibration_check();
   MOCAP_LOG(Daemon, Info) << "self-calibrated (" << result.quality.median_px
                           << " px median reprojection): skeletons from now on, calibration "
                           << calibration_file_;
@@ -421,6 +477,9 @@ Status Daemon::open_cnn(int views, const std::string& preferred_gpu,
 Status Daemon::make_engine(const SkeletonTopology& topology, const Calibration& calibration,
                            const assoc::AssociationOptions& options) {
   cameras_ = calibration.cameras;
+  calibration_ = calibration;
+  calibration_topology_ = &topology;
+  calibration_assoc_options_ = options;
   auto eng = assoc::Engine::create(topology, cameras_, options);
   if (!eng.ok()) return eng.error();
   engine_ = std::move(*eng);
@@ -454,12 +513,19 @@ Status Daemon::start() {
         });
     sinks.push_back(hook_sink_.get());
   }
-  if (calibrator_) {
+  if (engine_) start_calibration_check();
+  if (calibrator_ || monitor_ || config_.calibration_check) {
     calibration_sink_ = std::make_unique<pipeline::CallbackSink>(
-        "self-calibration", [this](const pipeline::PipelineFrame& f) {
-          if (f.result) return Status{};
-          calibrator_->add(f.detections);
-          if (auto r = calibrator_->take_result()) adopt_self_calibration(*r);
+        "calibration", [this](const pipeline::PipelineFrame& f) {
+          if (!f.result) {
+            if (!calibrator_) return Status{};
+            calibrator_->add(f.detections);
+            if (auto r = calibrator_->take_result()) adopt_self_calibration(*r);
+            return Status{};
+          }
+          if (!monitor_) return Status{};
+          monitor_->add(f.detections, f.result->skeletons);
+          if (auto r = monitor_->take_resolved()) adopt_resolved_camera(*r);
           return Status{};
         });
     sinks.push_back(calibration_sink_.get());
@@ -552,6 +618,48 @@ bool Daemon::calibrated() const {
   return engine_ != nullptr;
 }
 
+// /health's "calibration": the state and file, the self-calibration's progress or report, the
+// continuous check per view; a moved camera adds a problem. Called with state_mu_ held.
+nlohmann::json Daemon::calibration_json(std::vector<std::string>& problems) const {
+  json c = {{"state", std::string(to_string(calibration_state_))},
+            {"file", calibration_file_},
+            {"views", cameras_.size()}};
+  if (calibrator_) {
+    const calib::CalibrationProgress cp = calibrator_->progress();
+    json views = json::object();
+    for (std::size_t v = 0; v < cp.view_ids.size(); ++v) {
+      views[cp.view_ids[v]] = cp.frames_with_people[v];
+    }
+    c["progress"] = {{"state", cp.state},
+                     {"frames", cp.frames},
+                     {"frames_with_people", views},
+                     {"attempts", cp.attempts},
+                     {"last_refusal", cp.last_refusal},
+                     {"what_to_do", cp.hint}};
+  }
+  if (monitor_) {
+    json checks = json::array();
+    for (const calib::ViewCheck& v : monitor_->checks()) {
+      checks.push_back({{"view", v.view_id},
+                        {"baseline_px", v.baseline_px},
+                        {"recent_px", v.recent_px},
+                        {"moved", v.moved},
+                        {"resolved", v.resolves}});
+      if (!v.moved) continue;
+      char buf[200];
+      std::snprintf(buf, sizeof buf,
+                    "camera %s moved (residual %.1f px, normally %.1f px): solving its pose again",
+                    v.view_id.c_str(), v.recent_px, v.baseline_px);
+      problems.push_back(buf);
+    }
+    c["check"] = checks;
+  }
+  if (!self_calibration_report_.empty()) {
+    c["self_calibration"] = json::parse(self_calibration_report_, nullptr, false);
+  }
+  return c;
+}
+
 std::string Daemon::health_json() const {
   std::lock_guard<std::mutex> lock(state_mu_);
   json j;
@@ -559,6 +667,7 @@ std::string Daemon::health_json() const {
   const pipeline::PipelineMetrics m = metrics();
   std::vector<std::string> problems = problems_;
   if (!m.error.empty()) problems.push_back("pipeline stopped: " + m.error);
+  const json calibration = calibration_json(problems);
   j["status"] = !m.error.empty() ? "failed" : (problems.empty() ? "ok" : "degraded");
   j["problems"] = problems;
   j["version"] = kDaemonVersion;
@@ -569,25 +678,7 @@ std::string Daemon::health_json() const {
   if (pipe != nullptr) src["detail"] = json::parse(pipe->source().status_json(), nullptr, false);
   if (!notes_.empty()) src["notes"] = notes_;
   j["source"] = src;
-  j["calibration"] = {{"state", std::string(to_string(calibration_state_))},
-                      {"file", calibration_file_},
-                      {"views", cameras_.size()}};
-  if (calibrator_) {
-    const calib::CalibrationProgress cp = calibrator_->progress();
-    json views = json::object();
-    for (std::size_t v = 0; v < cp.view_ids.size(); ++v) {
-      views[cp.view_ids[v]] = cp.frames_with_people[v];
-    }
-    j["calibration"]["progress"] = {{"state", cp.state},
-                                    {"frames", cp.frames},
-                                    {"frames_with_people", views},
-                                    {"attempts", cp.attempts},
-                                    {"last_refusal", cp.last_refusal},
-                                    {"what_to_do", cp.hint}};
-  }
-  if (!self_calibration_report_.empty()) {
-    j["calibration"]["self_calibration"] = json::parse(self_calibration_report_, nullptr, false);
-  }
+  j["calibration"] = calibration;
   j["gpu"] = {{"backend", gpu_backend_}, {"device", gpu_description_}};
   if (detector_) {
     // The network(s) and their input, the 3D-guided crops when on, or why auto left them off.

@@ -14,6 +14,8 @@
 // named explicitly that cannot be used is an error at create().
 #pragma once
 
+#include <nlohmann/json.hpp>
+
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
@@ -44,6 +46,8 @@ struct Discovery;
 }  // namespace mocap::hal
 namespace mocap::calib {
 class BackgroundCalibrator;
+class CalibrationMonitor;
+struct ResolvedCamera;
 struct SelfCalibrationResult;
 }  // namespace mocap::calib
 
@@ -108,7 +112,14 @@ class Daemon {
   // On the assoc thread: the self-calibration's result written to <state_dir>/calibration.json
   // and its engine started.
   void adopt_self_calibration(const calib::SelfCalibrationResult& result);
+  // The continuous check of a calibrated box (config calibration_check).
+  void start_calibration_check();
+  // On the assoc thread: a camera the check solved again swapped in (and saved when
+  // persists_calibration()).
+  void adopt_resolved_camera(const calib::ResolvedCamera& r);
+  bool persists_calibration() const;
   void log_status() const;
+  nlohmann::json calibration_json(std::vector<std::string>& problems) const;
 
   DaemonConfig config_;
   DaemonHooks hooks_;
@@ -127,7 +138,10 @@ class Daemon {
   std::unique_ptr<gpu::CnnDetector> detector_;
   std::unique_ptr<assoc::Engine> engine_;
   std::unique_ptr<calib::BackgroundCalibrator> calibrator_;
-  const SkeletonTopology* calibration_topology_ = nullptr;  // of the self-calibration's engine
+  std::unique_ptr<calib::CalibrationMonitor> monitor_;
+  Calibration calibration_;                                      // what the engine runs on
+  std::vector<std::unique_ptr<assoc::Engine>> retired_engines_;  // replaced, kept alive
+  const SkeletonTopology* calibration_topology_ = nullptr;       // of the self-calibration's engine
   assoc::AssociationOptions calibration_assoc_options_;
   std::string self_calibration_report_;  // the quality JSON of the adopted self-calibration
   std::unique_ptr<pipeline::CallbackSink> calibration_sink_;
