@@ -317,17 +317,20 @@ void Daemon::start_self_calibration(const SkeletonTopology& topology, std::vecto
   calibration_topology_ = &topology;
   calibration_assoc_options_ = options;
   calibration_state_ = CalibrationState::kCalibrating;
-  // The "no calibration" problem becomes what the box is doing about it.
-  problems_.erase(std::remove_if(problems_.begin(), problems_.end(),
-                                 [](const std::string& p) {
-                                   return p.find("have no calibration") != std::string::npos;
-                                 }),
-                  problems_.end());
-  problems_.push_back(
-      "no calibration yet: calibrating from the people walking in the room (2D detections "
-      "meanwhile); walk around the whole area for about a minute (progress under "
-      "calibration.progress)");
-  MOCAP_LOG(Daemon, Warn) << problems_.back();
+  // The "no calibration" problem (naming the cameras) becomes what the box is doing about it.
+  const std::string doing =
+      "calibrating from the people walking in the room (2D detections meanwhile); walk around "
+      "the whole area for about a minute (progress under calibration.progress)";
+  auto it = std::find_if(problems_.begin(), problems_.end(), [](const std::string& p) {
+    return p.find("have no calibration") != std::string::npos;
+  });
+  if (it != problems_.end()) {
+    *it = it->substr(0, it->find("have no calibration")) + "have no calibration: " + doing;
+    MOCAP_LOG(Daemon, Warn) << *it;
+  } else {
+    problems_.push_back("no calibration yet: " + doing);
+    MOCAP_LOG(Daemon, Warn) << problems_.back();
+  }
 }
 
 void Daemon::start_calibration_check() {
@@ -513,7 +516,11 @@ Status Daemon::start() {
         });
     sinks.push_back(hook_sink_.get());
   }
-  if (engine_) start_calibration_check();
+  {
+    // GET /health may already read monitor_ (the server is up).
+    std::lock_guard<std::mutex> lock(state_mu_);
+    if (engine_) start_calibration_check();
+  }
   if (calibrator_ || monitor_ || config_.calibration_check) {
     calibration_sink_ = std::make_unique<pipeline::CallbackSink>(
         "calibration", [this](const pipeline::PipelineFrame& f) {
