@@ -160,12 +160,12 @@ void CalibrationMonitor::resolve(std::size_t view, Camera camera,
   vs.residuals.clear();
   vs.baseline_px = 0;
   vs.moved = false;
-  ++vs.resolves;
   resolved_ = ResolvedCamera{view, camera, inliers};
 }
 
 std::optional<ResolvedCamera> CalibrationMonitor::take_resolved() {
   std::lock_guard<std::mutex> lock(mu_);
+  if (resolved_) ++views_[resolved_->view].resolves;  // counted once handed out (swapped in)
   return std::exchange(resolved_, std::nullopt);
 }
 

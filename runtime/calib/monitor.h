@@ -38,7 +38,7 @@ struct ViewCheck {
   double baseline_px = 0;  // median residual of the baseline frames (0 until known)
   double recent_px = 0;    // median of the recent frames
   bool moved = false;      // flagged, not yet re-solved
-  int resolves = 0;        // poses solved again so far
+  int resolves = 0;        // poses solved again and handed out (swapped in) so far
 };
 
 struct ResolvedCamera {
