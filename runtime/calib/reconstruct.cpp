@@ -451,6 +451,18 @@ void add_bones(Reconstruction& rec, const SkeletonTopology& topology) {
 }
 
 // The view pair with the most inliers whose views are both unregistered: its relative pose.
+// Every group's person frames and observations, no camera registered yet.
+Reconstruction unregistered(const std::vector<std::vector<Tracklet>>& tracklets,
+                            const std::vector<PersonGroup>& groups,
+                            std::vector<BundleCamera> cameras, const SkeletonTopology& topology) {
+  Reconstruction rec;
+  rec.problem.cameras = std::move(cameras);
+  for (BundleCamera& c : rec.problem.cameras) c.registered = false;
+  build_person_frames(tracklets, groups, topology.joint_count(), rec);
+  build_observations(rec, mirror_joints(topology));
+  return rec;
+}
+
 // The matched view pairs, most inliers first.
 std::vector<const ViewPairMatch*> ranked_pairs(const std::vector<ViewPairMatch>& pairs) {
   std::vector<const ViewPairMatch*> out;
@@ -510,12 +522,8 @@ double registration_score(const std::vector<std::vector<Tracklet>>& tracklets,
                           int pair_rank) {
   const std::vector<const ViewPairMatch*> order = ranked_pairs(pairs);
   if (pair_rank < 0 || pair_rank >= static_cast<int>(order.size())) return 0;
-  Reconstruction rec;
-  rec.problem.cameras = std::move(cameras);
-  for (BundleCamera& c : rec.problem.cameras) c.registered = false;
+  Reconstruction rec = unregistered(tracklets, groups, std::move(cameras), topology);
   const std::vector<int> mirror = mirror_joints(topology);
-  build_person_frames(tracklets, groups, topology.joint_count(), rec);
-  build_observations(rec, mirror);
   BundleOptions bo;
   if (!initialise(rec, tracklets, *order[static_cast<std::size_t>(pair_rank)], mirror,
                   o.pnp_threshold_px, bo)
@@ -620,12 +628,8 @@ Result<Reconstruction> reconstruct(const std::vector<std::vector<Tracklet>>& tra
                                    std::vector<BundleCamera> cameras,
                                    const std::vector<std::string>& view_names,
                                    const SkeletonTopology& topology, const ReconstructOptions& o) {
-  Reconstruction rec;
-  rec.problem.cameras = std::move(cameras);
-  for (BundleCamera& c : rec.problem.cameras) c.registered = false;
+  Reconstruction rec = unregistered(tracklets, groups, std::move(cameras), topology);
   const std::vector<int> mirror = mirror_joints(topology);
-  build_person_frames(tracklets, groups, topology.joint_count(), rec);
-  build_observations(rec, mirror);
   const std::vector<const ViewPairMatch*> order = ranked_pairs(pairs);
   if (order.empty()) {
     return Error(ErrorCode::kInvalidArgument,

@@ -160,15 +160,24 @@ Calibration to_calibration(const Reconstruction& rec, const std::vector<CameraPr
   return out;
 }
 
-void fill_reprojection(const Reconstruction& rec, CalibrationQuality& q) {
-  std::vector<std::vector<double>> per_view(q.views.size());
-  std::vector<double> all;
+// The reprojection error (pixels) of every inlier observation of a valid point, per view and
+// all together.
+void reprojection_errors(const Reconstruction& rec, std::size_t views,
+                         std::vector<std::vector<double>>& per_view, std::vector<double>& all) {
+  per_view.assign(views, {});
+  all.clear();
   for (const BundleObservation& o : rec.problem.observations) {
     if (!o.inlier || !rec.problem.point_valid[static_cast<std::size_t>(o.point)]) continue;
     const double e = reprojection_px(rec.problem, o);
     per_view[static_cast<std::size_t>(o.camera)].push_back(e);
     all.push_back(e);
   }
+}
+
+void fill_reprojection(const Reconstruction& rec, CalibrationQuality& q) {
+  std::vector<std::vector<double>> per_view;
+  std::vector<double> all;
+  reprojection_errors(rec, q.views.size(), per_view, all);
   for (std::size_t v = 0; v < q.views.size(); ++v) {
     q.views[v].observations = static_cast<int>(per_view[v].size());
     q.views[v].median_px = median(per_view[v]);
@@ -255,14 +264,9 @@ std::vector<std::vector<Tracklet>> view_tracklets(const KeypointCollector& keypo
 // 0.4 % of its diagonal): the reconstruction bent around a wrong match. Empty when none.
 std::string reconstruction_doubt(const Reconstruction& rec,
                                  const std::vector<CameraPrior>& priors) {
-  std::vector<std::vector<double>> per_view(priors.size());
+  std::vector<std::vector<double>> per_view;
   std::vector<double> all;
-  for (const BundleObservation& o : rec.problem.observations) {
-    if (!o.inlier || !rec.problem.point_valid[static_cast<std::size_t>(o.point)]) continue;
-    const double e = reprojection_px(rec.problem, o);
-    per_view[static_cast<std::size_t>(o.camera)].push_back(e);
-    all.push_back(e);
-  }
+  reprojection_errors(rec, priors.size(), per_view, all);
   const double overall = median(all);
   for (std::size_t v = 0; v < priors.size(); ++v) {
     const double m = median(per_view[v]);

@@ -4,7 +4,6 @@
 // and 5 cm of Shelf's calibration, and `mocap eval shelf --calibration` at >= 96.5 strict PCP.
 #include <gtest/gtest.h>
 
-#include <cstdlib>
 #include <string>
 
 #include "runtime/geometry/calibration.h"
@@ -17,14 +16,6 @@ namespace mocap {
 namespace {
 
 const std::string kBin = std::string(MOCAP_BIN_DIR) + "/mocap";
-
-// The number after the last "key=" in `out`; -1 when absent. (No std::regex: GCC 12 warns
-// about its internals under the sanitizer build.)
-double last_value(const std::string& out, const std::string& key) {
-  const std::size_t at = out.rfind(key + "=");
-  if (at == std::string::npos) return -1;
-  return std::strtod(out.c_str() + at + key.size() + 1, nullptr);
-}
 
 TEST(CalibrateCliTest, SyntheticWritesCalibrationAndReport) {
   testing::TestTempDir dir("calibrate_cli");
@@ -41,7 +32,7 @@ TEST(CalibrateCliTest, SyntheticWritesCalibrationAndReport) {
   const std::string line = r.out.substr(last + 1);
   EXPECT_EQ(line.rfind("calibration_reprojection_px=", 0), 0u) << r.out;
   EXPECT_EQ(line.size() - line.find('.'), 4u) << line;  // two decimals and the newline
-  EXPECT_LT(last_value(r.out, "calibration_reprojection_px"), 3.0);
+  EXPECT_LT(testing::last_value(r.out, "calibration_reprojection_px"), 3.0);
   EXPECT_TRUE(load_calibration(out).ok());
   auto json = io::read_text_file(report);
   ASSERT_TRUE(json.ok());
@@ -49,8 +40,8 @@ TEST(CalibrateCliTest, SyntheticWritesCalibrationAndReport) {
   auto c =
       testing::run_process({kBin, "calib", "compare", truth, out}, dir.path(), "compare", 60000);
   ASSERT_EQ(c.exit_code, 0) << c.out << c.err;
-  EXPECT_LE(last_value(c.out, "max_rotation_deg"), 0.3) << c.out;
-  EXPECT_LE(last_value(c.out, "median_center_m"), 0.02) << c.out;
+  EXPECT_LE(testing::last_value(c.out, "max_rotation_deg"), 0.3) << c.out;
+  EXPECT_LE(testing::last_value(c.out, "median_center_m"), 0.02) << c.out;
 }
 
 TEST(CalibrateCliTest, BadArgumentsAndUnwritableOutputAreNamed) {
@@ -89,13 +80,13 @@ TEST(CalibrateCliTest, ShelfWithinTargetsOfItsCalibration) {
       testing::run_process({kBin, "calib", "compare", (shelf / "calibration.json").string(), out},
                            dir.path(), "compare", 60000);
   ASSERT_EQ(c.exit_code, 0) << c.out << c.err;
-  EXPECT_LE(last_value(c.out, "max_rotation_deg"), 1.2) << c.out;  // measured 1.07
-  EXPECT_LE(last_value(c.out, "median_center_m"), 0.05) << c.out;  // measured 0.023
+  EXPECT_LE(testing::last_value(c.out, "max_rotation_deg"), 1.2) << c.out;  // measured 1.07
+  EXPECT_LE(testing::last_value(c.out, "median_center_m"), 0.05) << c.out;  // measured 0.023
   auto e =
       testing::run_process({kBin, "eval", "shelf", "--data", shelf.string(), "--calibration", out},
                            dir.path(), "eval", 600000);
   ASSERT_EQ(e.exit_code, 0) << e.out << e.err;
-  EXPECT_GE(last_value(e.out, "avg_pcp"), 96.5) << e.out;  // measured 97.27
+  EXPECT_GE(testing::last_value(e.out, "avg_pcp"), 96.5) << e.out;  // measured 97.27
 }
 
 }  // namespace

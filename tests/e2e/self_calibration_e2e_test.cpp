@@ -6,7 +6,6 @@
 // the replay reprojects better with it, 9.7 px median against 12.9 px with the given one).
 #include <gtest/gtest.h>
 
-#include <cstdlib>
 #include <string>
 
 #include "runtime/geometry/calibration.h"
@@ -20,14 +19,6 @@ namespace {
 
 const std::string kBin = std::string(MOCAP_BIN_DIR) + "/mocap";
 
-// The number after the last "key=" in `out`; -1 when absent. (No std::regex: GCC 12 warns
-// about its internals under the sanitizer build.)
-double last_value(const std::string& out, const std::string& key) {
-  const std::size_t at = out.rfind(key + "=");
-  if (at == std::string::npos) return -1;
-  return std::strtod(out.c_str() + at + key.size() + 1, nullptr);
-}
-
 TEST(SelfCalibrationE2e, Pose2SimMultiFromTheVideosWithItsIntrinsics) {
   MOCAP_REQUIRE_DATA(data, "pose2sim_multi");
   testing::TestTempDir dir("selfcal_e2e");
@@ -37,7 +28,7 @@ TEST(SelfCalibrationE2e, Pose2SimMultiFromTheVideosWithItsIntrinsics) {
                                  "--keep-intrinsics", "--out", out, "--report", report},
                                 dir.path(), "calibrate", 900000);
   ASSERT_EQ(r.exit_code, 0) << r.how() << "\n" << r.out << r.err;
-  const double reprojection = last_value(r.out, "calibration_reprojection_px");
+  const double reprojection = testing::last_value(r.out, "calibration_reprojection_px");
   EXPECT_GT(reprojection, 0);
   EXPECT_LT(reprojection, 3.5) << r.out;
   auto cal = load_calibration(out);
@@ -47,8 +38,8 @@ TEST(SelfCalibrationE2e, Pose2SimMultiFromTheVideosWithItsIntrinsics) {
       testing::run_process({kBin, "calib", "compare", (data / "calibration.json").string(), out},
                            dir.path(), "compare", 60000);
   ASSERT_EQ(c.exit_code, 0) << c.out << c.err;
-  EXPECT_LE(last_value(c.out, "max_rotation_deg"), 7.0) << c.out;
-  EXPECT_LE(last_value(c.out, "median_center_m"), 0.25) << c.out;
+  EXPECT_LE(testing::last_value(c.out, "max_rotation_deg"), 7.0) << c.out;
+  EXPECT_LE(testing::last_value(c.out, "median_center_m"), 0.25) << c.out;
   auto json = io::read_text_file(report);
   ASSERT_TRUE(json.ok());
   EXPECT_NE(json->find("\"ok\": true"), std::string::npos);

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -112,6 +113,14 @@ inline ProcessResult run_process(const std::vector<std::string>& argv,
                                  int timeout_ms) {
   ChildProcess p(argv, log_dir, name);
   return p.wait(timeout_ms);
+}
+
+// The number after the last "key=" in a tool's output (its `key=value` summary line); -1 when
+// absent. (No std::regex: GCC 12 warns about its internals under the sanitizer build.)
+inline double last_value(const std::string& out, const std::string& key) {
+  const std::size_t at = out.rfind(key + "=");
+  if (at == std::string::npos) return -1;
+  return std::strtod(out.c_str() + at + key.size() + 1, nullptr);
 }
 
 }  // namespace mocap::testing
