@@ -88,6 +88,7 @@ std::size_t find_head_end(std::string_view buf, std::size_t from) {
 struct HttpRequest {
   std::string method;
   std::string path;                                          // the target without its query
+  std::string query;                                         // after '?', undecoded
   std::vector<std::pair<std::string, std::string>> headers;  // names lower-cased
 
   // The comma-separated tokens of every header `name`, lower-cased.
@@ -154,6 +155,9 @@ std::optional<HttpRequest> parse_request(std::string_view head) {
   HttpRequest req;
   req.method = std::string(method);
   req.path = std::string(target.substr(0, target.find('?')));
+  if (const std::size_t q = target.find('?'); q != std::string_view::npos) {
+    req.query = std::string(target.substr(q + 1));
+  }
 
   for (std::size_t i = 1; i < lines.size(); ++i) {
     const std::string_view line = lines[i];
@@ -178,6 +182,29 @@ std::string http_response(int code, std::string_view reason, std::string_view co
   out += "\r\n";
   out += body;
   return out;
+}
+
+std::string_view reason_phrase(int code) {
+  switch (code) {
+    case 200:
+      return "OK";
+    case 201:
+      return "Created";
+    case 400:
+      return "Bad Request";
+    case 404:
+      return "Not Found";
+    case 405:
+      return "Method Not Allowed";
+    case 409:
+      return "Conflict";
+    case 503:
+      return "Service Unavailable";
+    case 507:
+      return "Insufficient Storage";
+    default:
+      return code < 400 ? "OK" : "Error";
+  }
 }
 
 std::string text_response(int code, std::string_view reason, std::string_view body,
@@ -394,8 +421,8 @@ Status StreamServerOptions::validate() const {
 // ----------------------------------------------------------------------------------- Impl
 
 struct StreamServer::Impl {
-  Impl(const StreamServerOptions& opts, StatusProvider provider)
-      : options(opts), status(std::move(provider)) {}
+  Impl(const StreamServerOptions& opts, StatusProvider provider, RequestHandler h)
+      : options(opts), status(std::move(provider)), handler(std::move(h)) {}
   ~Impl() {
     close_listeners();
     if (wake_fd >= 0) ::close(wake_fd);
@@ -414,6 +441,7 @@ struct StreamServer::Impl {
 
   const StreamServerOptions options;
   const StatusProvider status;
+  const RequestHandler handler;
   int stream_listen_fd = -1;
   int http_listen_fd = -1;
   int wake_fd = -1;  // eventfd; open until destruction so a late publish() never writes a
@@ -845,6 +873,12 @@ void StreamServer::Impl::answer_request(Connection& c, std::size_t head_end) {
     respond(c, text_response(400, "Bad Request", "malformed HTTP request\n"));
     return;
   }
+  if (handler) {
+    if (std::optional<HttpReply> r = handler(req->method, req->path, req->query)) {
+      respond(c, http_response(r->status, reason_phrase(r->status), r->content_type, r->body));
+      return;
+    }
+  }
   if (req->method != "GET") {
     respond(c, text_response(405, "Method Not Allowed", "only GET is served\n", "Allow: GET\r\n"));
     return;
@@ -1003,9 +1037,10 @@ StreamServer::StreamServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) 
 StreamServer::~StreamServer() { stop(); }
 
 Result<std::unique_ptr<StreamServer>> StreamServer::start(const StreamServerOptions& options,
-                                                          StatusProvider status) {
+                                                          StatusProvider status,
+                                                          RequestHandler handler) {
   if (Status st = options.validate(); !st) return st.error();
-  auto impl = std::make_unique<Impl>(options, std::move(status));
+  auto impl = std::make_unique<Impl>(options, std::move(status), std::move(handler));
   impl->wake_fd = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   if (impl->wake_fd < 0) {
     return Error(ErrorCode::kIo, "stream server: eventfd failed: " + errno_text(errno));

@@ -29,6 +29,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -67,12 +68,25 @@ struct ServerStats {
 // The body of GET /health (a JSON object). Called on the server thread.
 using StatusProvider = std::function<std::string()>;
 
+// An answer of an extra endpoint.
+struct HttpReply {
+  int status = 200;  // 200, 201, 400, 404, 405, 409, 500, 503, 507
+  std::string content_type = "application/json";
+  std::string body;
+};
+// Extra endpoints (mocapd's /takes): called on the server thread, before the built-in routes,
+// with the method, the path and the query string (after '?', undecoded); nullopt = not this
+// handler's path (the built-in routes answer). Must return quickly: it holds up the server.
+using RequestHandler = std::function<std::optional<HttpReply>(
+    std::string_view method, std::string_view path, std::string_view query)>;
+
 class StreamServer {
  public:
   // Binds both ports (an error names the port and the fix, e.g. "port 9870 is in use: stop the
   // other mocapd or pass --stream-port") and starts the poll thread.
   static Result<std::unique_ptr<StreamServer>> start(const StreamServerOptions& options,
-                                                     StatusProvider status);
+                                                     StatusProvider status,
+                                                     RequestHandler handler = {});
   ~StreamServer();  // stop()
   StreamServer(const StreamServer&) = delete;
   StreamServer& operator=(const StreamServer&) = delete;

@@ -72,6 +72,11 @@ class ChildProcess {
   ChildProcess& operator=(const ChildProcess&) = delete;
 
   bool started() const { return pid_ > 0; }
+  pid_t pid() const { return pid_; }
+  // Sends `sig` (e.g. SIGKILL: a crash or power cut of the process) without reaping it.
+  void signal(int sig) const {
+    if (pid_ > 0 && !reaped_) ::kill(pid_, sig);
+  }
   std::string err_so_far() const { return read_text(err_path_); }
 
   // Waits up to timeout_ms (then SIGKILL); the result with the captured output.

@@ -22,5 +22,7 @@ int run_cameras_cmd(Args args);     // mocap cameras
 int run_capture_cmd(Args args);     // mocap capture --device ... --frames N
 int run_trigger_cmd(Args args);     // mocap trigger --chip C --line L [--monitor]
 int run_sync_cmd(Args args);        // mocap sync --device A,B ...
+int run_export(Args args);          // mocap export bvh|gltf|ndjson --take DIR ...
+int run_take(Args args);            // mocap take start NAME | stop | list (against mocapd)
 
 }  // namespace mocap::tools

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "runtime/core/log.h"
+#include "runtime/out/vmc_sender.h"
 
 namespace mocap::daemon {
 namespace {
@@ -235,6 +236,18 @@ std::vector<OptionSpec> make_options() {
                       &DaemonConfig::realtime_priority, 0, 99));
   v.push_back(int_opt("max_frames", "frames", "stop after this many frames; -1 = run until stopped",
                       &DaemonConfig::max_frames, -1, 2147483647));
+  // Outputs
+  v.push_back(string_opt("vmc_targets", "host:port list",
+                         "VMC protocol (OSC/UDP) receivers: HOST:PORT[,HOST:PORT...]; person in "
+                         "slot k goes to PORT+k (VSeeFace, Warudo, Unity EVMC4U, Unreal VMC Live "
+                         "Link); empty = off; flag alias --vmc",
+                         &DaemonConfig::vmc_targets));
+  v.push_back(int_opt("vmc_slots", "persons", "people sent to each VMC target (one port each)",
+                      &DaemonConfig::vmc_slots, 1, 64));
+  v.push_back(double_opt("vmc_slot_release_s", "s",
+                         "a person's VMC port is given to the next new person after it has been "
+                         "unseen this long",
+                         &DaemonConfig::vmc_slot_release_s, 0.05, 3600));
   // Simulator
   v.push_back(int_opt("sim_people", "persons", "simulator board: people in the scene",
                       &DaemonConfig::sim_people, 0, 16));
@@ -408,6 +421,16 @@ Status validate(const DaemonConfig& c) {
                ": give them different ports");
   }
   if (c.loop && c.replay.empty()) return err("loop needs replay (a recording folder)");
+  if (!c.vmc_targets.empty()) {
+    auto targets = out::parse_vmc_targets(c.vmc_targets);
+    if (!targets) return err("vmc_targets: " + targets.error().message());
+    for (const out::VmcTarget& t : *targets) {
+      if (t.base_port + c.vmc_slots - 1 > 65535) {
+        return err("vmc_targets: " + t.text() + " with vmc_slots " + std::to_string(c.vmc_slots) +
+                   " runs past port 65535: lower the port or vmc_slots");
+      }
+    }
+  }
   if (c.replay_realtime && c.replay.empty()) {
     return err("replay_realtime needs replay (a recording folder)");
   }
@@ -510,6 +533,12 @@ Result<CommandLine> parse_command_line(std::span<const std::string_view> args) {
       cmd.print_config = true;
     } else if (a == "--help-markdown") {
       cmd.help_markdown = true;
+    } else if (a == "--vmc") {  // the documented short form of --vmc-targets
+      auto v = take_value(a);
+      if (!v) return v.error();
+      for (const OptionSpec& o : config_options()) {
+        if (o.key == "vmc_targets") cmd.settings.emplace_back(&o, *v);
+      }
     } else if (a == "--config") {
       auto v = take_value(a);
       if (!v) return v.error();

@@ -67,6 +67,10 @@ struct DaemonConfig {
   bool sim_calibrated = true;     // false: the simulator keeps its rig to itself (self-calibration)
   bool self_calibrate = true;     // cameras without a calibration calibrate from people walking
   int self_calibration_frames = 250;  // frames collected before each self-calibration attempt
+  // Outputs (docs/outputs.md)
+  std::string vmc_targets;        // "HOST:PORT[,HOST:PORT...]": VMC to each, person k on PORT+k
+  int vmc_slots = 4;              // people sent per VMC target (ports PORT .. PORT+slots-1)
+  double vmc_slot_release_s = 2;  // a person's VMC port is freed after this long unseen
   // Status
   double status_log_interval_s = 30;
   std::string log;  // MOCAP_LOG syntax, e.g. "*:info,Pipeline:debug"

@@ -112,6 +112,10 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
       config.board_dir.empty() ? tools::share_path("board") : fs::path(config.board_dir);
   const Status s = config.replay.empty() ? d->open_board(board_dir) : d->open_replay();
   if (!s.ok()) return s.error();
+  auto outputs =
+      Outputs::create(config, d->unix_offset_ns_, [raw = d.get()] { return raw->take_metadata(); });
+  if (!outputs.ok()) return outputs.error();
+  d->outputs_ = std::move(*outputs);
   return d;
 }
 
@@ -502,12 +506,17 @@ Status Daemon::start() {
   so.http_port = config_.http_port;
   so.max_clients = config_.max_clients;
   so.max_client_backlog_bytes = static_cast<std::size_t>(config_.client_backlog_kib) * 1024;
-  auto srv = net::StreamServer::start(so, [this] { return health_json(); });
+  auto srv = net::StreamServer::start(
+      so, [this] { return health_json(); },
+      [this](std::string_view method, std::string_view path, std::string_view query) {
+        return outputs_->handle(method, path, query);
+      });
   if (!srv.ok()) return srv.error();
   server_ = std::move(*srv);
   server_view_.store(server_.get());
   stream_sink_ = std::make_unique<pipeline::StreamSink>(*server_, unix_offset_ns_);
-  std::vector<pipeline::Sink*> sinks = {stream_sink_.get()};
+  std::vector<pipeline::Sink*> sinks = {stream_sink_.get(), outputs_->take_sink()};
+  if (outputs_->vmc_sink() != nullptr) sinks.push_back(outputs_->vmc_sink());
   if (hooks_.on_frame) {
     hook_sink_ =
         std::make_unique<pipeline::CallbackSink>("hooks", [this](const pipeline::PipelineFrame& f) {
@@ -599,6 +608,7 @@ void Daemon::stop() {
   if (stopped_.exchange(true)) return;
   if (trigger_) trigger_->stop();
   if (pipeline_) pipeline_->stop();
+  if (outputs_) outputs_->finish();  // a take being recorded ends complete
   if (server_) {
     // Clients get what was already published (the last frames of a replay) unless they are
     // too slow to take it within kFlushTimeoutMs.
@@ -667,6 +677,25 @@ nlohmann::json Daemon::calibration_json(std::vector<std::string>& problems) cons
   return c;
 }
 
+out::TakeMetadata Daemon::take_metadata() const {
+  std::lock_guard<std::mutex> lock(state_mu_);
+  out::TakeMetadata m;
+  m.software = std::string("mocapd ") + kDaemonVersion;
+  m.frame_rate_hz = config_.frame_rate_hz;
+  if (const pipeline::Pipeline* pipe = pipeline_view_.load(); pipe != nullptr) {
+    if (pipe->metrics().fps > 0) m.frame_rate_hz = pipe->metrics().fps;
+  }
+  if (calibration_topology_ != nullptr) m.topology = calibration_topology_->name();
+  for (const Camera& c : cameras_) {
+    m.cameras.push_back(
+        {{"name", c.name()}, {"width_px", c.width_px()}, {"height_px", c.height_px()}});
+  }
+  std::vector<std::string> ignored;
+  m.calibration = calibration_json(ignored);
+  m.calibration["source"] = source_kind_;
+  return m;
+}
+
 std::string Daemon::health_json() const {
   std::lock_guard<std::mutex> lock(state_mu_);
   json j;
@@ -675,6 +704,10 @@ std::string Daemon::health_json() const {
   std::vector<std::string> problems = problems_;
   if (!m.error.empty()) problems.push_back("pipeline stopped: " + m.error);
   const json calibration = calibration_json(problems);
+  if (outputs_) {
+    j["vmc"] = outputs_->vmc_health(problems);
+    j["take"] = outputs_->take_health(problems);
+  }
   j["status"] = !m.error.empty() ? "failed" : (problems.empty() ? "ok" : "degraded");
   j["problems"] = problems;
   j["version"] = kDaemonVersion;

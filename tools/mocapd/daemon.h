@@ -33,6 +33,7 @@
 #include "runtime/pipeline/pipeline.h"
 #include "runtime/pipeline/sinks.h"
 #include "tools/mocapd/config.h"
+#include "tools/mocapd/outputs.h"
 
 namespace mocap::net {
 class StreamServer;
@@ -118,6 +119,8 @@ class Daemon {
   // persists_calibration()).
   void adopt_resolved_camera(const calib::ResolvedCamera& r);
   bool persists_calibration() const;
+  // What a new take records about the box (Outputs::MetadataProvider).
+  out::TakeMetadata take_metadata() const;
   void log_status() const;
   nlohmann::json calibration_json(std::vector<std::string>& problems) const;
 
@@ -151,6 +154,7 @@ class Daemon {
   std::atomic<const net::StreamServer*> server_view_{nullptr};  // for health_json()
   std::unique_ptr<pipeline::StreamSink> stream_sink_;
   std::unique_ptr<pipeline::CallbackSink> hook_sink_;
+  std::unique_ptr<Outputs> outputs_;  // VMC and takes
   std::unique_ptr<pipeline::Pipeline> pipeline_;
   std::atomic<const pipeline::Pipeline*> pipeline_view_{nullptr};  // for health_json()
   std::atomic<bool> stopped_{false};

@@ -1,0 +1,191 @@
+// mocap take start NAME | stop | list: record takes on a running mocapd (docs/outputs.md),
+// through its HTTP port (POST /takes/start?name=NAME, POST /takes/stop, GET /takes).
+#include <netdb.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cctype>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <string_view>
+
+#include "runtime/core/error.h"
+#include "tools/common/cli.h"
+#include "tools/mocap/commands.h"
+
+namespace mocap::tools {
+namespace {
+
+using nlohmann::json;
+
+constexpr const char* kUsage =
+    "usage: mocap take <start NAME|stop|list> [--box HOST[:PORT]]   (mocap take <subcommand> "
+    "--help for details)\n"
+    "\n"
+    "subcommands (against a running mocapd, default 127.0.0.1:9871, its http_port):\n"
+    "  start  record a take under <state_dir>/takes/NAME/ (skeleton stream + take.json)\n"
+    "  stop   end the take being recorded\n"
+    "  list   the takes on the box, with frames and status\n";
+
+constexpr int kTimeoutMs = 5000;
+
+struct HttpAnswer {
+  int status = 0;
+  std::string body;
+};
+
+// Reads the whole answer (the server closes the connection after it).
+Result<std::string> read_all(int fd, const std::string& box) {
+  std::string in;
+  char buf[4096];
+  for (;;) {
+    pollfd p{fd, POLLIN, 0};
+    if (poll(&p, 1, kTimeoutMs) <= 0) {
+      return Error(ErrorCode::kIo, "mocapd at " + box + " did not answer within 5 s");
+    }
+    const ssize_t n = read(fd, buf, sizeof buf);
+    if (n < 0) return Error(ErrorCode::kIo, "reading from " + box + ": " + strerror(errno));
+    if (n == 0) return in;
+    in.append(buf, static_cast<std::size_t>(n));
+  }
+}
+
+Result<int> connect_to(const std::string& host, const std::string& port, const std::string& box) {
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  addrinfo* res = nullptr;
+  if (const int rc = getaddrinfo(host.c_str(), port.c_str(), &hints, &res); rc != 0) {
+    return Error(ErrorCode::kNotFound,
+                 "box '" + box + "': " + gai_strerror(rc) + " (--box HOST[:PORT])");
+  }
+  int fd = -1;
+  for (addrinfo* a = res; a != nullptr && fd < 0; a = a->ai_next) {
+    fd = socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, 0);
+    if (fd >= 0 && connect(fd, a->ai_addr, a->ai_addrlen) != 0) {
+      close(fd);
+      fd = -1;
+    }
+  }
+  freeaddrinfo(res);
+  if (fd < 0) {
+    return Error(ErrorCode::kIo, "cannot reach mocapd at " + box +
+                                     ": is it running? (--box HOST:PORT, its http_port)");
+  }
+  return fd;
+}
+
+Result<HttpAnswer> request(const std::string& box, const std::string& method,
+                           const std::string& target) {
+  const std::size_t colon = box.rfind(':');
+  const std::string host = colon == std::string::npos ? box : box.substr(0, colon);
+  const std::string port = colon == std::string::npos ? "9871" : box.substr(colon + 1);
+  auto fd = connect_to(host, port, box);
+  if (!fd) return fd.error();
+  const std::string req = method + " " + target + " HTTP/1.1\r\nHost: " + host +
+                          "\r\nContent-Length: 0\r\nConnection: close\r\n\r\n";
+  const bool sent = write(*fd, req.data(), req.size()) == static_cast<ssize_t>(req.size());
+  auto text =
+      sent ? read_all(*fd, box) : Result<std::string>(Error(ErrorCode::kIo, "write failed"));
+  close(*fd);
+  if (!text) return text.error();
+  HttpAnswer a;
+  if (std::sscanf(text->c_str(), "HTTP/1.%*d %d", &a.status) != 1) {
+    return Error(ErrorCode::kParse, "the answer from " + box + " is not HTTP: is it mocapd?");
+  }
+  const std::size_t body = text->find("\r\n\r\n");
+  a.body = body == std::string::npos ? std::string() : text->substr(body + 4);
+  return a;
+}
+
+std::string percent_encode(std::string_view s) {
+  std::string out;
+  for (const char c : s) {
+    if (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '.' || c == '_') {
+      out += c;
+    } else {
+      char buf[4];
+      std::snprintf(buf, sizeof buf, "%%%02X", static_cast<unsigned char>(c));
+      out += buf;
+    }
+  }
+  return out;
+}
+
+// Sends the request; prints the error (the server's, when it gave one) and returns nullopt.
+std::optional<json> call(const std::string& box, const std::string& method,
+                         const std::string& target) {
+  auto a = request(box, method, target);
+  if (!a) {
+    std::fprintf(stderr, "error: %s\n", a.error().message().c_str());
+    return std::nullopt;
+  }
+  json j = json::parse(a->body, nullptr, false);
+  if (a->status >= 400 || j.is_discarded()) {
+    const std::string msg = !j.is_discarded() && j.contains("error")
+                                ? j["error"].get<std::string>()
+                                : "HTTP " + std::to_string(a->status) + ": " + a->body;
+    std::fprintf(stderr, "error: %s\n", msg.c_str());
+    return std::nullopt;
+  }
+  return j;
+}
+
+int run_start(Args args) {
+  std::string name, box = "127.0.0.1:9871";
+  cli::ArgParser p("mocap take start", "Start recording a take on a running mocapd.");
+  p.positional("NAME", &name, "take name: letters, digits, '.', '_', '-' (at most 64)");
+  p.option("--box", &box, "HOST[:PORT]", "mocapd's HTTP address (default 127.0.0.1:9871)");
+  if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
+  auto j = call(box, "POST", "/takes/start?name=" + percent_encode(name));
+  if (!j) return 1;
+  std::printf("recording take %s in %s\n", j->value("name", "").c_str(),
+              j->value("dir", "").c_str());
+  return 0;
+}
+
+int run_stop(Args args) {
+  std::string box = "127.0.0.1:9871";
+  cli::ArgParser p("mocap take stop", "End the take being recorded on a running mocapd.");
+  p.option("--box", &box, "HOST[:PORT]", "mocapd's HTTP address (default 127.0.0.1:9871)");
+  if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
+  auto j = call(box, "POST", "/takes/stop");
+  if (!j) return 1;
+  std::printf("take %s: %llu frames, %s%s%s\n", j->value("name", "").c_str(),
+              static_cast<unsigned long long>(j->value("frames", 0ULL)),
+              j->value("status", "").c_str(), j->value("reason", "").empty() ? "" : ": ",
+              j->value("reason", "").c_str());
+  std::printf("%s\n", j->value("dir", "").c_str());
+  return 0;
+}
+
+int run_list(Args args) {
+  std::string box = "127.0.0.1:9871";
+  cli::ArgParser p("mocap take list", "The takes on a running mocapd.");
+  p.option("--box", &box, "HOST[:PORT]", "mocapd's HTTP address (default 127.0.0.1:9871)");
+  if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
+  auto j = call(box, "GET", "/takes");
+  if (!j) return 1;
+  std::printf("%-32s %-12s %10s  %s\n", "name", "status", "frames", "reason");
+  for (const json& t : (*j)["takes"]) {
+    std::printf(
+        "%-32s %-12s %10llu  %s\n", t.value("name", "").c_str(), t.value("status", "").c_str(),
+        static_cast<unsigned long long>(t.value("frames", 0ULL)), t.value("reason", "").c_str());
+  }
+  std::printf("%zu takes in %s\n", (*j)["takes"].size(), j->value("dir", "").c_str());
+  return 0;
+}
+
+}  // namespace
+
+int run_take(Args args) {
+  static constexpr cli::Subcommand kSubcommands[] = {
+      {"start", run_start}, {"stop", run_stop}, {"list", run_list}};
+  return cli::dispatch_subcommand("mocap take", kUsage, kSubcommands, args);
+}
+
+}  // namespace mocap::tools
