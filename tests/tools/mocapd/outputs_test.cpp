@@ -162,7 +162,7 @@ TEST(DaemonOutputs, VmcToOscdumpOnePortPerPersonReproducesTheJoints) {
   auto d = Daemon::create(c, hooks);
   ASSERT_TRUE(d.ok()) << d.error().message();
   ASSERT_TRUE((*d)->start().ok());
-  std::this_thread::sleep_for(std::chrono::seconds(4));
+  std::this_thread::sleep_for(std::chrono::seconds(6));  // ~180 frames at 30 Hz
   const json h = json::parse(testing::http_body(testing::http_get((*d)->http_port(), "/health")),
                              nullptr, false);
   (*d)->stop();
