@@ -28,6 +28,7 @@
 #include "runtime/sim/simulator_source.h"
 #include "tests/support/line_client.h"
 #include "tests/support/temp_dir.h"
+#include "tests/tools/mocapd/sim_board.h"
 #include "tools/mocapd/daemon.h"
 
 namespace mocap::daemon {
@@ -35,29 +36,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-// A board folder with the generic USB board and the simulator board: no camera nodes exist
-// in dev_dir, so discovery falls back to the simulator.
-DaemonConfig sim_config(const testing::TestTempDir& dir) {
-  const fs::path boards = dir.path() / "board";
-  for (const char* b : {"generic-usb", "sim"}) {
-    fs::create_directories(boards / b);
-    fs::copy_file(fs::path(MOCAP_SOURCE_DIR) / "board" / b / "board.json",
-                  boards / b / "board.json");
-  }
-  fs::create_directories(dir.path() / "dev");
-  DaemonConfig c;
-  c.board_dir = boards.string();
-  c.dev_dir = (dir.path() / "dev").string();
-  c.state_dir = (dir.path() / "state").string();
-  c.bind_address = "127.0.0.1";
-  c.stream_port = 0;
-  c.http_port = 0;
-  c.status_log_interval_s = 0;
-  c.sim_people = 2;
-  c.sim_views = 4;
-  return c;
-}
 
 TEST(DaemonSimulator, StreamsTheSimulatedPeopleWhenNoCameraIsAttached) {
   testing::TestTempDir dir("mocapd");

@@ -24,6 +24,7 @@
 #include "tests/support/line_client.h"
 #include "tests/support/oscdump.h"
 #include "tests/support/temp_dir.h"
+#include "tests/tools/mocapd/sim_board.h"
 #include "tools/mocapd/daemon.h"
 
 namespace mocap::daemon {
@@ -33,27 +34,6 @@ namespace fs = std::filesystem;
 using Eigen::Quaterniond;
 using Eigen::Vector3d;
 using nlohmann::json;
-
-DaemonConfig sim_config(const testing::TestTempDir& dir) {
-  const fs::path boards = dir.path() / "board";
-  for (const char* b : {"generic-usb", "sim"}) {
-    fs::create_directories(boards / b);
-    fs::copy_file(fs::path(MOCAP_SOURCE_DIR) / "board" / b / "board.json",
-                  boards / b / "board.json");
-  }
-  fs::create_directories(dir.path() / "dev");
-  DaemonConfig c;
-  c.board_dir = boards.string();
-  c.dev_dir = (dir.path() / "dev").string();
-  c.state_dir = (dir.path() / "state").string();
-  c.bind_address = "127.0.0.1";
-  c.stream_port = 0;
-  c.http_port = 0;
-  c.status_log_interval_s = 0;
-  c.sim_people = 2;
-  c.sim_views = 4;
-  return c;
-}
 
 json http(int port, const std::string& method, const std::string& target, int* status = nullptr) {
   testing::LineClient c(port);
