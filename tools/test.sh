@@ -40,4 +40,5 @@ else
   BUILD_TARGET=()
 fi
 cmake --build "$B" "${BUILD_TARGET[@]}"
-ctest --test-dir "$B" --output-on-failure -j "$(nproc)" "${CTEST_ARGS[@]}"
+# Line-buffered, so that a run cut short (a CI time limit) still shows the last test it started.
+stdbuf -oL ctest --test-dir "$B" --output-on-failure -j "$(nproc)" "${CTEST_ARGS[@]}"

@@ -9,10 +9,12 @@
 
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <string>
 
 #include "runtime/out/take_reader.h"
+#include "tests/support/blender.h"
 #include "tests/support/data.h"
 #include "tests/support/subprocess.h"
 #include "tests/support/temp_dir.h"
@@ -26,18 +28,12 @@ using nlohmann::json;
 const std::string kBin = std::string(MOCAP_BIN_DIR) + "/mocap";
 const std::string kScript = std::string(MOCAP_SOURCE_DIR) + "/tests/out/blender_import.py";
 
-std::string blender() {
-  const char* env = std::getenv("MOCAP_BLENDER");
-  return env != nullptr ? env : "/usr/bin/blender";
-}
-
-json import_in_blender(const std::vector<std::string>& source, const fs::path& dir,
-                       const std::string& name) {
-  std::vector<std::string> argv = {blender(), "-b", "--factory-startup", "--python", kScript, "--"};
-  argv.insert(argv.end(), source.begin(), source.end());
+json import_in_blender(const fs::path& blender, const std::vector<std::string>& source,
+                       const fs::path& dir, const std::string& name) {
+  std::vector<std::string> args = source;
   const fs::path out = dir / (name + ".json");
-  argv.insert(argv.end(), {"--frames", "0", "--out", out.string()});
-  const auto r = testing::run_process(argv, dir, name, 300000);
+  args.insert(args.end(), {"--frames", "0", "--out", out.string()});
+  const auto r = testing::run_blender_script(blender, kScript, args, dir, name);
   EXPECT_EQ(r.exit_code, 0) << r.how() << "\n"
                             << r.err.substr(r.err.size() > 3000 ? r.err.size() - 3000 : 0);
   std::ifstream in(out);
@@ -46,7 +42,8 @@ json import_in_blender(const std::vector<std::string>& source, const fs::path& d
 
 TEST(TakeExportE2e, Pose2SimTakeSurvivesBvhAndGltfThroughBlender) {
   MOCAP_REQUIRE_DATA(data, "pose2sim_multi");
-  if (!fs::exists(blender())) GTEST_SKIP() << "no Blender at " << blender();
+  const std::optional<fs::path> blender = testing::find_blender();
+  if (!blender) GTEST_SKIP() << "no Blender (set MOCAP_BLENDER or install /usr/bin/blender)";
   testing::TestTempDir dir("take-export-e2e");
   const fs::path stream = dir.path() / "pose2sim.ndjson";
   auto r = testing::run_process(
@@ -72,8 +69,8 @@ TEST(TakeExportE2e, Pose2SimTakeSurvivesBvhAndGltfThroughBlender) {
   for (int id : ids) {
     const fs::path file = bvh_dir / ("pose2sim_person" + std::to_string(id) + ".bvh");
     ASSERT_TRUE(fs::exists(file)) << file << "\n" << r.out;
-    const json j = import_in_blender({"--bvh", file.string(), "--scale", "0.01"}, dir.path(),
-                                     "bvh" + std::to_string(id));
+    const json j = import_in_blender(*blender, {"--bvh", file.string(), "--scale", "0.01"},
+                                     dir.path(), "bvh" + std::to_string(id));
     ASSERT_FALSE(j.is_discarded());
     ASSERT_EQ(j["armatures"].size(), 1u);
     const json& a = j["armatures"][0];
@@ -85,7 +82,8 @@ TEST(TakeExportE2e, Pose2SimTakeSurvivesBvhAndGltfThroughBlender) {
       {kBin, "export", "gltf", "--stream", stream.string(), "--out", glb.string()}, dir.path(),
       "export_gltf", 120000);
   ASSERT_EQ(r.exit_code, 0) << r.how() << r.err;
-  const json j = import_in_blender({"--gltf", glb.string(), "--fps", "60"}, dir.path(), "gltf");
+  const json j =
+      import_in_blender(*blender, {"--gltf", glb.string(), "--fps", "60"}, dir.path(), "gltf");
   ASSERT_FALSE(j.is_discarded());
   if (j.contains("skipped")) GTEST_SKIP() << j.dump();
   ASSERT_EQ(j["armatures"].size(), ids.size()) << "one armature per person";

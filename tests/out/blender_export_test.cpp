@@ -3,8 +3,6 @@
 // kinematics of the source poses. Skipped when Blender is missing (MOCAP_BLENDER or
 // /usr/bin/blender). CTest label "blender".
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -16,7 +14,6 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -24,6 +21,7 @@
 #include "runtime/out/bvh.h"
 #include "runtime/out/gltf.h"
 #include "runtime/out/humanoid.h"
+#include "tests/support/blender.h"
 
 namespace mocap::out {
 namespace {
@@ -97,14 +95,6 @@ Animation make_take() {
   return anim;
 }
 
-std::optional<fs::path> find_blender() {
-  const char* env = std::getenv("MOCAP_BLENDER");
-  const fs::path path =
-      env != nullptr && *env != '\0' ? fs::path(env) : fs::path("/usr/bin/blender");
-  if (::access(path.c_str(), X_OK) != 0) return std::nullopt;
-  return path;
-}
-
 fs::path script_path() {
 #ifdef MOCAP_BLENDER_IMPORT_SCRIPT
   return fs::path(MOCAP_BLENDER_IMPORT_SCRIPT);
@@ -113,43 +103,30 @@ fs::path script_path() {
 #endif
 }
 
-std::string quoted(const fs::path& p) {
-  std::string q = "'";
-  for (const char c : p.string()) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-std::string tail_of(const fs::path& file, std::size_t chars) {
-  std::ifstream in(file);
-  std::stringstream s;
-  s << in.rdbuf();
-  const std::string text = s.str();
+std::string tail_of(const std::string& text, std::size_t chars) {
   return text.size() > chars ? text.substr(text.size() - chars) : text;
 }
 
 // Runs the import script on `args`: the parsed result.json; null on a failure (reported);
 // {"skip": why} when this Blender cannot import the format (exit status 3).
 Json run_blender(const fs::path& blender, const fs::path& dir, const std::string& label,
-                 const std::string& args) {
-  const fs::path out = dir / (label + ".json"), log = dir / (label + ".log");
+                 std::vector<std::string> args) {
+  const fs::path out = dir / (label + ".json");
   std::string frames;
   for (const int f : kCheckFrames) {
     if (!frames.empty()) frames += ',';
     frames += std::to_string(f);
   }
-  const std::string cmd = quoted(blender) + " -b --factory-startup --python-exit-code 1 --python " +
-                          quoted(script_path()) + " -- " + args + " --frames " + frames +
-                          " --out " + quoted(out) + " > " + quoted(log) + " 2>&1";
+  args.insert(args.end(), {"--frames", frames, "--out", out.string()});
   const auto t0 = std::chrono::steady_clock::now();
-  const int rc = std::system(cmd.c_str());
+  const testing::ProcessResult r =
+      testing::run_blender_script(blender, script_path(), args, dir, label);
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("[ blender ] %s: %.2f s\n", label.c_str(), wall_s);
-  if (rc != -1 && WIFEXITED(rc) && WEXITSTATUS(rc) == 3) {  // this Blender lacks the importer
-    return Json{{"skip", tail_of(log, 400)}};
-  }
-  if (rc != 0 || !fs::exists(out)) {
-    ADD_FAILURE() << label << ": blender failed (status " << rc << "):\n" << tail_of(log, 3000);
+  if (r.exit_code == 3) return Json{{"skip", tail_of(r.out + r.err, 400)}};  // no importer
+  if (r.exit_code != 0 || !fs::exists(out)) {
+    ADD_FAILURE() << label << ": blender " << r.how() << ":\n" << tail_of(r.out + r.err, 3000);
     return Json();
   }
   std::ifstream in(out);
@@ -191,7 +168,7 @@ double check_armature(const Json& arma, const PersonAnimation& person, const std
 class BlenderImport : public ::testing::Test {
  protected:
   void SetUp() override {
-    const std::optional<fs::path> b = find_blender();
+    const std::optional<fs::path> b = testing::find_blender();
     if (!b) GTEST_SKIP() << "Blender not found (set MOCAP_BLENDER or install /usr/bin/blender)";
     blender_ = *b;
     ASSERT_TRUE(fs::exists(script_path())) << script_path() << " not found (build with "
@@ -225,8 +202,7 @@ TEST_F(BlenderImport, BvhHeadsMatchForwardKinematics) {
         "bvh_p" + std::to_string(person.person_id) + (c.units == BvhUnits::kMetres ? "_m" : "_cm");
     const fs::path file = dir_ / (label + ".bvh");
     ASSERT_TRUE(write_bvh(anim_, person, BvhOptions{c.units}, file).ok());
-    const Json r =
-        run_blender(blender_, dir_, label, "--bvh " + quoted(file) + " --scale " + c.scale);
+    const Json r = run_blender(blender_, dir_, label, {"--bvh", file.string(), "--scale", c.scale});
     if (r.contains("skip")) GTEST_SKIP() << r.at("skip").get<std::string>();
     if (r.is_null()) continue;
     ASSERT_EQ(r.at("armatures").size(), 1u) << label;
@@ -241,9 +217,9 @@ TEST_F(BlenderImport, GltfHeadsMatchForwardKinematics) {
     const fs::path file = dir_ / ("take." + label);
     const Status s = write_gltf(anim_, GltfOptions{binary}, file);
     ASSERT_TRUE(s.ok()) << s.error().to_string();
-    const Json r = run_blender(
-        blender_, dir_, label,
-        "--gltf " + quoted(file) + " --fps " + std::to_string(static_cast<int>(kRateHz)));
+    const Json r =
+        run_blender(blender_, dir_, label,
+                    {"--gltf", file.string(), "--fps", std::to_string(static_cast<int>(kRateHz))});
     if (r.contains("skip")) GTEST_SKIP() << r.at("skip").get<std::string>();
     if (r.is_null()) continue;
     ASSERT_EQ(r.at("armatures").size(), anim_.persons.size()) << label << ": " << r.at("objects");
