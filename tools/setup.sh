@@ -49,19 +49,21 @@ install_npm() {
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends nodejs npm
 }
 
-install_tfjs_ref() {
-  # The TF.js reference runner (tools/tfjs_ref): npm ci when node_modules is missing or older
-  # than package-lock.json. Needs only the npm registry at install time, nothing at run time.
-  local dir="$ROOT/tools/tfjs_ref"
+# npm ci in tools/<sub> when node_modules is missing or older than package-lock.json: the
+# TF.js reference runner (tools/tfjs_ref) and the web page's three.js and browser-test driver
+# (tools/web). Needs only the npm registry at install time, nothing at run time.
+npm_ci_in() {
+  local sub=$1 what=$2
+  local dir="$ROOT/tools/$sub"
   if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
-    say "TF.js reference: node/npm not found, skipped"
+    say "$what: node/npm not found, skipped"
     return
   fi
   if [ -d "$dir/node_modules" ] && [ ! "$dir/package-lock.json" -nt "$dir/node_modules" ]; then
-    say "TF.js reference: tools/tfjs_ref/node_modules up to date"
+    say "$what: tools/$sub/node_modules up to date"
     return
   fi
-  say "TF.js reference: npm ci in tools/tfjs_ref"
+  say "$what: npm ci in tools/$sub"
   (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error)
   touch "$dir/node_modules"
 }
@@ -105,8 +107,11 @@ if [ "$MODELS" -eq 1 ]; then
   bash "$ROOT/tools/fetch_models.sh"
   say "Test photos"
   bash "$ROOT/tools/fetch_test_photos.sh"
-  install_tfjs_ref
+  npm_ci_in tfjs_ref "TF.js reference"
 fi
+# The page's three.js is part of the build (installed with mocapd), not only of the models.
+install_npm
+npm_ci_in web "Web page (three.js, puppeteer-core)"
 [ "$BUILD" -eq 1 ] && build
 [ "$BUILD" -eq 1 ] && [ "$MODELS" -eq 1 ] && convert_models
 if [ "$RUN" -eq 1 ]; then

@@ -36,4 +36,29 @@ struct LatencyStats {
 };
 LatencyStats latency_stats(std::vector<double> samples_ms);
 
+// Every latency since the start in fixed buckets (a Prometheus histogram: monitoring computes
+// quantiles over any period from the counters). counts[i] = samples <= kBoundsMs[i] and above
+// the bound before; counts[kBuckets] = samples above the last bound.
+struct LatencyHistogram {
+  static constexpr int kBuckets = 14;
+  static constexpr double kBoundsMs[kBuckets] = {0.25, 0.5, 1,   2,   5,   10,   20,
+                                                 35,   50,  100, 200, 500, 1000, 5000};
+  std::uint64_t counts[kBuckets + 1] = {};
+  std::uint64_t count = 0;
+  double sum_ms = 0;
+  void add(double ms) {
+    int i = 0;
+    while (i < kBuckets && ms > kBoundsMs[i]) ++i;
+    ++counts[i];
+    ++count;
+    sum_ms += ms;
+  }
+  // Samples <= kBoundsMs[i] (Prometheus "le" buckets are cumulative).
+  std::uint64_t cumulative(int i) const {
+    std::uint64_t n = 0;
+    for (int k = 0; k <= i && k <= kBuckets; ++k) n += counts[k];
+    return n;
+  }
+};
+
 }  // namespace mocap

@@ -337,4 +337,33 @@ Status save_ppm(const ImageRgb8& image, const std::filesystem::path& path) {
   return Status::Ok();
 }
 
+Result<std::vector<std::uint8_t>> encode_jpeg(const ImageRgb8& image, int quality) {
+  if (image.width_px <= 0 || image.height_px <= 0 || image.width_px > kMaxImageSidePx ||
+      image.height_px > kMaxImageSidePx ||
+      image.rgb.size() != static_cast<std::size_t>(image.width_px) *
+                              static_cast<std::size_t>(image.height_px) * 3) {
+    return Error(ErrorCode::kInvalidArgument, "encode_jpeg: inconsistent image " +
+                                                  std::to_string(image.width_px) + "x" +
+                                                  std::to_string(image.height_px) + " with " +
+                                                  std::to_string(image.rgb.size()) + " bytes");
+  }
+  if (quality < 1 || quality > 100) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "encode_jpeg: quality " + std::to_string(quality) + " is outside [1, 100]");
+  }
+  const TjHandle tj(tjInitCompress());
+  if (!tj) return Error(ErrorCode::kIo, "encode_jpeg: cannot start libturbojpeg");
+  unsigned char* out = nullptr;
+  unsigned long size = 0;
+  if (tjCompress2(tj.get(), image.rgb.data(), image.width_px, 0, image.height_px, TJPF_RGB, &out,
+                  &size, TJSAMP_420, quality, TJFLAG_FASTDCT) != 0) {
+    const std::string why = tjGetErrorStr2(tj.get());
+    tjFree(out);
+    return Error(ErrorCode::kIo, "encode_jpeg: " + why);
+  }
+  std::vector<std::uint8_t> bytes(out, out + size);
+  tjFree(out);
+  return bytes;
+}
+
 }  // namespace mocap::image

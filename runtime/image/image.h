@@ -52,6 +52,10 @@ Result<ImageRgb8> load_image(const std::filesystem::path& path);
 // Decodes an in-memory JPEG or PNG; `name` prefixes error messages (a file name, a camera).
 Result<ImageRgb8> decode_image(std::span<const std::uint8_t> bytes, std::string_view name);
 
+// Encodes a JPEG (4:2:0, quality in [1, 100]) with libturbojpeg. kInvalidArgument when the
+// image is inconsistent or empty.
+Result<std::vector<std::uint8_t>> encode_jpeg(const ImageRgb8& image, int quality);
+
 // Writes a binary PPM (P6), for debugging. kInvalidArgument when the image is inconsistent.
 Status save_ppm(const ImageRgb8& image, const std::filesystem::path& path);
 

@@ -1,11 +1,13 @@
 #include "runtime/net/stream_server.h"
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/uio.h>
 #include <unistd.h>
 
@@ -41,6 +43,8 @@ constexpr std::size_t kReadChunk = 16 * 1024;
 constexpr int kReadsPerEvent = 4;     // per connection and poll round: one client cannot starve
 constexpr int kAcceptsPerEvent = 64;  // the others
 constexpr std::size_t kMaxIov = 64;
+constexpr std::size_t kFileChunk = 64 * 1024;  // a download is read this much at a time
+constexpr std::size_t kMaxTokenLine = 512;     // the stream port's first line
 constexpr auto kRequestTimeout = std::chrono::seconds(10);     // the whole HTTP request head
 constexpr auto kFlushTimeout = std::chrono::seconds(10);       // sending the last answer
 constexpr auto kLingerTimeout = std::chrono::seconds(2);       // reading after our FIN
@@ -48,169 +52,6 @@ constexpr auto kAcceptPause = std::chrono::milliseconds(100);  // after EMFILE/E
 constexpr std::uint16_t kWsProtocolError = 1002;
 
 std::string errno_text(int err) { return std::strerror(err); }
-
-// ------------------------------------------------------------------------------------ HTTP
-
-bool is_tchar(char c) {  // RFC 9110 token character
-  if ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9')) return true;
-  return std::string_view("!#$%&'*+-.^_`|~").find(c) != std::string_view::npos;
-}
-
-bool is_token(std::string_view s) {
-  return !s.empty() && std::all_of(s.begin(), s.end(), is_tchar);
-}
-
-char ascii_lower(char c) { return (c >= 'A' && c <= 'Z') ? static_cast<char>(c - 'A' + 'a') : c; }
-
-std::string lower(std::string_view s) {
-  std::string out(s);
-  for (char& c : out) c = ascii_lower(c);
-  return out;
-}
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
-  return s;
-}
-
-// The offset just past the empty line that ends a request head ("\r\n\r\n" or "\n\n"), or npos.
-// Starts looking at `from` (bytes before it were searched already).
-std::size_t find_head_end(std::string_view buf, std::size_t from) {
-  for (std::size_t i = buf.find('\n', from); i != std::string_view::npos;
-       i = buf.find('\n', i + 1)) {
-    if (i + 1 < buf.size() && buf[i + 1] == '\n') return i + 2;
-    if (i + 2 < buf.size() && buf[i + 1] == '\r' && buf[i + 2] == '\n') return i + 3;
-  }
-  return std::string_view::npos;
-}
-
-struct HttpRequest {
-  std::string method;
-  std::string path;                                          // the target without its query
-  std::string query;                                         // after '?', undecoded
-  std::vector<std::pair<std::string, std::string>> headers;  // names lower-cased
-
-  // The comma-separated tokens of every header `name`, lower-cased.
-  std::vector<std::string> tokens(std::string_view name) const {
-    std::vector<std::string> out;
-    for (const auto& [key, value] : headers) {
-      if (key != name) continue;
-      std::string_view rest = value;
-      while (!rest.empty()) {
-        const std::size_t comma = rest.find(',');
-        const std::string_view item = trim(rest.substr(0, comma));
-        if (!item.empty()) out.push_back(lower(item));
-        rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
-      }
-    }
-    return out;
-  }
-  bool has_token(std::string_view name, std::string_view token) const {
-    const auto all = tokens(name);
-    return std::find(all.begin(), all.end(), token) != all.end();
-  }
-  const std::string* header(std::string_view name) const {
-    for (const auto& [key, value] : headers) {
-      if (key == name) return &value;
-    }
-    return nullptr;
-  }
-};
-
-bool has_control_char(std::string_view s) {
-  return std::any_of(s.begin(), s.end(), [](char c) {
-    const auto u = static_cast<unsigned char>(c);
-    return (u < 0x20 && c != '\t') || u == 0x7f;
-  });
-}
-
-// Parses a request head (request line + header lines + empty line); nullopt when malformed.
-std::optional<HttpRequest> parse_request(std::string_view head) {
-  std::vector<std::string_view> lines;
-  while (!head.empty()) {
-    const std::size_t nl = head.find('\n');
-    std::string_view line = head.substr(0, nl);
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    lines.push_back(line);
-    head = nl == std::string_view::npos ? std::string_view() : head.substr(nl + 1);
-  }
-  while (!lines.empty() && lines.back().empty()) lines.pop_back();
-  if (lines.empty()) return std::nullopt;
-
-  // Request line: METHOD SP target SP HTTP/1.x
-  const std::string_view request_line = lines.front();
-  const std::size_t sp1 = request_line.find(' ');
-  if (sp1 == std::string_view::npos) return std::nullopt;
-  const std::size_t sp2 = request_line.find(' ', sp1 + 1);
-  if (sp2 == std::string_view::npos) return std::nullopt;
-  const std::string_view method = request_line.substr(0, sp1);
-  const std::string_view target = request_line.substr(sp1 + 1, sp2 - sp1 - 1);
-  const std::string_view version = request_line.substr(sp2 + 1);
-  if (!is_token(method) || target.empty() || target.front() != '/' || has_control_char(target) ||
-      target.find(' ') != std::string_view::npos ||
-      (version != "HTTP/1.1" && version != "HTTP/1.0")) {
-    return std::nullopt;
-  }
-  HttpRequest req;
-  req.method = std::string(method);
-  req.path = std::string(target.substr(0, target.find('?')));
-  if (const std::size_t q = target.find('?'); q != std::string_view::npos) {
-    req.query = std::string(target.substr(q + 1));
-  }
-
-  for (std::size_t i = 1; i < lines.size(); ++i) {
-    const std::string_view line = lines[i];
-    const std::size_t colon = line.find(':');
-    if (colon == std::string_view::npos) return std::nullopt;
-    const std::string_view name = line.substr(0, colon);  // no space before ':' (RFC 9112)
-    const std::string_view value = trim(line.substr(colon + 1));
-    if (!is_token(name) || has_control_char(value)) return std::nullopt;
-    req.headers.emplace_back(lower(name), std::string(value));
-  }
-  return req;
-}
-
-std::string http_response(int code, std::string_view reason, std::string_view content_type,
-                          std::string_view body, std::string_view extra_headers = {}) {
-  std::string out = "HTTP/1.1 " + std::to_string(code) + " " + std::string(reason) + "\r\n";
-  out += "Content-Type: ";
-  out += content_type;
-  out += "\r\nContent-Length: " + std::to_string(body.size()) + "\r\n";
-  out += "Cache-Control: no-store\r\nConnection: close\r\n";
-  out += extra_headers;
-  out += "\r\n";
-  out += body;
-  return out;
-}
-
-std::string_view reason_phrase(int code) {
-  switch (code) {
-    case 200:
-      return "OK";
-    case 201:
-      return "Created";
-    case 400:
-      return "Bad Request";
-    case 404:
-      return "Not Found";
-    case 405:
-      return "Method Not Allowed";
-    case 409:
-      return "Conflict";
-    case 503:
-      return "Service Unavailable";
-    case 507:
-      return "Insufficient Storage";
-    default:
-      return code < 400 ? "OK" : "Error";
-  }
-}
-
-std::string text_response(int code, std::string_view reason, std::string_view body,
-                          std::string_view extra_headers = {}) {
-  return http_response(code, reason, "text/plain; charset=utf-8", body, extra_headers);
-}
 
 bool is_base64_nonce(std::string_view key) {  // 16 bytes, base64: 22 characters + "=="
   if (key.size() != 24 || key.substr(22) != "==") return false;
@@ -266,6 +107,7 @@ struct Outbox {
 enum class Phase {
   kHttpRequest,     // reading a request head
   kStream,          // stream port client
+  kStreamAuth,      // stream port client that must send the token as its first line
   kWebSocket,       // upgraded HTTP client
   kFlushThenClose,  // sending the last answer; input discarded
   kLinger,          // our side shut down; discarding input until EOF or the deadline
@@ -283,11 +125,16 @@ struct Connection {
   Connection& operator=(const Connection&) = delete;
   ~Connection() {
     if (fd >= 0) ::close(fd);
+    if (file_fd >= 0) ::close(file_fd);
   }
+  bool has_output() const { return !out.empty() || file_fd >= 0; }
 
   int fd = -1;
   Phase phase = Phase::kStream;
   std::string peer;                // "address:port", for logs
+  std::string address;             // the client's IPv4 address (access control)
+  int file_fd = -1;                // a download being streamed after `out`
+  std::uint64_t file_left = 0;     // its bytes still to read
   std::string in;                  // request head or WebSocket frame bytes
   std::deque<OutItem> out;         // to send, front first
   std::size_t out_offset = 0;      // bytes of out.front() already sent
@@ -302,6 +149,7 @@ struct Connection {
 const char* kind_name(const Connection& c) {
   switch (c.phase) {
     case Phase::kStream:
+    case Phase::kStreamAuth:
       return "stream";
     case Phase::kWebSocket:
       return "websocket";
@@ -310,13 +158,17 @@ const char* kind_name(const Connection& c) {
   }
 }
 
-std::string format_peer(const sockaddr_in& addr) {
+std::string format_address(const sockaddr_in& addr) {
   std::array<char, INET_ADDRSTRLEN> text{};
   if (::inet_ntop(AF_INET, &addr.sin_addr, text.data(), static_cast<socklen_t>(text.size())) ==
       nullptr) {
     return "?";
   }
-  return std::string(text.data()) + ":" + std::to_string(ntohs(addr.sin_port));
+  return text.data();
+}
+
+std::string format_peer(const sockaddr_in& addr) {
+  return format_address(addr) + ":" + std::to_string(ntohs(addr.sin_port));
 }
 
 Result<int> bind_listener(const std::string& address, int port, std::string_view what,
@@ -437,11 +289,13 @@ struct StreamServer::Impl {
     std::uint64_t dropped_bad_input = 0;
     std::uint64_t http_requests = 0;
     std::uint64_t bytes_sent = 0;
+    std::uint64_t files_sent = 0;
   };
 
   const StreamServerOptions options;
   const StatusProvider status;
   const RequestHandler handler;
+  AccessGuard access{options.access};  // poll thread only; its counters go to `shared`
   int stream_listen_fd = -1;
   int http_listen_fd = -1;
   int wake_fd = -1;  // eventfd; open until destruction so a late publish() never writes a
@@ -495,6 +349,10 @@ struct StreamServer::Impl {
   void handle(Connection& c, short revents);
   void flush(Connection& c);
   void consume(Connection& c, std::size_t n);
+  bool read_file_chunk(Connection& c);
+  void read_stream_token(Connection& c);
+  bool admit(Connection& c, const HttpRequest& req);
+  void reply(Connection& c, HttpReply r);
   void read_request(Connection& c);
   void read_websocket(Connection& c);
   void discard_input(Connection& c);
@@ -523,7 +381,7 @@ void StreamServer::Impl::run() {
     for (const auto& c : conns) {
       short events = 0;
       if (!c->peer_closed) events |= POLLIN;
-      if (!c->out.empty()) events |= POLLOUT;
+      if (c->has_output()) events |= POLLOUT;
       fds.push_back({c->fd, events, 0});
     }
     const int n = ::poll(fds.data(), static_cast<nfds_t>(fds.size()), poll_timeout_ms());
@@ -560,6 +418,9 @@ void StreamServer::Impl::sync() {
     shared.dropped_bad_input += local.dropped_bad_input;
     shared.http_requests += local.http_requests;
     shared.bytes_sent += local.bytes_sent;
+    shared.files_sent += local.files_sent;
+    shared.unauthorized = access.stats().unauthorized;
+    shared.throttled = access.stats().throttled;
     local = Counters{};
     int streams = 0;
     int websockets = 0;
@@ -635,6 +496,9 @@ void StreamServer::Impl::shutdown_all() {
   shared.dropped_bad_input += local.dropped_bad_input;
   shared.http_requests += local.http_requests;
   shared.bytes_sent += local.bytes_sent;
+  shared.files_sent += local.files_sent;
+  shared.unauthorized = access.stats().unauthorized;
+  shared.throttled = access.stats().throttled;
   local = Counters{};
   shared.stream_clients = 0;
   shared.websocket_clients = 0;
@@ -659,7 +523,7 @@ void StreamServer::Impl::expire(Clock::time_point now) {
     Connection& c = *cp;
     if (c.dead || !c.deadline || *c.deadline > now) continue;
     if (c.phase == Phase::kHttpRequest) {
-      respond(c, text_response(408, "Request Timeout", "request head not received in time\n"));
+      respond(c, text_response(408, "request head not received in time\n"));
     } else {
       c.dead = true;
     }
@@ -699,8 +563,12 @@ void StreamServer::Impl::accept_from(int listen_fd, bool http) {
     auto c = std::make_unique<Connection>();
     c->fd = fd;
     c->peer = format_peer(addr);
+    c->address = format_address(addr);
     if (http) {
       c->phase = Phase::kHttpRequest;
+      c->deadline = Clock::now() + kRequestTimeout;
+    } else if (options.access.token_for_reading) {
+      c->phase = Phase::kStreamAuth;  // nothing is sent before its token line
       c->deadline = Clock::now() + kRequestTimeout;
     } else {
       c->phase = Phase::kStream;
@@ -717,7 +585,7 @@ void StreamServer::Impl::handle(Connection& c, short revents) {
     c.dead = true;
     return;
   }
-  const bool had_output = !c.out.empty();
+  const bool had_output = c.has_output();
   if ((revents & (POLLIN | POLLHUP)) != 0) {
     switch (c.phase) {
       case Phase::kHttpRequest:
@@ -726,6 +594,9 @@ void StreamServer::Impl::handle(Connection& c, short revents) {
       case Phase::kWebSocket:
         read_websocket(c);
         break;
+      case Phase::kStreamAuth:
+        read_stream_token(c);
+        break;
       case Phase::kStream:
       case Phase::kFlushThenClose:
       case Phase::kLinger:
@@ -733,11 +604,12 @@ void StreamServer::Impl::handle(Connection& c, short revents) {
         break;
     }
   }
-  if (!c.dead && !c.out.empty() && ((revents & POLLOUT) != 0 || !had_output)) flush(c);
+  if (!c.dead && c.has_output() && ((revents & POLLOUT) != 0 || !had_output)) flush(c);
 }
 
 void StreamServer::Impl::flush(Connection& c) {
-  while (!c.out.empty()) {
+  while (c.has_output()) {
+    if (c.out.empty() && !read_file_chunk(c)) return;
     std::array<iovec, kMaxIov> iov{};
     std::size_t n = 0;
     for (auto it = c.out.begin(); it != c.out.end() && n < kMaxIov; ++it, ++n) {
@@ -760,6 +632,8 @@ void StreamServer::Impl::flush(Connection& c) {
     }
     local.bytes_sent += static_cast<std::uint64_t>(sent);
     consume(c, static_cast<std::size_t>(sent));
+    // A download may take longer than kFlushTimeout in all: the limit is on a stall.
+    if (c.phase == Phase::kFlushThenClose) c.deadline = Clock::now() + kFlushTimeout;
   }
   if (c.phase == Phase::kFlushThenClose) {
     if (c.peer_closed) {
@@ -770,6 +644,31 @@ void StreamServer::Impl::flush(Connection& c) {
       c.deadline = Clock::now() + kLingerTimeout;
     }
   }
+}
+
+// Queues the next chunk of the download; false when the file cannot be read (the connection
+// is closed: the client sees a short body, never a wrong one).
+bool StreamServer::Impl::read_file_chunk(Connection& c) {
+  const std::size_t want =
+      static_cast<std::size_t>(std::min<std::uint64_t>(c.file_left, kFileChunk));
+  std::string chunk(want, '\0');
+  const ssize_t r = ::read(c.file_fd, chunk.data(), want);
+  if (r <= 0) {
+    MOCAP_LOG(Net, Warn) << "http client " << c.peer << ": download cut short: "
+                         << (r == 0 ? std::string("the file shrank") : errno_text(errno));
+    ::close(c.file_fd);
+    c.file_fd = -1;
+    c.dead = true;
+    return false;
+  }
+  chunk.resize(static_cast<std::size_t>(r));
+  c.file_left -= static_cast<std::uint64_t>(r);
+  if (c.file_left == 0) {
+    ::close(c.file_fd);
+    c.file_fd = -1;
+  }
+  queue(c, std::move(chunk));
+  return true;
 }
 
 void StreamServer::Impl::consume(Connection& c, std::size_t n) {
@@ -835,9 +734,8 @@ void StreamServer::Impl::read_request(Connection& c) {
       ++local.dropped_bad_input;
       MOCAP_LOG(Net, Debug) << "http client " << c.peer << ": request head over "
                             << options.max_request_bytes << " bytes";
-      respond(c, text_response(431, "Request Header Fields Too Large",
-                               "request head over " + std::to_string(options.max_request_bytes) +
-                                   " bytes\n"));
+      respond(c, text_response(431, "request head over " +
+                                        std::to_string(options.max_request_bytes) + " bytes\n"));
       return;
     }
   }
@@ -866,21 +764,30 @@ std::string StreamServer::Impl::index_page() const {
 
 void StreamServer::Impl::answer_request(Connection& c, std::size_t head_end) {
   ++local.http_requests;
-  const auto req = parse_request(std::string_view(c.in).substr(0, head_end));
+  auto req = parse_request(std::string_view(c.in).substr(0, head_end));
   if (!req) {
     ++local.dropped_bad_input;
     MOCAP_LOG(Net, Debug) << "http client " << c.peer << ": malformed request";
-    respond(c, text_response(400, "Bad Request", "malformed HTTP request\n"));
+    respond(c, text_response(400, "malformed HTTP request\n"));
     return;
   }
+  req->peer_address = c.address;
+  if (!admit(c, *req)) return;
   if (handler) {
-    if (std::optional<HttpReply> r = handler(req->method, req->path, req->query)) {
-      respond(c, http_response(r->status, reason_phrase(r->status), r->content_type, r->body));
+    std::optional<HttpReply> r;
+    try {
+      r = handler(*req);
+    } catch (const std::exception& e) {
+      respond(c, text_response(500, std::string("handler failed: ") + e.what() + "\n"));
+      return;
+    }
+    if (r) {
+      reply(c, std::move(*r));
       return;
     }
   }
   if (req->method != "GET") {
-    respond(c, text_response(405, "Method Not Allowed", "only GET is served\n", "Allow: GET\r\n"));
+    respond(c, text_response(405, "only GET is served\n", {{"Allow", "GET"}}));
     return;
   }
   if (req->path == "/health") {
@@ -889,56 +796,147 @@ void StreamServer::Impl::answer_request(Connection& c, std::size_t head_end) {
       try {
         body = status();
       } catch (const std::exception& e) {
-        respond(c, text_response(500, "Internal Server Error",
-                                 std::string("status provider failed: ") + e.what() + "\n"));
+        respond(c, text_response(500, std::string("status provider failed: ") + e.what() + "\n"));
         return;
       } catch (...) {
-        respond(c, text_response(500, "Internal Server Error", "status provider failed\n"));
+        respond(c, text_response(500, "status provider failed\n"));
         return;
       }
     }
-    respond(c, http_response(200, "OK", "application/json", body));
+    respond(c, http_response(200, "application/json", body));
     return;
   }
   if (req->path == "/") {
-    respond(c, text_response(200, "OK", index_page()));
+    respond(c, text_response(200, index_page()));
     return;
   }
   if (req->path != "/stream") {
-    respond(c, text_response(404, "Not Found", "no such endpoint; GET / lists them\n"));
+    respond(c, text_response(404, "no such endpoint; GET / lists them\n"));
     return;
   }
   if (!req->has_token("upgrade", "websocket")) {
-    respond(c, text_response(426, "Upgrade Required",
-                             "GET /stream is a WebSocket (RFC 6455): send Upgrade: websocket\n",
-                             "Upgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"));
+    respond(c,
+            text_response(426, "GET /stream is a WebSocket (RFC 6455): send Upgrade: websocket\n",
+                          {{"Upgrade", "websocket"}, {"Sec-WebSocket-Version", "13"}}));
     return;
   }
   const std::string* version = req->header("sec-websocket-version");
   if (version == nullptr || *version != "13") {
-    respond(c, text_response(426, "Upgrade Required", "WebSocket version 13 is served\n",
-                             "Upgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"));
+    respond(c, text_response(426, "WebSocket version 13 is served\n",
+                             {{"Upgrade", "websocket"}, {"Sec-WebSocket-Version", "13"}}));
     return;
   }
   const std::string* key = req->header("sec-websocket-key");
   if (!req->has_token("connection", "upgrade") || key == nullptr || !is_base64_nonce(*key)) {
     ++local.dropped_bad_input;
     MOCAP_LOG(Net, Debug) << "http client " << c.peer << ": malformed WebSocket handshake";
-    respond(c, text_response(400, "Bad Request",
+    respond(c, text_response(400,
                              "WebSocket handshake needs Connection: Upgrade and a "
                              "Sec-WebSocket-Key\n"));
     return;
   }
+  // A browser that offered subprotocols (the page offers "mocap.v1" and its token) fails the
+  // connection unless one is chosen.
+  std::string protocol;
+  const std::vector<std::string> offered = req->tokens("sec-websocket-protocol");
+  if (!offered.empty()) {
+    protocol = std::find(offered.begin(), offered.end(), "mocap.v1") != offered.end()
+                   ? "mocap.v1"
+                   : offered.front();
+    protocol = "Sec-WebSocket-Protocol: " + protocol + "\r\n";
+  }
   queue(c,
         "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
         "Sec-WebSocket-Accept: " +
-            websocket_accept_key(*key) + "\r\n\r\n");
+            websocket_accept_key(*key) + "\r\n" + protocol + "\r\n");
   c.phase = Phase::kWebSocket;
   c.deadline.reset();
   subscribe(c);  // before the 101 goes out: the client gets every message published after it
   c.in.erase(0, head_end);
   MOCAP_LOG(Net, Debug) << "websocket client " << c.peer << " connected";
   parse_frames(c);  // frames sent right behind the handshake
+}
+
+// The access check of a parsed request; false when it was answered 401 or 429.
+bool StreamServer::Impl::admit(Connection& c, const HttpRequest& req) {
+  const Clock::time_point now = Clock::now();
+  const Access a = access.check(req, now);
+  if (a == Access::kAllowed) return true;
+  if (a == Access::kThrottled) {
+    respond(c,
+            text_response(429,
+                          "too many wrong tokens from " + c.address + ": wait " +
+                              std::to_string(access.retry_after_s(c.address, now)) +
+                              " s (`mocap token` on the box prints the right one)\n",
+                          {{"Retry-After", std::to_string(access.retry_after_s(c.address, now))}}));
+  } else {
+    MOCAP_LOG(Net, Info) << "http client " << c.peer << ": " << req.method << " " << req.path
+                         << " without the right token (401)";
+    respond(c, text_response(401,
+                             req.method + " " + req.path +
+                                 " needs the box's token in an X-Mocap-Token header (`mocap "
+                                 "token` on the box prints it; it is in <state_dir>/token)\n",
+                             {{"WWW-Authenticate", "Bearer realm=\"mocapd\""}}));
+  }
+  return false;
+}
+
+// Sends a handler's reply: its body, or its file streamed from disk.
+void StreamServer::Impl::reply(Connection& c, HttpReply r) {
+  if (r.file.empty()) {
+    respond(c, http_response(r.status, r.content_type, r.body, r.headers));
+    return;
+  }
+  const int fd = ::open(r.file.c_str(), O_RDONLY | O_CLOEXEC);
+  struct stat st {};
+  if (fd < 0 || ::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    const std::string why = fd < 0 ? errno_text(errno) : "not a regular file";
+    if (fd >= 0) ::close(fd);
+    respond(c, text_response(404, "cannot read " + r.file + ": " + why + "\n"));
+    return;
+  }
+  respond(c,
+          http_head(r.status, r.content_type, static_cast<std::uint64_t>(st.st_size), r.headers));
+  c.file_left = static_cast<std::uint64_t>(st.st_size);
+  if (c.file_left > 0) {
+    c.file_fd = fd;
+  } else {
+    ::close(fd);
+  }
+  ++local.files_sent;
+}
+
+// A stream port client's first line is the token (token_for_reading); then it is subscribed.
+void StreamServer::Impl::read_stream_token(Connection& c) {
+  std::array<char, kReadChunk> buf;
+  const ssize_t r = ::recv(c.fd, buf.data(), buf.size(), 0);
+  if (r == 0) {
+    on_eof(c);
+    return;
+  }
+  if (r < 0) {
+    if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) c.dead = true;
+    return;
+  }
+  c.in.append(buf.data(), static_cast<std::size_t>(r));
+  const std::size_t nl = c.in.find('\n');
+  if (nl == std::string::npos && c.in.size() <= kMaxTokenLine) return;
+  std::string line = nl == std::string::npos ? std::string() : c.in.substr(0, nl);
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  const Access a = access.check_token(line, c.address, Clock::now());
+  c.in.clear();
+  if (a != Access::kAllowed) {
+    MOCAP_LOG(Net, Info) << "stream client " << c.peer << ": wrong or missing token";
+    queue(c, a == Access::kThrottled
+                 ? std::string("error: too many wrong tokens from this address; wait\n")
+                 : std::string("error: send the box's token (`mocap token`) as the first line\n"));
+    c.phase = Phase::kFlushThenClose;
+    c.deadline = Clock::now() + kFlushTimeout;
+    return;
+  }
+  c.phase = Phase::kStream;
+  c.deadline.reset();
+  subscribe(c);
 }
 
 void StreamServer::Impl::read_websocket(Connection& c) {

@@ -34,6 +34,8 @@
 #include <string_view>
 
 #include "runtime/core/error.h"
+#include "runtime/net/access.h"
+#include "runtime/net/http.h"
 
 namespace mocap::net {
 
@@ -48,6 +50,7 @@ struct StreamServerOptions {
   int max_clients = 64;                  // stream + WebSocket + HTTP connections, [1, 4096]
   std::size_t max_client_backlog_bytes = std::size_t{4} << 20;  // [4 KiB, 1 GiB]
   std::size_t max_request_bytes = 8192;  // largest HTTP request head, [256, 1 MiB]
+  AccessOptions access;                  // the token (runtime/net/access.h)
   // Ranges above; the error names the field.
   Status validate() const;
 };
@@ -62,23 +65,20 @@ struct ServerStats {
   std::uint64_t http_requests = 0;
   std::uint64_t messages_published = 0;
   std::uint64_t bytes_sent = 0;
-  std::size_t backlog_bytes = 0;  // unsent, all clients, now
+  std::size_t backlog_bytes = 0;   // unsent, all clients, now
+  std::uint64_t unauthorized = 0;  // 401: a request or stream client without the right token
+  std::uint64_t throttled = 0;     // 429: too many wrong tokens from one address
+  std::uint64_t files_sent = 0;    // downloads answered (RequestHandler replies with a file)
 };
 
 // The body of GET /health (a JSON object). Called on the server thread.
 using StatusProvider = std::function<std::string()>;
 
-// An answer of an extra endpoint.
-struct HttpReply {
-  int status = 200;  // 200, 201, 400, 404, 405, 409, 500, 503, 507
-  std::string content_type = "application/json";
-  std::string body;
-};
-// Extra endpoints (mocapd's /takes): called on the server thread, before the built-in routes,
-// with the method, the path and the query string (after '?', undecoded); nullopt = not this
-// handler's path (the built-in routes answer). Must return quickly: it holds up the server.
-using RequestHandler = std::function<std::optional<HttpReply>(
-    std::string_view method, std::string_view path, std::string_view query)>;
+// Extra endpoints (mocapd's page, /takes, /metrics): called on the server thread, after the
+// access check and before the built-in routes; nullopt = not this handler's path (the built-in
+// routes answer). Must return quickly: it holds up the server (a download is a reply.file,
+// streamed by the server).
+using RequestHandler = std::function<std::optional<HttpReply>(const HttpRequest& request)>;
 
 class StreamServer {
  public:

@@ -10,6 +10,7 @@ namespace mocap::pipeline {
 MetricsRecorder::MetricsRecorder(std::size_t window) : window_(std::max<std::size_t>(window, 1)) {}
 
 void MetricsRecorder::add_locked(Stage stage, double ms) {
+  m_.histograms[stage].add(ms);
   Ring& r = rings_[stage];
   if (r.v.size() < window_) {
     r.v.push_back(ms);

@@ -24,6 +24,8 @@ struct PipelineMetrics {
   // cnn: Detector::detect; assoc: Engine::process; sink: all sinks; end_to_end: from the
   // source handing the item out to the last sink returning.
   LatencyStats source, cnn_wait, cnn, assoc_wait, assoc, sink, end_to_end;
+  // The same stages, every sample since the start (MetricsRecorder::Stage order; /metrics).
+  LatencyHistogram histograms[7];
   int persons = 0;        // in the last frame out
   bool realtime = false;  // SCHED_FIFO granted to every thread
   bool running = false;

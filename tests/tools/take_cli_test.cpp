@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "runtime/out/take_reader.h"
+#include "tests/support/mocapd_process.h"
 #include "tests/support/subprocess.h"
 #include "tests/support/temp_dir.h"
 
@@ -21,37 +22,35 @@ namespace fs = std::filesystem;
 
 const std::string kBin = MOCAP_BIN_DIR;
 
-// The HTTP port mocapd logged ("http port N"), 0 until it did.
-int logged_http_port(const std::string& err) {
-  const std::size_t at = err.find("http port ");
-  if (at == std::string::npos) return 0;
-  return std::atoi(err.c_str() + at + 10);
-}
-
 TEST(TakeCli, SigkillMidTakeLeavesAReadableInterruptedTake) {
   testing::TestTempDir dir("take-cli");
-  fs::create_directories(dir.path() / "dev");
-  const fs::path state = dir.path() / "state";
-  testing::ChildProcess mocapd(
-      {kBin + "/mocapd", "--dev-dir", (dir.path() / "dev").string(), "--state-dir", state.string(),
-       "--bind-address", "127.0.0.1", "--stream-port", "0", "--http-port", "0",
-       "--status-log-interval-s", "0"},
-      dir.path(), "mocapd");
+  testing::MocapdProcess m = testing::start_mocapd(kBin, dir.path());
+  testing::ChildProcess& mocapd = *m.process;
+  const fs::path state = m.state_dir;
   ASSERT_TRUE(mocapd.started());
-  int port = 0;
-  for (int i = 0; i < 200 && port == 0; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    port = logged_http_port(mocapd.err_so_far());
-  }
+  const int port = m.http_port;
   ASSERT_GT(port, 0) << mocapd.err_so_far();
   const std::string box = "127.0.0.1:" + std::to_string(port);
-  auto r = testing::run_process({kBin + "/mocap", "take", "start", "walk", "--box", box},
-                                dir.path(), "start", 30000);
+  // Without the token (another state folder): refused, with the fix.
+  auto r = testing::run_process({kBin + "/mocap", "take", "start", "walk", "--box", box,
+                                 "--state-dir", (dir.path() / "elsewhere").string()},
+                                dir.path(), "start_no_token", 30000);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.err.find("--token"), std::string::npos) << r.err;
+  // `mocap token` on the box prints it; `mocap take` finds it in the state folder itself.
+  r = testing::run_process({kBin + "/mocap", "token", "--state-dir", state.string()}, dir.path(),
+                           "token", 30000);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out.size(), 65u) << r.out;  // 64 hex digits and a newline
+  r = testing::run_process(
+      {kBin + "/mocap", "take", "start", "walk", "--box", box, "--state-dir", state.string()},
+      dir.path(), "start", 30000);
   ASSERT_EQ(r.exit_code, 0) << r.how() << r.err;
   EXPECT_NE(r.out.find("recording take walk"), std::string::npos) << r.out;
   std::this_thread::sleep_for(std::chrono::seconds(2));
-  r = testing::run_process({kBin + "/mocap", "take", "list", "--box", box}, dir.path(), "list",
-                           30000);
+  r = testing::run_process(
+      {kBin + "/mocap", "take", "list", "--box", box, "--state-dir", state.string()}, dir.path(),
+      "list", 30000);
   ASSERT_EQ(r.exit_code, 0) << r.how() << r.err;
   EXPECT_NE(r.out.find("walk"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("recording"), std::string::npos) << r.out;

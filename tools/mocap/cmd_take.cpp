@@ -9,11 +9,14 @@
 
 #include <cctype>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <string>
 #include <string_view>
 
 #include "runtime/core/error.h"
+#include "runtime/net/token_file.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
 
@@ -23,7 +26,8 @@ namespace {
 using nlohmann::json;
 
 constexpr const char* kUsage =
-    "usage: mocap take <start NAME|stop|list> [--box HOST[:PORT]]   (mocap take <subcommand> "
+    "usage: mocap take <start NAME|stop|list> [--box HOST[:PORT]] [--token TOKEN]   (mocap take "
+    "<subcommand> "
     "--help for details)\n"
     "\n"
     "subcommands (against a running mocapd, default 127.0.0.1:9871, its http_port):\n"
@@ -79,14 +83,37 @@ Result<int> connect_to(const std::string& host, const std::string& port, const s
   return fd;
 }
 
+// Where `mocap take` finds the box and its access token (start and stop need it).
+struct BoxArgs {
+  std::string box = "127.0.0.1:9871";
+  std::string token;                         // --token; else MOCAP_TOKEN; else the token file
+  std::string state_dir = "/var/lib/mocap";  // on the box itself: <state_dir>/token
+
+  void add_to(cli::ArgParser& p) {
+    p.option("--box", &box, "HOST[:PORT]", "mocapd's HTTP address (default 127.0.0.1:9871)");
+    p.option("--token", &token, "TOKEN",
+             "the box's access token (default: $MOCAP_TOKEN, else <state-dir>/token when this "
+             "is the box)");
+    p.option("--state-dir", &state_dir, "DIR", "mocapd's state folder (default /var/lib/mocap)");
+  }
+  // The token to send; empty when none is known (the box answers 401 with the fix).
+  std::string resolve_token() const {
+    if (!token.empty()) return token;
+    if (const char* env = std::getenv("MOCAP_TOKEN"); env != nullptr && *env != '\0') return env;
+    auto t = net::read_token(std::filesystem::path(state_dir) / "token");
+    return t.ok() ? *t : std::string();
+  }
+};
+
 Result<HttpAnswer> request(const std::string& box, const std::string& method,
-                           const std::string& target) {
+                           const std::string& target, const std::string& token) {
   const std::size_t colon = box.rfind(':');
   const std::string host = colon == std::string::npos ? box : box.substr(0, colon);
   const std::string port = colon == std::string::npos ? "9871" : box.substr(colon + 1);
   auto fd = connect_to(host, port, box);
   if (!fd) return fd.error();
   const std::string req = method + " " + target + " HTTP/1.1\r\nHost: " + host +
+                          (token.empty() ? std::string() : "\r\nX-Mocap-Token: " + token) +
                           "\r\nContent-Length: 0\r\nConnection: close\r\n\r\n";
   const bool sent = write(*fd, req.data(), req.size()) == static_cast<ssize_t>(req.size());
   auto text =
@@ -117,9 +144,9 @@ std::string percent_encode(std::string_view s) {
 }
 
 // Sends the request; prints the error (the server's, when it gave one) and returns nullopt.
-std::optional<json> call(const std::string& box, const std::string& method,
-                         const std::string& target) {
-  auto a = request(box, method, target);
+std::optional<json> call(const BoxArgs& b, const std::string& method, const std::string& target) {
+  const std::string& box = b.box;
+  auto a = request(box, method, target, b.resolve_token());
   if (!a) {
     std::fprintf(stderr, "error: %s\n", a.error().message().c_str());
     return std::nullopt;
@@ -130,16 +157,22 @@ std::optional<json> call(const std::string& box, const std::string& method,
                                 ? j["error"].get<std::string>()
                                 : "HTTP " + std::to_string(a->status) + ": " + a->body;
     std::fprintf(stderr, "error: %s\n", msg.c_str());
+    if (a->status == 401) {
+      std::fprintf(stderr,
+                   "fix: pass --token (or set MOCAP_TOKEN) with the token `mocap token` prints on "
+                   "the box, or run this on the box as a user who can read <state_dir>/token\n");
+    }
     return std::nullopt;
   }
   return j;
 }
 
 int run_start(Args args) {
-  std::string name, box = "127.0.0.1:9871";
+  std::string name;
+  BoxArgs box;
   cli::ArgParser p("mocap take start", "Start recording a take on a running mocapd.");
   p.positional("NAME", &name, "take name: letters, digits, '.', '_', '-' (at most 64)");
-  p.option("--box", &box, "HOST[:PORT]", "mocapd's HTTP address (default 127.0.0.1:9871)");
+  box.add_to(p);
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   auto j = call(box, "POST", "/takes/start?name=" + percent_encode(name));
   if (!j) return 1;
@@ -149,9 +182,9 @@ int run_start(Args args) {
 }
 
 int run_stop(Args args) {
-  std::string box = "127.0.0.1:9871";
+  BoxArgs box;
   cli::ArgParser p("mocap take stop", "End the take being recorded on a running mocapd.");
-  p.option("--box", &box, "HOST[:PORT]", "mocapd's HTTP address (default 127.0.0.1:9871)");
+  box.add_to(p);
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   auto j = call(box, "POST", "/takes/stop");
   if (!j) return 1;
@@ -164,9 +197,9 @@ int run_stop(Args args) {
 }
 
 int run_list(Args args) {
-  std::string box = "127.0.0.1:9871";
+  BoxArgs box;
   cli::ArgParser p("mocap take list", "The takes on a running mocapd.");
-  p.option("--box", &box, "HOST[:PORT]", "mocapd's HTTP address (default 127.0.0.1:9871)");
+  box.add_to(p);
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   auto j = call(box, "GET", "/takes");
   if (!j) return 1;

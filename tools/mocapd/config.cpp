@@ -124,7 +124,9 @@ OptionSpec enum_opt(std::string key, std::string unit, std::string help, E Daemo
 std::vector<OptionSpec> make_options() {
   std::vector<OptionSpec> v;
   // Network
-  v.push_back(string_opt("bind_address", "IPv4", "address the stream and HTTP servers listen on",
+  v.push_back(string_opt("bind_address", "IPv4",
+                         "address the stream and HTTP servers listen on (127.0.0.1: this machine "
+                         "only; 0.0.0.0: every network the box is on)",
                          &DaemonConfig::bind_address));
   v.push_back(int_opt("stream_port", "port",
                       "TCP port of the skeleton stream (newline-delimited JSON); 0 = any free port",
@@ -140,6 +142,11 @@ std::vector<OptionSpec> make_options() {
                       "unsent data a client may fall behind by before it is dropped (a slow client "
                       "never stalls the pipeline)",
                       &DaemonConfig::client_backlog_kib, 4, 1048576));
+  v.push_back(bool_opt("token_for_reading",
+                       "reading (the page, the stream, /health, /metrics) needs the access token "
+                       "too; default: only actions (record, recalibrate) need it. The token is "
+                       "<state_dir>/token, made on the first start (`mocap token` prints it)",
+                       &DaemonConfig::token_for_reading));
   // Sources
   v.push_back(string_opt("replay", "path",
                          "run a recording (calibration.json + videos/<view>.mp4) through the whole "

@@ -30,6 +30,7 @@ struct DaemonConfig {
   int http_port = 9871;
   int max_clients = 64;
   int client_backlog_kib = 4096;
+  bool token_for_reading = false;  // GET needs the access token too (<state_dir>/token)
   // Where frames come from
   std::string replay;  // recording folder; empty = cameras, or the simulator when none
   bool loop = false;

@@ -16,11 +16,13 @@
 #include "runtime/core/log.h"
 #include "runtime/gpu/cnn_detector.h"
 #include "runtime/net/stream_server.h"
+#include "runtime/net/token_file.h"
 #include "runtime/sim/simulator_source.h"
 #include "runtime/skeleton/topology.h"
 #include "tools/common/crop_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
+#include "tools/mocapd/camera_views.h"
 
 MOCAP_LOG_CATEGORY(Daemon);
 
@@ -370,6 +372,7 @@ void Daemon::adopt_resolved_camera(const calib::ResolvedCamera& r) {
   std::lock_guard<std::mutex> lock(state_mu_);
   calibration_ = cal;
   cameras_ = cal.cameras;
+  if (camera_views_) camera_views_->set_cameras(cameras_);
   // The engine the assoc thread used until now stays alive (this runs on that thread, after
   // it; the pipeline only reads the new pointer from the next frame).
   retired_engines_.push_back(std::move(engine_));
@@ -416,6 +419,7 @@ void Daemon::adopt_self_calibration(const calib::SelfCalibrationResult& result) 
   calibration_file_ = written.ok() ? path.string() : "(self-calibration, not saved)";
   self_calibration_report_ = calib::quality_to_json(result.quality);
   cameras_ = cal.cameras;
+  if (camera_views_) camera_views_->set_cameras(cameras_);
   calibration_ = cal;
   engine_ = std::move(*eng);
   pipeline_->set_engine(engine_.get());
@@ -506,16 +510,24 @@ Status Daemon::start() {
   so.http_port = config_.http_port;
   so.max_clients = config_.max_clients;
   so.max_client_backlog_bytes = static_cast<std::size_t>(config_.client_backlog_kib) * 1024;
+  so.access.token = token_ = access_token();
+  so.access.token_for_reading = config_.token_for_reading;
   auto srv = net::StreamServer::start(
       so, [this] { return health_json(); },
-      [this](std::string_view method, std::string_view path, std::string_view query) {
-        return outputs_->handle(method, path, query);
-      });
+      [this](const net::HttpRequest& req) { return handle_http(req); });
   if (!srv.ok()) return srv.error();
   server_ = std::move(*srv);
   server_view_.store(server_.get());
   stream_sink_ = std::make_unique<pipeline::StreamSink>(*server_, unix_offset_ns_);
-  std::vector<pipeline::Sink*> sinks = {stream_sink_.get(), outputs_->take_sink()};
+  camera_views_ = std::make_unique<CameraViews>(CameraViewsOptions{});
+  camera_views_->set_cameras(cameras_);
+  views_sink_ = std::make_unique<pipeline::CallbackSink>(
+      "camera views", [this](const pipeline::PipelineFrame& f) {
+        camera_views_->observe(f.detections, monotonic_ns());
+        return Status{};
+      });
+  std::vector<pipeline::Sink*> sinks = {stream_sink_.get(), outputs_->take_sink(),
+                                        views_sink_.get()};
   if (outputs_->vmc_sink() != nullptr) sinks.push_back(outputs_->vmc_sink());
   if (hooks_.on_frame) {
     hook_sink_ =
@@ -566,6 +578,29 @@ Status Daemon::start() {
                           << " on tcp port " << server_->stream_port() << ", status on http://"
                           << config_.bind_address << ":" << server_->http_port() << "/health";
   return {};
+}
+
+// The token in <state_dir>/token, made on the first start and printed in the journal. A state
+// folder that cannot keep it still gets one for this run (a problem says why).
+std::string Daemon::access_token() {
+  const fs::path file = fs::path(config_.state_dir) / "token";
+  auto t = net::load_or_create_token(file);
+  if (t.ok()) {
+    if (t->created) {
+      MOCAP_LOG(Daemon, Info) << "access token made in " << file.string() << ": " << t->token
+                              << " (actions on the web page and over HTTP need it; `mocap "
+                                 "token` prints it again)";
+    } else {
+      MOCAP_LOG(Daemon, Info) << "access token: " << file.string() << " (`mocap token` prints it)";
+    }
+    return t->token;
+  }
+  auto fresh = net::random_token();
+  const std::string token = fresh.ok() ? *fresh : std::string();
+  std::lock_guard<std::mutex> lock(state_mu_);
+  problems_.push_back(t.error().message() + "; a token for this run only: " + token);
+  MOCAP_LOG(Daemon, Error) << problems_.back();
+  return token;
 }
 
 void Daemon::log_status() const {

@@ -34,6 +34,7 @@
 #include "runtime/pipeline/sinks.h"
 #include "tools/mocapd/config.h"
 #include "tools/mocapd/outputs.h"
+#include "tools/mocapd/web.h"
 
 namespace mocap::net {
 class StreamServer;
@@ -53,6 +54,8 @@ struct SelfCalibrationResult;
 }  // namespace mocap::calib
 
 namespace mocap::daemon {
+
+class CameraViews;
 
 // Test and bench hooks: called on the association thread after a frame was published.
 struct DaemonHooks {
@@ -80,6 +83,15 @@ class Daemon {
 
   // GET /health's JSON.
   std::string health_json() const;
+  // GET /scene: the topology and the calibrated cameras, for the page's 3D view.
+  nlohmann::json scene_json() const;
+  // GET /cameras: each camera's state and its latest 2D keypoints.
+  nlohmann::json cameras_json() const;
+  // Every route besides the stream and /health (tools/mocapd/routes.cpp); the server's
+  // RequestHandler.
+  std::optional<net::HttpReply> handle_http(const net::HttpRequest& req);
+  // The access token (<state_dir>/token; made on the first start).
+  const std::string& token() const { return token_; }
   int stream_port() const;
   int http_port() const;
   pipeline::PipelineMetrics metrics() const;
@@ -122,6 +134,7 @@ class Daemon {
   // What a new take records about the box (Outputs::MetadataProvider).
   out::TakeMetadata take_metadata() const;
   void log_status() const;
+  std::string access_token();
   nlohmann::json calibration_json(std::vector<std::string>& problems) const;
 
   DaemonConfig config_;
@@ -154,7 +167,11 @@ class Daemon {
   std::atomic<const net::StreamServer*> server_view_{nullptr};  // for health_json()
   std::unique_ptr<pipeline::StreamSink> stream_sink_;
   std::unique_ptr<pipeline::CallbackSink> hook_sink_;
-  std::unique_ptr<Outputs> outputs_;  // VMC and takes
+  std::unique_ptr<Outputs> outputs_;           // VMC and takes
+  std::unique_ptr<CameraViews> camera_views_;  // the page's camera tiles
+  std::unique_ptr<pipeline::CallbackSink> views_sink_;
+  WebAssets web_;
+  std::string token_;
   std::unique_ptr<pipeline::Pipeline> pipeline_;
   std::atomic<const pipeline::Pipeline*> pipeline_view_{nullptr};  // for health_json()
   std::atomic<bool> stopped_{false};

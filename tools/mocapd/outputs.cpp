@@ -6,6 +6,7 @@
 
 #include "runtime/core/clock.h"
 #include "runtime/core/log.h"
+#include "tools/mocapd/take_exports.h"
 
 namespace mocap::daemon {
 
@@ -15,42 +16,14 @@ namespace {
 
 using nlohmann::json;
 
-net::HttpReply reply(int status, json body) { return {status, "application/json", body.dump()}; }
+net::HttpReply reply(int status, json body) {
+  net::HttpReply r;
+  r.status = status;
+  r.body = body.dump();
+  return r;
+}
 net::HttpReply error_reply(int status, const std::string& message) {
   return reply(status, json{{"error", message}});
-}
-
-bool is_hex(char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; }
-
-// Percent-decoding ('+' is a space); nullopt for a malformed escape.
-std::optional<std::string> decode(std::string_view v) {
-  std::string out;
-  for (std::size_t i = 0; i < v.size(); ++i) {
-    if (v[i] != '%') {
-      out += v[i] == '+' ? ' ' : v[i];
-      continue;
-    }
-    if (i + 2 >= v.size()) return std::nullopt;
-    if (!is_hex(v[i + 1]) || !is_hex(v[i + 2])) return std::nullopt;
-    out += static_cast<char>(std::stoi(std::string(v.substr(i + 1, 2)), nullptr, 16));
-    i += 2;
-  }
-  return out;
-}
-
-// The decoded value of `key` in a query string "a=1&name=x": "" when absent, nullopt when
-// malformed.
-std::optional<std::string> query_value(std::string_view query, std::string_view key) {
-  while (!query.empty()) {
-    const std::size_t amp = query.find('&');
-    const std::string_view pair = query.substr(0, amp);
-    const std::size_t eq = pair.find('=');
-    if (eq != std::string_view::npos && pair.substr(0, eq) == key)
-      return decode(pair.substr(eq + 1));
-    if (amp == std::string_view::npos) break;
-    query.remove_prefix(amp + 1);
-  }
-  return std::string();
 }
 
 std::int64_t unix_now_ns() { return monotonic_ns() + realtime_offset_ns(); }
@@ -83,6 +56,7 @@ Result<std::unique_ptr<Outputs>> Outputs::create(const DaemonConfig& config,
   o->takes_dir_ = (std::filesystem::path(config.state_dir) / "takes").string();
   o->unix_offset_ns_ = unix_offset_ns;
   o->metadata_ = std::move(metadata);
+  o->exports_ = std::make_unique<TakeExports>();
   if (!config.vmc_targets.empty()) {
     auto targets = out::parse_vmc_targets(config.vmc_targets);
     if (!targets) return targets.error();
@@ -119,8 +93,12 @@ Status Outputs::write_take(const pipeline::PipelineFrame& frame) {
   return Status{};
 }
 
-std::optional<net::HttpReply> Outputs::handle(std::string_view method, std::string_view path,
-                                              std::string_view query) {
+std::optional<net::HttpReply> Outputs::handle(const net::HttpRequest& req) {
+  const std::string_view path = req.path;
+  const std::string_view method = req.method;
+  if (path.starts_with("/takes/") && path != "/takes/start" && path != "/takes/stop") {
+    return take_file(req);
+  }
   if (path != "/takes" && path != "/takes/start" && path != "/takes/stop") return std::nullopt;
   const bool post = path != "/takes";
   if ((post && method != "POST") || (!post && method != "GET")) {
@@ -128,7 +106,7 @@ std::optional<net::HttpReply> Outputs::handle(std::string_view method, std::stri
   }
   if (path == "/takes/stop") return stop_take();
   if (path == "/takes/start") {
-    const std::optional<std::string> name = query_value(query, "name");
+    const std::optional<std::string> name = req.query_value("name");
     if (!name) return error_reply(400, "malformed query string: a bad %-escape in name");
     return start_take(name->empty() ? default_take_name() : *name);
   }
@@ -136,11 +114,14 @@ std::optional<net::HttpReply> Outputs::handle(std::string_view method, std::stri
   json list = json::array();
   if (auto takes = out::list_takes(takes_dir_); takes.ok()) {
     for (const out::TakeInfo& t : *takes) {
+      const std::filesystem::path dir = std::filesystem::path(takes_dir_) / t.name;
       list.push_back({{"name", t.name},
                       {"status", t.status},
                       {"reason", t.reason},
                       {"frames", t.frames},
-                      {"started_unix_ns", t.started_unix_ns}});
+                      {"started_unix_ns", t.started_unix_ns},
+                      {"files", TakeExports::files(dir)},
+                      {"exporting", exports_ && exports_->pending(dir)}});
     }
   } else {
     return error_reply(500, takes.error().message());
@@ -149,6 +130,48 @@ std::optional<net::HttpReply> Outputs::handle(std::string_view method, std::stri
   body["takes"] = list;
   body["dir"] = takes_dir_;
   return reply(200, body);
+}
+
+// GET /takes/<name>/<file>: a file the take lists (TakeExports::files), streamed;
+// POST /takes/<name>/export: writes its BVH and glTF exports again (202).
+std::optional<net::HttpReply> Outputs::take_file(const net::HttpRequest& req) {
+  namespace fs = std::filesystem;
+  const std::string_view rest =
+      std::string_view(req.path).substr(std::string_view("/takes/").size());
+  const std::size_t slash = rest.find('/');
+  if (slash == std::string_view::npos || rest.find('/', slash + 1) != std::string_view::npos) {
+    return error_reply(404, "no such take path: use /takes/<name>/<file> (GET /takes lists them)");
+  }
+  const std::string name(rest.substr(0, slash));
+  const std::string file(rest.substr(slash + 1));
+  if (Status s = out::validate_take_name(name); !s.ok())
+    return error_reply(400, s.error().message());
+  const fs::path dir = fs::path(takes_dir_) / name;
+  std::error_code ec;
+  if (fs::symlink_status(dir, ec).type() != fs::file_type::directory) {
+    return error_reply(404, "no take '" + name + "' (GET /takes lists them)");
+  }
+  if (file == "export") {
+    if (req.method != "POST") return error_reply(405, req.path + " takes POST");
+    if (exports_) exports_->request(dir);
+    return reply(202, json{{"name", name}, {"exporting", true}});
+  }
+  if (req.method != "GET" && req.method != "HEAD") return error_reply(405, req.path + " takes GET");
+  const fs::path p = TakeExports::file_path(dir, file);
+  if (p.empty()) {
+    return error_reply(404, "take '" + name + "' has no file '" + file +
+                                "' (GET /takes lists its files; POST /takes/" + name +
+                                "/export writes the BVH and glTF again)");
+  }
+  net::HttpReply r;
+  const std::string ext = p.extension().string();
+  r.content_type = ext == ".json"     ? "application/json"
+                   : ext == ".ndjson" ? "application/x-ndjson"
+                   : ext == ".glb"    ? "model/gltf-binary"
+                                      : "application/octet-stream";
+  r.headers.emplace_back("Content-Disposition", "attachment; filename=\"" + file + "\"");
+  r.file = p.string();
+  return r;
 }
 
 net::HttpReply Outputs::start_take(std::string name) {
@@ -185,6 +208,7 @@ net::HttpReply Outputs::stop_take() {
   last_take_ = j;
   MOCAP_LOG(Outputs, Info) << "take " << take_->dir().string() << " ended: " << take_->frames()
                            << " frames";
+  if (exports_) exports_->request(take_->dir());
   take_.reset();
   return reply(200, j);
 }

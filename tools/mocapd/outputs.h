@@ -5,7 +5,10 @@
 //   POST /takes/start?name=NAME   201 {"name","dir"}; 400 bad name, 409 a take is running or
 //                                 NAME exists, 507 the folder cannot be made (disk)
 //   POST /takes/stop              200 {"name","frames","status","reason"}; 409 none running
-//   GET  /takes                   200 {"recording": NAME|null, "takes": [...]}
+//   GET  /takes                   200 {"recording": NAME|null, "takes": [{..., "files"}]}
+//   GET  /takes/NAME/FILE         the file (skeletons.ndjson, take.json, exports: one BVH per
+//                                 person and a .glb, written when the take ends)
+//   POST /takes/NAME/export       202: writes the exports again (tools/mocapd/take_exports.h)
 //
 // Both are pipeline sinks on the association thread that never stop the pipeline: a VMC send
 // error is counted, a take that cannot write (disk full, read-only) stops with its reason in
@@ -33,6 +36,8 @@
 
 namespace mocap::daemon {
 
+class TakeExports;
+
 class Outputs {
  public:
   // What a new take's take.json records about the box (cameras, calibration, rate, topology).
@@ -50,8 +55,7 @@ class Outputs {
   pipeline::Sink* take_sink() { return take_sink_.get(); }
 
   // The /takes endpoints (net::RequestHandler); nullopt for other paths.
-  std::optional<net::HttpReply> handle(std::string_view method, std::string_view path,
-                                       std::string_view query);
+  std::optional<net::HttpReply> handle(const net::HttpRequest& req);
   // Starts / stops a take (what the endpoints call).
   net::HttpReply start_take(std::string name);
   net::HttpReply stop_take();
@@ -66,6 +70,7 @@ class Outputs {
  private:
   Outputs() = default;
   Status write_take(const pipeline::PipelineFrame& frame);
+  std::optional<net::HttpReply> take_file(const net::HttpRequest& req);
 
   std::string takes_dir_;
   std::int64_t unix_offset_ns_ = 0;
@@ -76,6 +81,7 @@ class Outputs {
   mutable std::mutex take_mu_;             // take_ and last_take_ (HTTP thread vs. assoc thread)
   std::unique_ptr<out::TakeWriter> take_;  // the take being recorded (or stopped on an error)
   nlohmann::json last_take_;               // the last take that ended
+  std::unique_ptr<TakeExports> exports_;   // BVH and glTF of ended takes, in the background
 };
 
 }  // namespace mocap::daemon

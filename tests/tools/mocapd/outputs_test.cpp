@@ -35,9 +35,13 @@ using Eigen::Quaterniond;
 using Eigen::Vector3d;
 using nlohmann::json;
 
-json http(int port, const std::string& method, const std::string& target, int* status = nullptr) {
+// One request with the box's token (`token`; empty: none); the parsed JSON answer.
+json http(int port, const std::string& method, const std::string& target, int* status = nullptr,
+          const std::string& token = {}) {
   testing::LineClient c(port);
-  c.send(method + " " + target + " HTTP/1.1\r\nHost: x\r\nContent-Length: 0\r\n\r\n");
+  c.send(method + " " + target + " HTTP/1.1\r\nHost: x\r\n" +
+         (token.empty() ? std::string() : "X-Mocap-Token: " + token + "\r\n") +
+         "Content-Length: 0\r\n\r\n");
   const std::string r = c.read_all(10000);
   if (status != nullptr) *status = r.size() > 12 ? std::stoi(r.substr(9, 3)) : 0;
   return json::parse(testing::http_body(r), nullptr, false);
@@ -210,22 +214,27 @@ TEST(DaemonOutputs, TakesStartStopListAndRefusals) {
   ASSERT_TRUE((*d)->start().ok());
   const int port = (*d)->http_port();
   int status = 0;
-  json r = http(port, "POST", "/takes/stop", &status);
+  // An action without the token, or with a wrong one, is refused and counted.
+  json r = http(port, "POST", "/takes/start?name=x", &status);
+  EXPECT_EQ(status, 401);
+  r = http(port, "POST", "/takes/start?name=x", &status, std::string(64, 'a'));
+  EXPECT_EQ(status, 401);
+  r = http(port, "POST", "/takes/stop", &status, (*d)->token());
   EXPECT_EQ(status, 409) << r.dump();
-  r = http(port, "POST", "/takes/start?name=../etc", &status);
+  r = http(port, "POST", "/takes/start?name=../etc", &status, (*d)->token());
   EXPECT_EQ(status, 400) << r.dump();
-  r = http(port, "POST", "/takes/start?name=walk%201", &status);
+  r = http(port, "POST", "/takes/start?name=walk%201", &status, (*d)->token());
   EXPECT_EQ(status, 400) << "a space is not allowed: " << r.dump();
-  r = http(port, "POST", "/takes/start?name=walk1", &status);
+  r = http(port, "POST", "/takes/start?name=walk1", &status, (*d)->token());
   ASSERT_EQ(status, 201) << r.dump();
-  r = http(port, "POST", "/takes/start?name=walk2", &status);
+  r = http(port, "POST", "/takes/start?name=walk2", &status, (*d)->token());
   EXPECT_EQ(status, 409) << "one take at a time: " << r.dump();
   std::this_thread::sleep_for(std::chrono::seconds(2));
-  r = http(port, "POST", "/takes/stop", &status);
+  r = http(port, "POST", "/takes/stop", &status, (*d)->token());
   ASSERT_EQ(status, 200) << r.dump();
   EXPECT_EQ(r["status"], "complete");
   EXPECT_GT(r["frames"].get<int>(), 20);
-  r = http(port, "POST", "/takes/start?name=walk1", &status);
+  r = http(port, "POST", "/takes/start?name=walk1", &status, (*d)->token());
   EXPECT_EQ(status, 409) << "the name exists: " << r.dump();
   r = http(port, "GET", "/takes", &status);
   ASSERT_EQ(status, 200);
@@ -259,7 +268,7 @@ TEST(DaemonOutputs, FullDiskStopsTheTakeNotTheStreamReadOnlyDiskRefusesOne) {
   ASSERT_TRUE((*d)->start().ok());
   const int port = (*d)->http_port();
   int status = 0;
-  json r = http(port, "POST", "/takes/start?name=long", &status);
+  json r = http(port, "POST", "/takes/start?name=long", &status, (*d)->token());
   ASSERT_EQ(status, 201) << r.dump();
   json h;
   for (int i = 0; i < 80; ++i) {
@@ -279,7 +288,7 @@ TEST(DaemonOutputs, FullDiskStopsTheTakeNotTheStreamReadOnlyDiskRefusesOne) {
   for (const json& p : h["problems"])
     named |= p.get<std::string>().find("long") != std::string::npos;
   EXPECT_TRUE(named) << h["problems"].dump();
-  r = http(port, "POST", "/takes/stop", &status);
+  r = http(port, "POST", "/takes/stop", &status, (*d)->token());
   EXPECT_EQ(status, 200);
   EXPECT_EQ(r["status"], "stopped");
   // The take reads back to its last complete frame.
@@ -289,7 +298,7 @@ TEST(DaemonOutputs, FullDiskStopsTheTakeNotTheStreamReadOnlyDiskRefusesOne) {
   // Read-only: a take cannot start, and says where.
   ASSERT_EQ(mount(nullptr, c.state_dir.c_str(), nullptr, MS_REMOUNT | MS_RDONLY, nullptr), 0)
       << strerror(errno);
-  r = http(port, "POST", "/takes/start?name=ro", &status);
+  r = http(port, "POST", "/takes/start?name=ro", &status, (*d)->token());
   EXPECT_EQ(status, 507) << r.dump();
   EXPECT_NE(r["error"].get<std::string>().find("takes"), std::string::npos) << r.dump();
   (*d)->stop();

@@ -1,0 +1,153 @@
+// The box's page in a real browser (docs/web.md): build/bin/mocapd on the simulator board and
+// headless Chromium driven by tests/web/page_test.cjs (DevTools protocol, pinned npm
+// puppeteer-core). Screenshots are kept in the build tree (test-artifacts/web/). CTest label
+// "browser": about 20 s for the page, 70 s for the keep-up run.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "tests/support/data.h"
+#include "tests/support/mocapd_process.h"
+#include "tests/support/subprocess.h"
+#include "tests/support/temp_dir.h"
+
+namespace mocap {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+const std::string kBin = MOCAP_BIN_DIR;
+const fs::path kSource = MOCAP_SOURCE_DIR;
+
+std::string chromium() {
+  const char* env = std::getenv("MOCAP_CHROMIUM");
+  return env != nullptr && *env != '\0' ? env : "/usr/bin/chromium";
+}
+
+fs::path artefacts(const std::string& name) {
+  const fs::path dir = fs::path(kBin).parent_path() / "test-artifacts" / "web" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Runs the driver; its JSON (null on failure, reported).
+json drive(const testing::MocapdProcess& m, const fs::path& out, const std::string& mode,
+           int seconds, const fs::path& log_dir) {
+  const std::string node_path = (kSource / "tools" / "web" / "node_modules").string();
+  ::setenv("NODE_PATH", node_path.c_str(), 1);
+  const std::string url = "http://127.0.0.1:" + std::to_string(m.http_port) + "/";
+  std::string token;
+  if (std::FILE* f = std::fopen((m.state_dir / "token").c_str(), "r")) {
+    char buf[128] = {};
+    if (std::fgets(buf, sizeof buf, f) != nullptr) token = buf;
+    std::fclose(f);
+    while (!token.empty() && token.back() == '\n') token.pop_back();
+  }
+  const auto r =
+      testing::run_process({"/usr/bin/node", (kSource / "tests" / "web" / "page_test.cjs").string(),
+                            "--url", url, "--token", token, "--out", out.string(), "--chromium",
+                            chromium(), "--mode", mode, "--seconds", std::to_string(seconds)},
+                           log_dir, "driver_" + mode, (seconds + 120) * 1000);
+  json j = json::parse(r.out, nullptr, false);
+  if (r.exit_code != 0 || j.is_discarded()) {
+    ADD_FAILURE() << "driver " << r.how() << "\n" << r.out << "\n" << r.err;
+    return json();
+  }
+  return j;
+}
+
+class Browser : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (::access(chromium().c_str(), X_OK) != 0) {
+      MOCAP_SKIP_OR_FAIL_IN_CI("no Chromium at " + chromium() +
+                               " (Debian chromium; MOCAP_CHROMIUM)");
+    }
+    if (!fs::exists(kSource / "tools" / "web" / "node_modules" / "puppeteer-core")) {
+      MOCAP_SKIP_OR_FAIL_IN_CI("tools/web/node_modules has no puppeteer-core (tools/setup.sh)");
+    }
+    if (::access("/usr/bin/node", X_OK) != 0) MOCAP_SKIP_OR_FAIL_IN_CI("no /usr/bin/node");
+  }
+  testing::TestTempDir dir_{"web-browser"};
+};
+
+TEST_F(Browser, PageShowsEachPersonCamerasAndTakesWithTheToken) {
+  testing::MocapdProcess m = testing::start_mocapd(kBin, dir_.path());
+  ASSERT_GT(m.http_port, 0) << m.process->err_so_far();
+  const fs::path out = artefacts("page");
+  const json r = drive(m, out, "page", 0, dir_.path());
+  ASSERT_TRUE(r.is_object());
+  std::printf("[ browser ] %s; screenshots in %s\n", r.value("browser", "").c_str(), out.c_str());
+  EXPECT_TRUE(r["console_errors_at_load"].empty()) << r["console_errors_at_load"].dump();
+  // Later, only the refusals this test asks for (Chromium logs every 401 it gets).
+  for (const json& e : r["console_errors"]) {
+    EXPECT_NE(e.get<std::string>().find("401"), std::string::npos) << e;
+  }
+  EXPECT_TRUE(r["external_requests"].empty()) << r["external_requests"].dump();
+  ASSERT_EQ(r["persons"].size(), 2u) << r.dump();
+  for (std::size_t i = 0; i < r["persons"].size(); ++i) {
+    const int pixels = r["colour_pixels"][i].get<int>();
+    std::printf("[ browser ] person %d %s: %d pixels\n", r["persons"][i]["id"].get<int>(),
+                r["persons"][i]["colour"].get<std::string>().c_str(), pixels);
+    EXPECT_GT(pixels, 150) << "person " << r["persons"][i].dump() << " not drawn";
+  }
+  EXPECT_EQ(r["tiles"].get<int>(), 4);
+  EXPECT_EQ(r["thumbnail_width"].get<int>(), 320);
+  EXPECT_NE(r["record_without_token"].get<std::string>().find("token"), std::string::npos)
+      << r["record_without_token"];
+  EXPECT_EQ(r["status_without_token"].get<int>(), 401);
+  EXPECT_EQ(r["lock_state"], "actions unlocked");
+  EXPECT_NE(r["recording_message"].get<std::string>().find("recording browser_take"),
+            std::string::npos)
+      << r["recording_message"];
+  EXPECT_EQ(r.value("bvh_head", ""), "HIERARCHY") << r.dump();
+}
+
+TEST_F(Browser, KeepsUpWithA60HzStreamForAMinute) {
+  testing::MocapdProcess m =
+      testing::start_mocapd(kBin, dir_.path(), {"--frame-rate-hz", "60", "--sim-people", "3"});
+  ASSERT_GT(m.http_port, 0) << m.process->err_so_far();
+  const fs::path out = artefacts("keepup");
+  const json r = drive(m, out, "keepup", 60, dir_.path());
+  ASSERT_TRUE(r.is_object());
+  const json& s = r["samples"];
+  ASSERT_GE(s.size(), 10u) << r.dump();
+  double worst_lag = 0;
+  for (const json& x : s) {
+    std::printf(
+        "[ browser ] t=%5.1f s heap %.1f MB drawn %d/%d (skipped %d) lag median %s p95 "
+        "%s max %s ms, arrival->drawn median %s ms\n",
+        x["t_s"].get<double>(), x["heap_mb"].get<double>(), x["rendered"].get<int>(),
+        x["received"].get<int>(), x["skipped"].get<int>(), x["lag_median_ms"].dump().c_str(),
+        x["lag_p95_ms"].dump().c_str(), x["lag_max_ms"].dump().c_str(),
+        x["arrival_median_ms"].dump().c_str());
+    if (x["lag_p95_ms"].is_number()) worst_lag = std::max(worst_lag, x["lag_p95_ms"].get<double>());
+  }
+  const json& first = s[1];  // after the page settled
+  const json& last = s.back();
+  // Frames are drawn the whole minute and the lag does not grow (the newest frame wins).
+  EXPECT_GT(last["rendered"].get<int>() - first["rendered"].get<int>(), 100);
+  ASSERT_TRUE(last["lag_median_ms"].is_number());
+  EXPECT_LT(last["lag_median_ms"].get<double>(), first["lag_median_ms"].get<double>() + 100);
+  EXPECT_LT(worst_lag, 1000) << "p95 lag of a 5 s window";
+  // The tab's memory stays flat.
+  double heap_max = 0;
+  for (std::size_t i = 1; i < s.size(); ++i)
+    heap_max = std::max(heap_max, s[i]["heap_mb"].get<double>());
+  EXPECT_LT(last["heap_mb"].get<double>(), first["heap_mb"].get<double>() * 1.5 + 4)
+      << "heap grew from " << first["heap_mb"] << " to " << last["heap_mb"] << " MB";
+  std::printf("[ browser ] heap %.1f -> %.1f MB (max %.1f), worst p95 lag %.1f ms\n",
+              first["heap_mb"].get<double>(), last["heap_mb"].get<double>(), heap_max, worst_lag);
+}
+
+}  // namespace
+}  // namespace mocap

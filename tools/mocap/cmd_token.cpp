@@ -1,0 +1,30 @@
+// mocap token [--state-dir DIR]: prints the box's access token (<state_dir>/token, made by
+// mocapd on its first start; docs/web.md). Actions on the web page and over HTTP need it.
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include "runtime/net/token_file.h"
+#include "tools/common/cli.h"
+#include "tools/mocap/commands.h"
+
+namespace mocap::tools {
+
+int run_token(Args args) {
+  std::string state_dir = "/var/lib/mocap";
+  cli::ArgParser p("mocap token",
+                   "Print the box's access token: paste it into the web page's \"Enter token\" "
+                   "or pass it to `mocap take --token`. A new one: delete the file and restart "
+                   "mocapd.");
+  p.option("--state-dir", &state_dir, "DIR", "mocapd's state folder (default /var/lib/mocap)");
+  if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
+  auto t = net::read_token(std::filesystem::path(state_dir) / "token");
+  if (!t.ok()) {
+    std::fprintf(stderr, "error: %s\n", t.error().message().c_str());
+    return 1;
+  }
+  std::printf("%s\n", t->c_str());
+  return 0;
+}
+
+}  // namespace mocap::tools

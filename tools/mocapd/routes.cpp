@@ -1,0 +1,136 @@
+// mocapd's HTTP routes besides the stream and /health (docs/web.md): the page and its files,
+// GET /scene (topology and cameras for the 3D view), GET /cameras (per camera state and 2D
+// keypoints), GET /cameras/<n>/thumbnail.jpg, GET /metrics (Prometheus), POST /token/check,
+// and the take routes (tools/mocapd/outputs.h). Access control happened before these run
+// (runtime/net/access.h): an action got here with the box's token.
+#include <charconv>
+
+#include "runtime/net/stream_server.h"
+#include "tools/mocapd/camera_views.h"
+#include "tools/mocapd/daemon.h"
+#include "tools/mocapd/metrics.h"
+
+namespace mocap::daemon {
+
+namespace {
+
+using nlohmann::json;
+
+net::HttpReply json_reply(int status, const json& body) {
+  net::HttpReply r;
+  r.status = status;
+  r.body = body.dump();
+  return r;
+}
+
+net::HttpReply error_reply(int status, const std::string& message) {
+  return json_reply(status, json{{"error", message}});
+}
+
+json camera_json(const Camera& c) {
+  json k = json::array();
+  json rot = json::array();
+  for (int i = 0; i < 3; ++i) {
+    k.push_back({c.K()(i, 0), c.K()(i, 1), c.K()(i, 2)});
+    rot.push_back({c.R()(i, 0), c.R()(i, 1), c.R()(i, 2)});
+  }
+  return {{"name", c.name()},
+          {"width_px", c.width_px()},
+          {"height_px", c.height_px()},
+          {"K", k},
+          {"R", rot},
+          {"t_m", {c.t_m().x(), c.t_m().y(), c.t_m().z()}},
+          {"center_m", {c.center_m().x(), c.center_m().y(), c.center_m().z()}}};
+}
+
+// "/cameras/3/thumbnail.jpg" -> 3; nullopt for anything else.
+std::optional<int> thumbnail_view(std::string_view path) {
+  constexpr std::string_view kPrefix = "/cameras/";
+  constexpr std::string_view kSuffix = "/thumbnail.jpg";
+  if (path.size() <= kPrefix.size() + kSuffix.size() || path.substr(0, kPrefix.size()) != kPrefix ||
+      path.substr(path.size() - kSuffix.size()) != kSuffix) {
+    return std::nullopt;
+  }
+  const std::string_view digits =
+      path.substr(kPrefix.size(), path.size() - kPrefix.size() - kSuffix.size());
+  int view = -1;
+  const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), view);
+  if (ec != std::errc() || end != digits.data() + digits.size() || view < 0) return std::nullopt;
+  return view;
+}
+
+}  // namespace
+
+json Daemon::scene_json() const {
+  std::lock_guard<std::mutex> lock(state_mu_);
+  json j;
+  j["world_up"] = "z";
+  j["calibration"] = to_string(calibration_state_);
+  json cams = json::array();
+  for (const Camera& c : cameras_) cams.push_back(camera_json(c));
+  j["cameras"] = cams;
+  if (calibration_topology_ != nullptr) {
+    j["topology"] = calibration_topology_->name();
+    j["joints"] = calibration_topology_->joint_names();
+    json bones = json::array();
+    for (const Limb& l : calibration_topology_->limbs()) bones.push_back({l.joint_a, l.joint_b});
+    j["bones"] = bones;
+  }
+  return j;
+}
+
+json Daemon::cameras_json() const {
+  json j;
+  const json health = json::parse(health_json(), nullptr, false);
+  const json detail =
+      health.is_object() ? health["source"].value("detail", json::object()) : json();
+  j["source"] = health.is_object() ? health["source"].value("kind", "") : "";
+  j["cameras"] =
+      detail.is_object() && detail.contains("cameras") ? detail["cameras"] : json::array();
+  j["sync"] = {{"skew_median_ms", detail.value("skew_median_ms", 0.0)},
+               {"skew_max_ms", detail.value("skew_max_ms", 0.0)}};
+  // The simulator's thumbnails are drawn views, not images (camera_views.h).
+  j["thumbnails"] = source_kind_ == "simulator" ? "drawn" : "drawn-detections";
+  j["views"] = camera_views_ ? camera_views_->keypoints_json() : json::array();
+  return j;
+}
+
+std::optional<net::HttpReply> Daemon::handle_http(const net::HttpRequest& req) {
+  const bool get = req.method == "GET" || req.method == "HEAD";
+  if (get) {
+    if (auto asset = web_.reply(req.path)) return asset;
+  }
+  if (req.path == "/metrics" || req.path == "/scene" || req.path == "/cameras" ||
+      thumbnail_view(req.path)) {
+    if (!get) return error_reply(405, req.path + " takes GET");
+    if (req.path == "/scene") return json_reply(200, scene_json());
+    if (req.path == "/cameras") return json_reply(200, cameras_json());
+    if (req.path == "/metrics") {
+      const json health = json::parse(health_json(), nullptr, false);
+      const net::StreamServer* srv = server_view_.load();
+      const net::ServerStats stats = srv != nullptr ? srv->stats() : net::ServerStats{};
+      net::HttpReply r;
+      r.content_type = kPrometheusContentType;
+      r.body = prometheus_text(health, metrics(), srv != nullptr ? &stats : nullptr);
+      return r;
+    }
+    const int view = *thumbnail_view(req.path);
+    auto jpeg = camera_views_ ? camera_views_->thumbnail(view) : nullptr;
+    if (!jpeg) {
+      return error_reply(404, "no thumbnail for camera " + std::to_string(view) +
+                                  " yet (cameras are counted from 0; one is drawn every " +
+                                  "0.5 s once frames come)");
+    }
+    net::HttpReply r;
+    r.content_type = "image/jpeg";
+    r.body = *jpeg;
+    return r;
+  }
+  if (req.path == "/token/check") {
+    if (req.method != "POST") return error_reply(405, "/token/check takes POST");
+    return json_reply(200, json{{"ok", true}});  // the access check let it through
+  }
+  return outputs_ ? outputs_->handle(req) : std::nullopt;
+}
+
+}  // namespace mocap::daemon

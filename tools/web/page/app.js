@@ -1,0 +1,572 @@
+// mocap-box's page (docs/web.md): the live 3D view from the WebSocket stream, the cameras,
+// status, calibration and takes, from the box's own endpoints. Plain ES modules; three.js is
+// served by the box. Actions send the access token in the X-Mocap-Token header (never a
+// cookie), kept in this browser's localStorage once the box accepted it.
+import * as THREE from "three";
+import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+
+const $ = (id) => document.getElementById(id);
+const TOKEN_KEY = "mocap-box-token";
+
+// ------------------------------------------------------------------------------ box API
+
+const box = {
+  token: localStorage.getItem(TOKEN_KEY) || "",
+  headers() {
+    return this.token ? { "X-Mocap-Token": this.token } : {};
+  },
+  // {status, body (parsed JSON when it is), text}
+  async call(method, path) {
+    let r;
+    try {
+      r = await fetch(path, { method, headers: this.headers(), cache: "no-store" });
+    } catch (e) {
+      return { status: 0, body: null, text: "the box did not answer: " + e.message };
+    }
+    const text = await r.text();
+    let body = null;
+    try { body = JSON.parse(text); } catch (e) { /* not JSON */ }
+    return { status: r.status, body, text };
+  },
+  // A failed action's message, with the fix for a missing token.
+  why(r) {
+    if (r.status === 401) {
+      return "this needs the box's access token: click \u201cEnter token\u201d (`mocap token` on the box prints it)";
+    }
+    if (r.status === 429) return "too many wrong tokens from this computer: wait a minute";
+    return (r.body && r.body.error) || r.text || "HTTP " + r.status;
+  },
+};
+
+// Stable, distinct colours by person id (the person list shows the same swatches).
+const PALETTE = ["#e6194b", "#3cb44b", "#4363d8", "#f58231", "#911eb4", "#42d4f4",
+                 "#f032e6", "#bfef45", "#fabed4", "#469990", "#dcbeff", "#9a6324"];
+const colourOf = (id) => PALETTE[((id % PALETTE.length) + PALETTE.length) % PALETTE.length];
+
+// ------------------------------------------------------------------------------ 3D view
+
+const view = {
+  scene: new THREE.Scene(),
+  renderer: null,
+  camera: null,
+  controls: null,
+  persons: new Map(),  // id -> {group, joints: [Mesh], bones: [Mesh], label: div, seen}
+  bones: [],           // [[a, b]] joint index pairs of the topology
+  frustums: new THREE.Group(),
+};
+
+function initView() {
+  const el = $("view");
+  view.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  view.renderer.setPixelRatio(window.devicePixelRatio || 1);
+  el.appendChild(view.renderer.domElement);
+  view.scene.background = new THREE.Color("#101318");
+  view.camera = new THREE.PerspectiveCamera(50, 1, 0.05, 200);
+  view.camera.up.set(0, 0, 1);  // the calibration's world is z-up
+  view.camera.position.set(5.5, -6.5, 4.2);
+  view.controls = new OrbitControls(view.camera, view.renderer.domElement);
+  view.controls.target.set(0, 0, 0.9);
+  view.controls.update();
+  const grid = new THREE.GridHelper(10, 20, 0x5a6472, 0x2c333c);
+  grid.rotation.x = Math.PI / 2;  // GridHelper lies in XZ; the floor is XY
+  view.scene.add(grid);
+  view.scene.add(new THREE.AxesHelper(1));
+  view.scene.add(view.frustums);
+  new ResizeObserver(resizeView).observe(el);
+  resizeView();
+}
+
+function resizeView() {
+  const el = $("view");
+  const w = Math.max(1, el.clientWidth), h = Math.max(1, el.clientHeight);
+  view.renderer.setSize(w, h, false);
+  view.renderer.domElement.style.width = w + "px";
+  view.renderer.domElement.style.height = h + "px";
+  view.camera.aspect = w / h;
+  view.camera.updateProjectionMatrix();
+}
+
+// Camera frustums from the calibration: the centre joined to the image corners at 0.4 m.
+function showCameras(cameras) {
+  view.frustums.clear();
+  const mat = new THREE.LineBasicMaterial({ color: 0xb8c2cc });
+  for (const c of cameras) {
+    const K = c.K, R = c.R, C = new THREE.Vector3(...c.center_m);
+    const fx = K[0][0], fy = K[1][1], cx = K[0][2], cy = K[1][2];
+    const corner = (u, v) => {  // world point of pixel (u, v) at depth 0.4 m
+      const x = (u - cx) / fx * 0.4, y = (v - cy) / fy * 0.4, z = 0.4;
+      return new THREE.Vector3(
+        R[0][0] * x + R[1][0] * y + R[2][0] * z + C.x,
+        R[0][1] * x + R[1][1] * y + R[2][1] * z + C.y,
+        R[0][2] * x + R[1][2] * y + R[2][2] * z + C.z);
+    };
+    const p = [corner(0, 0), corner(c.width_px, 0), corner(c.width_px, c.height_px),
+               corner(0, c.height_px)];
+    const pts = [];
+    for (let i = 0; i < 4; i++) pts.push(C, p[i], p[i], p[(i + 1) % 4]);
+    view.frustums.add(new THREE.LineSegments(new THREE.BufferGeometry().setFromPoints(pts), mat));
+  }
+}
+
+const jointGeometry = new THREE.SphereGeometry(0.045, 12, 8);
+const boneGeometry = new THREE.CylinderGeometry(0.022, 0.022, 1, 8);  // along +y, unit length
+const UP = new THREE.Vector3(0, 1, 0);
+
+function personObject(id, jointCount) {
+  const material = new THREE.MeshBasicMaterial({ color: colourOf(id) });
+  const group = new THREE.Group();
+  const joints = [], bones = [];
+  for (let j = 0; j < jointCount; j++) {
+    const m = new THREE.Mesh(jointGeometry, material);
+    joints.push(m);
+    group.add(m);
+  }
+  for (let b = 0; b < view.bones.length; b++) {
+    const m = new THREE.Mesh(boneGeometry, material);
+    bones.push(m);
+    group.add(m);
+  }
+  const label = document.createElement("div");
+  label.textContent = "id " + id;
+  label.style.color = colourOf(id);
+  $("labels").appendChild(label);
+  view.scene.add(group);
+  return { group, joints, bones, label, material, seen: 0 };
+}
+
+function dropPerson(id) {
+  const p = view.persons.get(id);
+  view.scene.remove(p.group);
+  p.material.dispose();
+  p.label.remove();
+  view.persons.delete(id);
+}
+
+const tmpA = new THREE.Vector3(), tmpB = new THREE.Vector3(), tmpD = new THREE.Vector3();
+
+function applyFrame(msg, frameNo) {
+  for (const person of msg.persons || []) {
+    let p = view.persons.get(person.id);
+    if (!p) {
+      p = personObject(person.id, person.joints.length);
+      view.persons.set(person.id, p);
+    }
+    p.seen = frameNo;
+    const js = person.joints;
+    js.forEach((j, i) => {
+      const m = p.joints[i];
+      if (!m) return;
+      m.visible = j.x !== null && j.y !== null && j.z !== null;
+      if (m.visible) m.position.set(j.x, j.y, j.z);
+    });
+    view.bones.forEach(([a, b], i) => {
+      const m = p.bones[i], ja = js[a], jb = js[b];
+      if (!m || !ja || !jb || ja.x === null || jb.x === null) { if (m) m.visible = false; return; }
+      tmpA.set(ja.x, ja.y, ja.z);
+      tmpB.set(jb.x, jb.y, jb.z);
+      tmpD.subVectors(tmpB, tmpA);
+      const len = tmpD.length();
+      m.visible = len > 1e-4;
+      if (!m.visible) return;
+      m.position.addVectors(tmpA, tmpB).multiplyScalar(0.5);
+      m.scale.set(1, len, 1);
+      m.quaternion.setFromUnitVectors(UP, tmpD.divideScalar(len));
+    });
+  }
+  for (const [id, p] of view.persons) if (p.seen !== frameNo) dropPerson(id);
+}
+
+// Each person's label over its highest joint, in screen pixels.
+function placeLabels() {
+  const el = $("view"), w = el.clientWidth, h = el.clientHeight;
+  for (const p of view.persons.values()) {
+    let top = null;
+    for (const m of p.joints) if (m.visible && (!top || m.position.z > top.position.z)) top = m;
+    if (!top) { p.label.style.display = "none"; continue; }
+    tmpA.copy(top.position).setZ(top.position.z + 0.15).project(view.camera);
+    p.label.style.display = tmpA.z < 1 ? "" : "none";
+    p.label.style.left = ((tmpA.x + 1) / 2 * w) + "px";
+    p.label.style.top = ((1 - tmpA.y) / 2 * h) + "px";
+  }
+}
+
+// ------------------------------------------------------------------------------ stream
+
+// What the page measured (tests and the view's note read it): frames received and drawn, how
+// many were skipped to stay on the newest, and the lag of each drawn frame.
+const stats = {
+  received: 0, rendered: 0, skipped: 0, reconnects: 0,
+  lag_ms: [],           // capture (box clock) to drawn (this computer's clock), last 600
+  arrival_lag_ms: [],   // message arrival to drawn, last 600: the page's own delay
+  persons: [],
+};
+window.mocapStats = stats;
+window.mocapColourOf = colourOf;
+
+let latest = null, latestArrival = 0, drawnFrame = null;
+
+function connectStream() {
+  const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/stream";
+  const protocols = ["mocap.v1"];
+  if (box.token) protocols.push("mocap-token." + box.token);  // browsers cannot set headers here
+  const ws = new WebSocket(url, protocols);
+  ws.onmessage = (ev) => {
+    let msg;
+    try { msg = JSON.parse(ev.data); } catch (e) { return; }
+    stats.received++;
+    if (latest && latest !== drawnFrame) stats.skipped++;  // not drawn: the newest wins
+    latest = msg;
+    latestArrival = performance.now();
+  };
+  ws.onclose = () => {
+    stats.reconnects++;
+    setTimeout(connectStream, 1000);
+  };
+}
+
+function push(list, v) {
+  list.push(v);
+  if (list.length > 600) list.shift();
+}
+
+function frameLoop() {
+  requestAnimationFrame(frameLoop);
+  if (latest && latest !== drawnFrame) {
+    drawnFrame = latest;
+    if (latest.type === "skeletons") {
+      applyFrame(latest, stats.rendered + 1);
+      $("view-note").textContent = "";
+    } else {
+      for (const id of [...view.persons.keys()]) dropPerson(id);
+      $("view-note").textContent = "no calibration yet: the cameras send 2D detections (see Calibration)";
+    }
+    stats.rendered++;
+    push(stats.arrival_lag_ms, performance.now() - latestArrival);
+    if (latest.capture_unix_ns) push(stats.lag_ms, Date.now() - latest.capture_unix_ns / 1e6);
+    updatePersonList(latest);
+  }
+  view.controls.update();
+  view.renderer.render(view.scene, view.camera);
+  placeLabels();
+}
+
+let personKey = "";
+function updatePersonList(msg) {
+  const ids = (msg.persons || []).map((p) => p.id).sort((a, b) => a - b);
+  stats.persons = ids;
+  const key = ids.join(",");
+  if (key === personKey) return;
+  personKey = key;
+  const ul = $("persons");
+  ul.replaceChildren(...ids.map((id) => {
+    const li = document.createElement("li");
+    li.dataset.personId = id;
+    li.dataset.colour = colourOf(id);
+    const sw = document.createElement("span");
+    sw.className = "swatch";
+    sw.style.background = colourOf(id);
+    li.append(sw, "person " + id);
+    return li;
+  }));
+}
+
+// ------------------------------------------------------------------------------ status
+
+const fmt = (v, d = 1) => (typeof v === "number" && isFinite(v) ? v.toFixed(d) : "–");
+
+function showHealth(h) {
+  const badge = $("status");
+  badge.textContent = h.status;
+  badge.className = "badge " + h.status;
+  const p = h.pipeline || {};
+  $("summary").textContent =
+    `${fmt(p.fps)} fps · ${h.persons ?? 0} persons · ${h.source?.kind ?? "?"}` +
+    ` · GPU ${h.gpu?.backend ?? "?"} ${h.gpu?.device ?? ""}`;
+  const problems = h.problems || [];
+  $("problems").replaceChildren(...(problems.length ? problems : ["none"]).map((t) => {
+    const li = document.createElement("li");
+    li.textContent = t;
+    if (!problems.length) li.className = "muted";
+    return li;
+  }));
+  const rows = [["frames in / out", `${p.frames_in ?? 0} / ${p.frames_out ?? 0}`],
+                ["dropped (cnn / assoc)", `${p.dropped?.cnn_queue ?? 0} / ${p.dropped?.assoc_queue ?? 0}`],
+                ["errors", p.errors ?? 0]];
+  for (const [stage, l] of Object.entries(p.latency || {})) {
+    rows.push([stage + " ms (median / p99)", `${fmt(l.median_ms, 2)} / ${fmt(l.p99_ms, 2)}`]);
+  }
+  const s = h.stream || {};
+  rows.push(["stream clients (tcp / ws)", `${s.clients ?? 0} / ${s.websocket_clients ?? 0}`]);
+  rows.push(["page: drawn / skipped", `${stats.rendered} / ${stats.skipped}`]);
+  const lag = stats.lag_ms.slice(-60).sort((a, b) => a - b);
+  if (lag.length) rows.push(["page: capture→drawn ms", fmt(lag[Math.floor(lag.length / 2)])]);
+  $("pipeline").tBodies[0].replaceChildren(...rows.map(([k, v]) => {
+    const tr = document.createElement("tr");
+    const a = document.createElement("td"), b = document.createElement("td");
+    a.textContent = k;
+    b.textContent = v;
+    b.className = "num";
+    tr.append(a, b);
+    return tr;
+  }));
+  showCalibration(h.calibration || {});
+}
+
+function showCalibration(c) {
+  const el = $("calibration");
+  const parts = [`<div>state <b>${c.state ?? "?"}</b> · ${c.views ?? 0} views</div>`];
+  if (c.progress) {
+    const frames = c.progress.frames ?? 0;
+    parts.push(`<div>${c.progress.state}: ${frames} frames collected, ${c.progress.attempts ?? 0} attempts</div>`);
+    if (c.progress.what_to_do) parts.push(`<div class="muted">${escapeHtml(c.progress.what_to_do)}</div>`);
+  }
+  const q = c.self_calibration;
+  if (q && q.views) {
+    parts.push("<table><tr><th>view</th><th>reprojection px</th></tr>" +
+      Object.entries(q.views).map(([v, s]) => `<tr><td>${escapeHtml(v)}</td><td class="num">${fmt(s.median_px ?? s.reprojection_px, 2)}</td></tr>`).join("") +
+      "</table>");
+  }
+  if (c.check && c.check.length) {
+    parts.push("<table><tr><th>view</th><th>residual px (now / usual)</th><th></th></tr>" +
+      c.check.map((v) => `<tr><td>${escapeHtml(v.view)}</td><td class="num">${fmt(v.recent_px)} / ${fmt(v.baseline_px)}</td><td>${v.moved ? "moved: re-solving" : ""}</td></tr>`).join("") +
+      "</table>");
+  }
+  el.innerHTML = parts.join("");
+}
+
+function escapeHtml(s) {
+  return String(s).replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" }[c]));
+}
+
+// ------------------------------------------------------------------------------ cameras
+
+const tiles = new Map();  // view index -> {el, img, canvas, caption, loading}
+
+function tileFor(i) {
+  let t = tiles.get(i);
+  if (t) return t;
+  const el = document.createElement("div");
+  el.className = "tile";
+  el.dataset.view = i;
+  el.innerHTML = `<div class="frame"><img alt="camera ${i}"><canvas></canvas></div><div class="caption"></div>`;
+  t = { el, img: el.querySelector("img"), canvas: el.querySelector("canvas"),
+        caption: el.querySelector(".caption"), loading: false, serial: 0 };
+  t.img.onload = () => { t.loading = false; };
+  t.img.onerror = () => { t.loading = false; };
+  $("cameras").appendChild(el);
+  tiles.set(i, t);
+  return t;
+}
+
+let lastFrames = new Map(), lastCamerasAt = 0;
+
+function showCameras2D(c, scene) {
+  const now = performance.now();
+  const dt = lastCamerasAt ? (now - lastCamerasAt) / 1000 : 0;
+  lastCamerasAt = now;
+  const count = Math.max(c.views.length, c.cameras.length, (scene?.cameras || []).length);
+  for (let i = 0; i < count; i++) {
+    const t = tileFor(i);
+    const cam = c.cameras[i] || {};
+    const v = c.views.find((x) => x.view === i);
+    const state = cam.state || (v ? "streaming" : "waiting");
+    t.el.classList.toggle("lost", state === "lost" || state === "failed");
+    const frames = cam.frames;
+    let fps = "";
+    if (frames !== undefined && dt > 0 && lastFrames.has(i)) fps = fmt((frames - lastFrames.get(i)) / dt) + " fps";
+    if (frames !== undefined) lastFrames.set(i, frames);
+    const name = cam.id || scene?.cameras?.[i]?.name || "view " + i;
+    const drops = cam.missing_in_sets !== undefined ? `drops ${cam.missing_in_sets + (cam.late || 0)}` : "";
+    t.caption.innerHTML = `<b>${escapeHtml(name)}</b><span class="state-${state}">${state}</span>` +
+      `<span>${fps}</span><span>${drops}</span>` +
+      (c.thumbnails === "drawn" ? `<span class="muted">simulated view</span>` : "");
+    if (v && v.width_px && v.height_px) t.el.querySelector(".frame").style.aspectRatio = `${v.width_px} / ${v.height_px}`;
+    if (!t.loading && v) {
+      t.loading = true;
+      t.img.src = `/cameras/${i}/thumbnail.jpg?n=${++t.serial}`;
+    }
+    drawKeypoints(t.canvas, v);
+  }
+  const skew = c.sync || {};
+  $("cameras-panel").querySelector("h2").textContent =
+    `Cameras · sync skew median ${fmt(skew.skew_median_ms, 2)} ms, max ${fmt(skew.skew_max_ms, 2)} ms`;
+}
+
+function drawKeypoints(canvas, v) {
+  const w = canvas.clientWidth, h = canvas.clientHeight;
+  canvas.width = w;
+  canvas.height = h;
+  const g = canvas.getContext("2d");
+  g.clearRect(0, 0, w, h);
+  if (!v || !v.width_px) return;
+  g.fillStyle = "#7fffd4";
+  for (const j of v.joints) {
+    if (!j || j[2] < 0.2) continue;
+    g.beginPath();
+    g.arc(j[0] / v.width_px * w, j[1] / v.height_px * h, 3, 0, 2 * Math.PI);
+    g.fill();
+  }
+}
+
+// ------------------------------------------------------------------------------ takes
+
+// "NDJSON", "JSON", "GLB", "BVH 3" (person 3's).
+function fileLabel(f) {
+  const person = f.match(/_person(\d+)\.bvh$/);
+  return person ? "BVH " + person[1] : f.replace(/^.*\./, "").toUpperCase();
+}
+
+function downloadLinks(take) {
+  const links = (take.files || []).map((f) =>
+    `<a href="#" data-take="${escapeHtml(take.name)}" data-file="${escapeHtml(f)}" title="${escapeHtml(f)}">${escapeHtml(fileLabel(f))}</a>`);
+  if (take.exporting) links.push('<span class="muted">exporting…</span>');
+  return links.join(" ");
+}
+
+function showTakes(t) {
+  const rec = t.recording;
+  $("record").disabled = !!rec;
+  $("stop").disabled = !rec;
+  $("takes").tBodies[0].replaceChildren(...(t.takes || []).slice().reverse().map((take) => {
+    const tr = document.createElement("tr");
+    tr.dataset.take = take.name;
+    tr.innerHTML = `<td>${escapeHtml(take.name)}</td><td>${escapeHtml(take.status)}</td>` +
+      `<td class="num">${take.frames ?? ""}</td><td>${downloadLinks(take)}</td>`;
+    return tr;
+  }));
+}
+
+// Downloads through fetch so the token header goes along when reading needs it.
+async function download(take, file) {
+  const r = await fetch(`/takes/${encodeURIComponent(take)}/${encodeURIComponent(file)}`,
+                        { headers: box.headers() });
+  if (!r.ok) {
+    takeMessage(`download of ${file}: ` + box.why({ status: r.status, body: null, text: await r.text() }), true);
+    return;
+  }
+  const url = URL.createObjectURL(await r.blob());
+  const a = document.createElement("a");
+  a.href = url;
+  a.download = file;
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 10000);
+}
+
+function takeMessage(text, error) {
+  const el = $("take-message");
+  el.textContent = text;
+  el.className = error ? "error" : "";
+}
+
+function initTakes() {
+  $("take-form").addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    const name = $("take-name").value.trim();
+    const r = await box.call("POST", "/takes/start?name=" + encodeURIComponent(name));
+    if (r.status === 201) takeMessage(`recording ${r.body.name}`);
+    else takeMessage(box.why(r), true);
+    refreshTakes();
+  });
+  $("stop").addEventListener("click", async () => {
+    const r = await box.call("POST", "/takes/stop");
+    if (r.status === 200) takeMessage(`${r.body.name}: ${r.body.frames} frames, ${r.body.status}`);
+    else takeMessage(box.why(r), true);
+    refreshTakes();
+  });
+  $("takes").addEventListener("click", (ev) => {
+    const a = ev.target.closest("a[data-file]");
+    if (!a) return;
+    ev.preventDefault();
+    download(a.dataset.take, a.dataset.file);
+  });
+}
+
+// ------------------------------------------------------------------------------ token
+
+function showLock() {
+  $("lock-state").textContent = box.token ? "actions unlocked" : "actions locked";
+  $("unlock").textContent = box.token ? "Change token" : "Enter token";
+}
+
+function initToken() {
+  showLock();
+  $("unlock").addEventListener("click", () => {
+    $("token-input").value = box.token;
+    $("token-message").textContent = "";
+    $("token-dialog").showModal();
+  });
+  $("token-form").addEventListener("submit", async (ev) => {
+    if (ev.submitter && ev.submitter.value === "cancel") return;
+    ev.preventDefault();
+    const old = box.token;
+    box.token = $("token-input").value.trim();
+    const r = await box.call("POST", "/token/check");
+    if (r.status === 200) {
+      localStorage.setItem(TOKEN_KEY, box.token);
+      $("token-dialog").close();
+    } else {
+      box.token = old;
+      $("token-message").textContent = box.why(r).replace(/: click.*$/, ": not the box's token");
+      $("token-message").className = "error";
+    }
+    showLock();
+  });
+}
+
+// ------------------------------------------------------------------------------ polling
+
+let scene = null;
+
+async function refreshScene() {
+  const r = await box.call("GET", "/scene");
+  if (r.status !== 200 || !r.body) return;
+  const key = JSON.stringify(r.body.cameras) + (r.body.bones || []).length;
+  if (scene && JSON.stringify(scene.cameras) + (scene.bones || []).length === key) return;
+  scene = r.body;
+  view.bones = scene.bones || [];
+  for (const id of [...view.persons.keys()]) dropPerson(id);  // rebuilt with the new bones
+  showCameras(scene.cameras || []);
+}
+
+async function refreshHealth() {
+  const r = await box.call("GET", "/health");
+  if (r.status === 200 && r.body) {
+    showHealth(r.body);
+  } else {
+    $("status").textContent = r.status === 401 ? "token needed" : "offline";
+    $("status").className = "badge offline";
+  }
+}
+
+async function refreshCameras() {
+  const r = await box.call("GET", "/cameras");
+  if (r.status === 200 && r.body) showCameras2D(r.body, scene);
+}
+
+async function refreshTakes() {
+  const r = await box.call("GET", "/takes");
+  if (r.status === 200 && r.body) showTakes(r.body);
+}
+
+function every(ms, fn) {
+  let busy = false;
+  const tick = async () => {
+    if (busy) return;  // a slow box is not asked again before it answered
+    busy = true;
+    try { await fn(); } finally { busy = false; }
+  };
+  tick();
+  setInterval(tick, ms);
+}
+
+initView();
+initTakes();
+initToken();
+connectStream();
+requestAnimationFrame(frameLoop);
+every(1000, refreshHealth);
+every(1000, refreshCameras);
+every(2000, refreshTakes);
+every(5000, refreshScene);
