@@ -199,6 +199,7 @@ void Pipeline::cnn_loop() {
     }
     wait_for_tracks();
     if (stop_) break;
+    if (parts_.image_tap) parts_.image_tap(c->frames);
     const std::int64_t t0 = monotonic_ns();
     Result<DetectionSet> det = parts_.detector->detect(c->frames);
     const std::int64_t t1 = monotonic_ns();

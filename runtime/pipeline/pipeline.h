@@ -23,6 +23,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -51,6 +52,10 @@ struct PipelineParts {
   Detector* detector = nullptr;         // required when the source gives images
   assoc::Engine* engine = nullptr;      // null: not calibrated (detections go to the sinks)
   std::vector<Sink*> sinks;             // at least one; in this order
+  // Called on the CNN thread with every frame set just before detection (the only place the
+  // camera buffers are still held): must be cheap — e.g. a thumbnail copy now and then. May be
+  // empty.
+  std::function<void(const FrameSet&)> image_tap;
 };
 
 class Pipeline {

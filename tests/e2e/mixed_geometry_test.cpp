@@ -222,7 +222,8 @@ TEST(MixedGeometry, ThreeToolsOnePipelineSameSkeletons) {
   const int port = free_port();
   testing::ChildProcess daemon(
       {bin + "/mocapd", "--replay", rec.string(), "--model", model.string(), "--bind-address",
-       "127.0.0.1", "--stream-port", std::to_string(port), "--http-port", "-1"},
+       "127.0.0.1", "--stream-port", std::to_string(port), "--http-port", "-1", "--state-dir",
+       (tmp.path() / "state").string()},
       tmp.path(), "mocapd");
   ASSERT_TRUE(daemon.started());
   std::string streamed;

@@ -179,7 +179,7 @@ void replay_and_check(const Floors& floors) {
   pipeline::PipelineOptions po;
   po.drop_policy = pipeline::DropPolicy::kBlock;
   auto pipe = pipeline::Pipeline::create(
-      pipeline::PipelineParts{std::move(*source), cnn->get(), engine->get(), {&sink}}, po);
+      pipeline::PipelineParts{std::move(*source), cnn->get(), engine->get(), {&sink}, {}}, po);
   ASSERT_TRUE(pipe.ok()) << pipe.error().message();
   ASSERT_TRUE((*pipe)->start().ok());
   ASSERT_TRUE((*pipe)->wait(600000));

@@ -52,7 +52,7 @@ std::unique_ptr<Pipeline> make(std::unique_ptr<FrameSource> source, Detector* de
                                std::vector<Sink*> sinks, PipelineOptions o,
                                assoc::Engine* engine = nullptr) {
   auto p =
-      Pipeline::create(PipelineParts{std::move(source), detector, engine, std::move(sinks)}, o);
+      Pipeline::create(PipelineParts{std::move(source), detector, engine, std::move(sinks), {}}, o);
   EXPECT_TRUE(p.ok()) << p.error().message();
   return p.ok() ? std::move(*p) : nullptr;
 }
@@ -318,17 +318,18 @@ TEST(Pipeline, MaxFramesAndBadParts) {
   auto fake = [] { return std::make_unique<FakeSource>(FakeSource::Options{}); };
   PipelineOptions bad;
   bad.queue_depth = 0;
-  auto q = Pipeline::create(PipelineParts{fake(), nullptr, nullptr, {&count}}, bad);
+  auto q = Pipeline::create(PipelineParts{fake(), nullptr, nullptr, {&count}, {}}, bad);
   ASSERT_FALSE(q.ok());
   EXPECT_NE(q.error().message().find("queue_depth"), std::string::npos);
-  auto no_sink = Pipeline::create(PipelineParts{fake(), nullptr, nullptr, {}}, PipelineOptions{});
+  auto no_sink =
+      Pipeline::create(PipelineParts{fake(), nullptr, nullptr, {}, {}}, PipelineOptions{});
   ASSERT_FALSE(no_sink.ok());
   EXPECT_NE(no_sink.error().message().find("no sink"), std::string::npos);
   auto null_sink =
-      Pipeline::create(PipelineParts{fake(), nullptr, nullptr, {nullptr}}, PipelineOptions{});
+      Pipeline::create(PipelineParts{fake(), nullptr, nullptr, {nullptr}, {}}, PipelineOptions{});
   EXPECT_FALSE(null_sink.ok());
   auto no_source =
-      Pipeline::create(PipelineParts{nullptr, nullptr, nullptr, {&count}}, PipelineOptions{});
+      Pipeline::create(PipelineParts{nullptr, nullptr, nullptr, {&count}, {}}, PipelineOptions{});
   EXPECT_FALSE(no_source.ok());
 }
 

@@ -5,7 +5,8 @@
 namespace mocap::tools {
 
 pipeline::PipelineParts ReplayParts::pipeline_parts(std::vector<pipeline::Sink*> sinks) {
-  return pipeline::PipelineParts{std::move(source), detector.get(), engine.get(), std::move(sinks)};
+  return pipeline::PipelineParts{
+      std::move(source), detector.get(), engine.get(), std::move(sinks), {}};
 }
 
 void set_frame_size(gpu::CnnOptions& options, const std::vector<Camera>& cameras) {

@@ -339,6 +339,65 @@ void Daemon::start_self_calibration(const SkeletonTopology& topology, std::vecto
   }
 }
 
+// POST /calibration/recalibrate: solved again from the people walking, with each camera's
+// intrinsics kept; the box streams with its current calibration until the new one is adopted
+// (and saved). A request is taken up by the association thread at its next frame.
+net::HttpReply Daemon::request_recalibration() {
+  auto answer = [](int status, const json& body) {
+    net::HttpReply r;
+    r.status = status;
+    r.body = body.dump();
+    return r;
+  };
+  std::lock_guard<std::mutex> lock(state_mu_);
+  if (!config_.self_calibrate) {
+    return answer(409, {{"error",
+                         "self-calibration is off (self_calibrate=false): calibrate with "
+                         "`mocap calibrate people` and restart mocapd"}});
+  }
+  if (calibration_state_ == CalibrationState::kCalibrating || recalibrating_ ||
+      recalibrate_requested_.load()) {
+    return answer(409, {{"error", "already calibrating (progress under /health calibration)"}});
+  }
+  if (calibration_topology_ == nullptr || cameras_.empty() || !engine_) {
+    return answer(409, {{"error",
+                         "there is no calibration to solve again: the cameras calibrate "
+                         "themselves once people walk in the room"}});
+  }
+  recalibrate_requested_.store(true);
+  MOCAP_LOG(Daemon, Info) << "recalibration requested over HTTP";
+  return answer(202, {{"recalibrating", true},
+                      {"what_to_do",
+                       "walk around the whole area for about a minute; the "
+                       "current calibration is used until the new one is solved"}});
+}
+
+// On the association thread: a self-calibration of the calibrated cameras, fed alongside the
+// running engine.
+void Daemon::begin_recalibration() {
+  std::lock_guard<std::mutex> lock(state_mu_);
+  std::vector<int> ids;
+  std::vector<calib::CameraPrior> priors;
+  for (std::size_t v = 0; v < cameras_.size(); ++v) {
+    ids.push_back(static_cast<int>(v));
+    const std::string id =
+        v < calibration_.view_ids.size() ? calibration_.view_ids[v] : std::to_string(v);
+    priors.push_back({id, cameras_[v].width_px(), cameras_[v].height_px(), cameras_[v]});
+  }
+  calib::BackgroundCalibratorOptions bo;
+  bo.first_attempt_frames = config_.self_calibration_frames;
+  bo.retry_frames = config_.self_calibration_frames;
+  bo.max_frames = std::max(bo.max_frames, 4 * config_.self_calibration_frames);
+  calibrator_ = std::make_unique<calib::BackgroundCalibrator>(
+      *calibration_topology_, std::move(ids), std::move(priors), bo);
+  recalibrating_ = true;
+  problems_.push_back(
+      "recalibrating on request, calibrating from the people walking in the room: walk around "
+      "the whole area for about a minute (progress under calibration.progress); the current "
+      "calibration is used meanwhile");
+  MOCAP_LOG(Daemon, Warn) << problems_.back();
+}
+
 void Daemon::start_calibration_check() {
   if (!config_.calibration_check || calibration_.size() == 0) return;
   monitor_ =
@@ -421,6 +480,7 @@ void Daemon::adopt_self_calibration(const calib::SelfCalibrationResult& result) 
   cameras_ = cal.cameras;
   if (camera_views_) camera_views_->set_cameras(cameras_);
   calibration_ = cal;
+  if (engine_) retired_engines_.push_back(std::move(engine_));  // a recalibration's old one
   engine_ = std::move(*eng);
   pipeline_->set_engine(engine_.get());
   start_calibration_check();
@@ -542,9 +602,18 @@ Status Daemon::start() {
     std::lock_guard<std::mutex> lock(state_mu_);
     if (engine_) start_calibration_check();
   }
-  if (calibrator_ || monitor_ || config_.calibration_check) {
+  if (calibrator_ || monitor_ || config_.calibration_check || config_.self_calibrate) {
     calibration_sink_ = std::make_unique<pipeline::CallbackSink>(
         "calibration", [this](const pipeline::PipelineFrame& f) {
+          if (recalibrate_requested_.exchange(false)) begin_recalibration();
+          if (recalibrating_ && f.result) {  // solving anew; the old calibration meanwhile
+            calibrator_->add(f.detections);
+            if (auto r = calibrator_->take_result()) {
+              recalibrating_ = false;
+              adopt_self_calibration(*r);
+              return Status{};
+            }
+          }
           if (!f.result) {
             if (!calibrator_) return Status{};
             calibrator_->add(f.detections);
@@ -563,7 +632,9 @@ Status Daemon::start() {
   po.realtime_priority = config_.realtime_priority;
   po.max_frames = config_.max_frames;
   po.drop_policy = drop_policy(config_, source_kind_);
-  pipeline::PipelineParts parts{std::move(pending_source_), detector_.get(), engine_.get(), sinks};
+  pipeline::PipelineParts parts{
+      std::move(pending_source_), detector_.get(), engine_.get(), sinks,
+      [this](const FrameSet& frames) { camera_views_->observe_images(frames, monotonic_ns()); }};
   auto p = pipeline::Pipeline::create(std::move(parts), po);
   if (!p.ok()) return p.error();
   pipeline_ = std::move(*p);

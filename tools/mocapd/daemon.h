@@ -90,6 +90,8 @@ class Daemon {
   // Every route besides the stream and /health (tools/mocapd/routes.cpp); the server's
   // RequestHandler.
   std::optional<net::HttpReply> handle_http(const net::HttpRequest& req);
+  // POST /calibration/recalibrate (202, or 409 with the reason).
+  net::HttpReply request_recalibration();
   // The access token (<state_dir>/token; made on the first start).
   const std::string& token() const { return token_; }
   int stream_port() const;
@@ -127,6 +129,7 @@ class Daemon {
   void adopt_self_calibration(const calib::SelfCalibrationResult& result);
   // The continuous check of a calibrated box (config calibration_check).
   void start_calibration_check();
+  void begin_recalibration();
   // On the assoc thread: a camera the check solved again swapped in (and saved when
   // persists_calibration()).
   void adopt_resolved_camera(const calib::ResolvedCamera& r);
@@ -175,6 +178,8 @@ class Daemon {
   std::unique_ptr<pipeline::Pipeline> pipeline_;
   std::atomic<const pipeline::Pipeline*> pipeline_view_{nullptr};  // for health_json()
   std::atomic<bool> stopped_{false};
+  std::atomic<bool> recalibrate_requested_{false};  // HTTP thread -> association thread
+  std::atomic<bool> recalibrating_{false};          // a self-calibration runs beside the engine
 };
 
 }  // namespace mocap::daemon

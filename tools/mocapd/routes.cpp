@@ -90,8 +90,9 @@ json Daemon::cameras_json() const {
   j["sync"] = {{"skew_median_ms", detail.value("skew_median_ms", 0.0)},
                {"skew_max_ms", detail.value("skew_max_ms", 0.0)}};
   // The simulator's thumbnails are drawn views, not images (camera_views.h).
-  j["thumbnails"] = source_kind_ == "simulator" ? "drawn" : "drawn-detections";
+  j["thumbnails"] = source_kind_ == "simulator" ? "drawn" : "camera";
   j["views"] = camera_views_ ? camera_views_->keypoints_json() : json::array();
+  for (json& v : j["views"]) v["image"] = camera_views_->has_image(v["view"].get<int>());
   return j;
 }
 
@@ -125,6 +126,10 @@ std::optional<net::HttpReply> Daemon::handle_http(const net::HttpRequest& req) {
     r.content_type = "image/jpeg";
     r.body = *jpeg;
     return r;
+  }
+  if (req.path == "/calibration/recalibrate") {
+    if (req.method != "POST") return error_reply(405, "/calibration/recalibrate takes POST");
+    return request_recalibration();
   }
   if (req.path == "/token/check") {
     if (req.method != "POST") return error_reply(405, "/token/check takes POST");

@@ -24,9 +24,11 @@
 #include "runtime/core/stats.h"
 #include "runtime/eval/replay_stats.h"
 #include "runtime/gpu/context.h"
+#include "runtime/image/image.h"
 #include "tests/support/data.h"
 #include "tests/support/line_client.h"
 #include "tests/support/pose2sim_scene.h"
+#include "tests/support/temp_dir.h"
 #include "tools/mocapd/daemon.h"
 
 namespace mocap::daemon {
@@ -66,7 +68,9 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
     auto ctx = gpu::Context::create(gpu::GpuOptions{});
     if (!ctx.ok()) MOCAP_SKIP_OR_FAIL_IN_CI("no Vulkan device: " + ctx.error().message());
   }
+  testing::TestTempDir dir("mocapd-e2e");
   DaemonConfig c;
+  c.state_dir = (dir.path() / "state").string();  // its token, not the machine's
   c.replay = data.string();
   c.model = model.string();
   c.gpu = gpu::BackendRequest::kVulkan;
@@ -101,6 +105,21 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
     ASSERT_EQ(m["type"], "skeletons");
     msgs.push_back(std::move(m));
   }
+  // (Before run() returns, the server is still up.) The page's camera tiles show the recording's
+  // own pictures (taken on the CNN thread).
+  for (int v = 0; v < 4; ++v) {
+    const std::string r =
+        testing::http_get((*d)->http_port(), "/cameras/" + std::to_string(v) + "/thumbnail.jpg");
+    const std::string body = testing::http_body(r);
+    auto img = image::decode_image(
+        std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size()), "thumbnail");
+    ASSERT_TRUE(img.ok()) << "view " << v << ": " << r.substr(0, 300);
+    EXPECT_EQ(img->width_px, 320);
+  }
+  const json cams = json::parse(
+      testing::http_body(testing::http_get((*d)->http_port(), "/cameras")), nullptr, false);
+  ASSERT_EQ(cams["views"].size(), 4u) << cams.dump();
+  for (const json& v : cams["views"]) EXPECT_TRUE(v["image"].get<bool>()) << v.dump();
   EXPECT_EQ((*d)->run(nullptr), 0);
   const pipeline::PipelineMetrics pm = (*d)->metrics();
   EXPECT_TRUE(pm.ended);

@@ -215,3 +215,47 @@ TEST_F(WebTest, HostileRequestsGetClearErrorsAndTheBoxGoesOn) {
 
 }  // namespace
 }  // namespace mocap::daemon
+
+namespace mocap::daemon {
+namespace {
+
+// "Recalibrate": the box solves its calibration again from the people walking (intrinsics
+// kept) while it streams with the current one, then swaps the new one in and saves it.
+TEST(WebRecalibrate, SolvedAgainWhileStreamingThenSwappedInAndSaved) {
+  testing::TestTempDir dir("mocapd-recal");
+  DaemonConfig c = sim_config(dir);
+  c.self_calibration_frames = 150;
+  auto d = Daemon::create(c);
+  ASSERT_TRUE(d.ok()) << d.error().message();
+  ASSERT_TRUE((*d)->start().ok());
+  const int port = (*d)->http_port();
+  EXPECT_EQ(request(port, "POST", "/calibration/recalibrate").status, 401);
+  const Answer a = request(port, "POST", "/calibration/recalibrate", (*d)->token());
+  ASSERT_EQ(a.status, 202) << a.body;
+  EXPECT_EQ(request(port, "POST", "/calibration/recalibrate", (*d)->token()).status, 409);
+  json h;
+  bool recalibrating = false, done = false;
+  std::uint64_t frames_during = 0;
+  for (int i = 0; i < 4 * 240 && !done; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    h = json::parse((*d)->health_json(), nullptr, false);
+    const bool named = h["problems"].dump().find("recalibrating") != std::string::npos;
+    if (named && !recalibrating) frames_during = h["pipeline"]["frames_out"].get<std::uint64_t>();
+    recalibrating |= named;
+    done = recalibrating && !named && h["calibration"].contains("self_calibration");
+    EXPECT_EQ(h["output"], "skeletons") << "skeletons all along";
+  }
+  (*d)->stop();
+  ASSERT_TRUE(done) << h.dump();
+  EXPECT_GT(h["pipeline"]["frames_out"].get<std::uint64_t>(), frames_during + 100)
+      << "the stream went on while solving";
+  EXPECT_EQ(h["calibration"]["state"], "ok");
+  EXPECT_TRUE(h["calibration"]["self_calibration"]["ok"].get<bool>());
+  std::printf("[ recalibrate ] %.2f px median reprojection, solved in %.1f s\n",
+              h["calibration"]["self_calibration"]["reprojection_median_px"].get<double>(),
+              h["calibration"]["self_calibration"]["solve_s"].get<double>());
+  EXPECT_TRUE(fs::exists(fs::path(c.state_dir) / "calibration.json"));
+}
+
+}  // namespace
+}  // namespace mocap::daemon

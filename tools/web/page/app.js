@@ -321,9 +321,10 @@ function showCalibration(c) {
     if (c.progress.what_to_do) parts.push(`<div class="muted">${escapeHtml(c.progress.what_to_do)}</div>`);
   }
   const q = c.self_calibration;
-  if (q && q.views) {
-    parts.push("<table><tr><th>view</th><th>reprojection px</th></tr>" +
-      Object.entries(q.views).map(([v, s]) => `<tr><td>${escapeHtml(v)}</td><td class="num">${fmt(s.median_px ?? s.reprojection_px, 2)}</td></tr>`).join("") +
+  if (q && Array.isArray(q.views)) {
+    parts.push(`<div>self-calibration: ${fmt(q.reprojection_median_px, 2)} px median reprojection</div>`);
+    parts.push("<table><tr><th>view</th><th>reprojection px (median / p90)</th><th>frames</th></tr>" +
+      q.views.map((v) => `<tr><td>${escapeHtml(v.view)}</td><td class="num">${fmt(v.reprojection_median_px, 2)} / ${fmt(v.reprojection_p90_px, 2)}</td><td class="num">${v.frames_with_people ?? ""}</td></tr>`).join("") +
       "</table>");
   }
   if (c.check && c.check.length) {
@@ -332,6 +333,7 @@ function showCalibration(c) {
       "</table>");
   }
   el.innerHTML = parts.join("");
+  $("recalibrate").disabled = c.state === "calibrating" || (!!c.progress && c.progress.state !== "done");
 }
 
 function escapeHtml(s) {
@@ -483,6 +485,15 @@ function initTakes() {
   });
 }
 
+function initCalibration() {
+  $("recalibrate").addEventListener("click", async () => {
+    const r = await box.call("POST", "/calibration/recalibrate");
+    const el = $("calibration-message");
+    el.textContent = r.status === 202 ? r.body.what_to_do : box.why(r);
+    el.className = r.status === 202 ? "" : "error";
+  });
+}
+
 // ------------------------------------------------------------------------------ token
 
 function showLock() {
@@ -563,6 +574,7 @@ function every(ms, fn) {
 
 initView();
 initTakes();
+initCalibration();
 initToken();
 connectStream();
 requestAnimationFrame(frameLoop);
