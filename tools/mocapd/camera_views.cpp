@@ -181,12 +181,17 @@ void CameraViews::observe_images(const FrameSet& frames, std::int64_t now_ns) {
   std::vector<std::size_t> due;
   {
     std::lock_guard lock(mu_);
-    for (std::size_t i = 0; i < frames.frames.size(); ++i) {
+    // One camera per frame set, taking turns (the cost is spread over the cameras' frames and
+    // none is starved when frame sets come slower than the interval).
+    const std::size_t n = frames.frames.size();
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::size_t i = (next_image_ + k) % n;
       ViewState& s = view_state(frames.frames[i].view_id, i);
       if (s.image_last_ns != 0 && now_ns - s.image_last_ns < interval_ns) continue;
       s.image_last_ns = now_ns;
       due.push_back(i);
-      break;  // one camera per frame set: the cost is spread over the cameras' frames
+      next_image_ = i + 1;
+      break;
     }
   }
   for (const std::size_t i : due) {  // the copy, without the lock

@@ -87,6 +87,7 @@ class CameraViews {
   std::condition_variable wake_;
   bool stopping_ = false;
   std::vector<ViewState> views_;
+  std::size_t next_image_ = 0;  // the frame-set position whose turn it is
   std::vector<Camera> cameras_;
   CameraViewsStats stats_;
   std::thread worker_;

@@ -113,6 +113,22 @@ TEST(CameraViews, FramesBecomeThumbnailsWithTheirColours) {
   EXPECT_FALSE(views.has_image(3));
 }
 
+TEST(CameraViews, CamerasTakeTurnsWhenFrameSetsComeSlowerThanTheInterval) {
+  CameraViewsOptions o;
+  o.interval_s = 0.01;
+  CameraViews views(o);
+  FrameSet set;
+  for (int v = 0; v < 4; ++v) set.frames.push_back(grey_yuyv(v, 64, 48));
+  for (int i = 0; i < 4; ++i) {
+    views.observe_images(set, monotonic_ns());
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));  // every camera is due again
+  }
+  for (int v = 0; v < 4; ++v) {
+    EXPECT_TRUE(thumbnail_of(views, v)) << "camera " << v << " starved";
+    EXPECT_TRUE(views.has_image(v)) << v;
+  }
+}
+
 TEST(CameraViews, RefreshesAtMostEveryIntervalAndPrintsTheCnnThreadCost) {
   CameraViewsOptions o;
   o.interval_s = 1000;  // after the first, every frame is not due
