@@ -5,6 +5,7 @@
 
 #include <unistd.h>
 
+#include <stdlib.h>
 #include <cstdlib>
 #include <filesystem>
 #include <optional>
@@ -46,6 +47,10 @@ inline ProcessResult run_blender_script(const std::filesystem::path& blender,
                                    script.string(),
                                    "--"};
   argv.insert(argv.end(), args.begin(), args.end());
+  // One thread for numpy's BLAS (the glTF importer imports numpy): a container that reports
+  // more CPUs than it has makes OpenBLAS start a thread per reported CPU.
+  ::setenv("OPENBLAS_NUM_THREADS", "1", 1);
+  ::setenv("OMP_NUM_THREADS", "1", 1);
   return run_process(argv, log_dir, name, kBlenderTimeoutMs);
 }
 
