@@ -3,6 +3,7 @@
 // puppeteer-core). Screenshots are kept in the build tree (test-artifacts/web/). CTest label
 // "browser": about 20 s for the page, 70 s for the keep-up run.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 
@@ -11,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "tests/support/data.h"
@@ -30,6 +32,19 @@ const fs::path kSource = MOCAP_SOURCE_DIR;
 std::string chromium() {
   const char* env = std::getenv("MOCAP_CHROMIUM");
   return env != nullptr && *env != '\0' ? env : "/usr/bin/chromium";
+}
+
+// `node` on PATH (Debian's is /usr/bin/node; a machine image may have its own); empty if none.
+std::string node() {
+  const char* path = std::getenv("PATH");
+  std::string_view rest = path != nullptr ? path : "/usr/bin:/bin";
+  while (!rest.empty()) {
+    const std::size_t colon = rest.find(':');
+    const fs::path candidate = fs::path(std::string(rest.substr(0, colon))) / "node";
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    rest = colon == std::string_view::npos ? std::string_view() : rest.substr(colon + 1);
+  }
+  return {};
 }
 
 fs::path artefacts(const std::string& name) {
@@ -75,7 +90,7 @@ class Browser : public ::testing::Test {
     if (!fs::exists(kSource / "tools" / "web" / "node_modules" / "puppeteer-core")) {
       MOCAP_SKIP_OR_FAIL_IN_CI("tools/web/node_modules has no puppeteer-core (tools/setup.sh)");
     }
-    if (::access("/usr/bin/node", X_OK) != 0) MOCAP_SKIP_OR_FAIL_IN_CI("no /usr/bin/node");
+    if (node().empty()) MOCAP_SKIP_OR_FAIL_IN_CI("no node on PATH (tools/setup.sh installs it)");
   }
   testing::TestTempDir dir_{"web-browser"};
 };
