@@ -28,8 +28,10 @@ async function launch(a) {
   return puppeteer.launch({
     executablePath: a.chromium,
     headless: true,
-    // Root in CI needs --no-sandbox; WebGL runs on SwiftShader without a GPU.
-    args: ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+    // Root in CI needs --no-sandbox; a container's small /dev/shm, --disable-dev-shm-usage;
+    // WebGL runs on SwiftShader without a GPU.
+    args: ["--no-sandbox", "--disable-dev-shm-usage", "--use-angle=swiftshader",
+           "--enable-unsafe-swiftshader",
            "--ignore-gpu-blocklist", "--window-size=1280,900", "--enable-precise-memory-info"],
     defaultViewport: { width: 1280, height: 900 },
   });
