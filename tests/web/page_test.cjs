@@ -124,7 +124,9 @@ async function pageMode(a, browser, result) {
   const file = await page.$eval(link, (e) => e.dataset.file).catch(() => "");
   result.bvh_file = file;
   if (file) {
-    await page.click(link);
+    // The takes table is rebuilt every 2 s: find and click the link in one step, so that it is
+    // never a row that was just replaced.
+    await page.evaluate((sel) => document.querySelector(sel).click(), link);
     const target = path.join(a.out, file);
     for (let i = 0; i < 100 && !fs.existsSync(target); i++) await sleep(100);
     result.bvh_head = fs.existsSync(target) ? fs.readFileSync(target, "utf8").slice(0, 9) : "";

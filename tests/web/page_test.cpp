@@ -15,6 +15,7 @@
 #include <string_view>
 #include <vector>
 
+#include "runtime/net/token_file.h"
 #include "tests/support/data.h"
 #include "tests/support/mocapd_process.h"
 #include "tests/support/subprocess.h"
@@ -60,17 +61,13 @@ json drive(const testing::MocapdProcess& m, const fs::path& out, const std::stri
   const std::string node_path = (kSource / "tools" / "web" / "node_modules").string();
   ::setenv("NODE_PATH", node_path.c_str(), 1);
   const std::string url = "http://127.0.0.1:" + std::to_string(m.http_port) + "/";
-  std::string token;
-  if (std::FILE* f = std::fopen((m.state_dir / "token").c_str(), "r")) {
-    char buf[128] = {};
-    if (std::fgets(buf, sizeof buf, f) != nullptr) token = buf;
-    std::fclose(f);
-    while (!token.empty() && token.back() == '\n') token.pop_back();
-  }
+  auto read = net::read_token(m.state_dir / "token");
+  EXPECT_TRUE(read.ok()) << read.error().message();
+  const std::string token = read.ok() ? *read : std::string();
   const auto r =
-      testing::run_process({"/usr/bin/node", (kSource / "tests" / "web" / "page_test.cjs").string(),
-                            "--url", url, "--token", token, "--out", out.string(), "--chromium",
-                            chromium(), "--mode", mode, "--seconds", std::to_string(seconds)},
+      testing::run_process({node(), (kSource / "tests" / "web" / "page_test.cjs").string(), "--url",
+                            url, "--token", token, "--out", out.string(), "--chromium", chromium(),
+                            "--mode", mode, "--seconds", std::to_string(seconds)},
                            log_dir, "driver_" + mode, (seconds + 120) * 1000);
   json j = json::parse(r.out, nullptr, false);
   if (r.exit_code != 0 || j.is_discarded()) {
