@@ -23,6 +23,7 @@
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
 #include "tools/mocapd/camera_views.h"
+#include "tools/mocapd/json_reply.h"
 
 MOCAP_LOG_CATEGORY(Daemon);
 
@@ -310,14 +311,22 @@ Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, dou
   return make_engine(coco17_topology(), *calibration, assoc::posenet_coco17_options());
 }
 
+// The self-calibration's schedule (config self_calibration_frames), for a first calibration and
+// a recalibration alike.
+static calib::BackgroundCalibratorOptions background_calibrator_options(
+    const DaemonConfig& config) {
+  calib::BackgroundCalibratorOptions bo;
+  bo.first_attempt_frames = config.self_calibration_frames;
+  bo.retry_frames = config.self_calibration_frames;
+  bo.max_frames = std::max(bo.max_frames, 4 * config.self_calibration_frames);
+  return bo;
+}
+
 void Daemon::start_self_calibration(const SkeletonTopology& topology, std::vector<int> view_ids,
                                     std::vector<calib::CameraPrior> priors,
                                     const assoc::AssociationOptions& options) {
   if (!config_.self_calibrate) return;
-  calib::BackgroundCalibratorOptions bo;
-  bo.first_attempt_frames = config_.self_calibration_frames;
-  bo.retry_frames = config_.self_calibration_frames;
-  bo.max_frames = std::max(bo.max_frames, 4 * config_.self_calibration_frames);
+  const calib::BackgroundCalibratorOptions bo = background_calibrator_options(config_);
   calibrator_ = std::make_unique<calib::BackgroundCalibrator>(topology, std::move(view_ids),
                                                               std::move(priors), bo);
   calibration_topology_ = &topology;
@@ -343,33 +352,27 @@ void Daemon::start_self_calibration(const SkeletonTopology& topology, std::vecto
 // intrinsics kept; the box streams with its current calibration until the new one is adopted
 // (and saved). A request is taken up by the association thread at its next frame.
 net::HttpReply Daemon::request_recalibration() {
-  auto answer = [](int status, const json& body) {
-    net::HttpReply r;
-    r.status = status;
-    r.body = body.dump();
-    return r;
-  };
   std::lock_guard<std::mutex> lock(state_mu_);
   if (!config_.self_calibrate) {
-    return answer(409, {{"error",
-                         "self-calibration is off (self_calibrate=false): calibrate with "
-                         "`mocap calibrate people` and restart mocapd"}});
+    return error_reply(409,
+                       "self-calibration is off (self_calibrate=false): calibrate with "
+                       "`mocap calibrate people` and restart mocapd");
   }
   if (calibration_state_ == CalibrationState::kCalibrating || recalibrating_ ||
       recalibrate_requested_.load()) {
-    return answer(409, {{"error", "already calibrating (progress under /health calibration)"}});
+    return error_reply(409, "already calibrating (progress under /health calibration)");
   }
   if (calibration_topology_ == nullptr || cameras_.empty() || !engine_) {
-    return answer(409, {{"error",
-                         "there is no calibration to solve again: the cameras calibrate "
-                         "themselves once people walk in the room"}});
+    return error_reply(409,
+                       "there is no calibration to solve again: the cameras calibrate "
+                       "themselves once people walk in the room");
   }
   recalibrate_requested_.store(true);
   MOCAP_LOG(Daemon, Info) << "recalibration requested over HTTP";
-  return answer(202, {{"recalibrating", true},
-                      {"what_to_do",
-                       "walk around the whole area for about a minute; the "
-                       "current calibration is used until the new one is solved"}});
+  return json_reply(202, {{"recalibrating", true},
+                          {"what_to_do",
+                           "walk around the whole area for about a minute; the "
+                           "current calibration is used until the new one is solved"}});
 }
 
 // On the association thread: a self-calibration of the calibrated cameras, fed alongside the
@@ -384,10 +387,7 @@ void Daemon::begin_recalibration() {
         v < calibration_.view_ids.size() ? calibration_.view_ids[v] : std::to_string(v);
     priors.push_back({id, cameras_[v].width_px(), cameras_[v].height_px(), cameras_[v]});
   }
-  calib::BackgroundCalibratorOptions bo;
-  bo.first_attempt_frames = config_.self_calibration_frames;
-  bo.retry_frames = config_.self_calibration_frames;
-  bo.max_frames = std::max(bo.max_frames, 4 * config_.self_calibration_frames);
+  const calib::BackgroundCalibratorOptions bo = background_calibrator_options(config_);
   calibrator_ = std::make_unique<calib::BackgroundCalibrator>(
       *calibration_topology_, std::move(ids), std::move(priors), bo);
   recalibrating_ = true;

@@ -6,6 +6,7 @@
 
 #include "runtime/core/clock.h"
 #include "runtime/core/log.h"
+#include "tools/mocapd/json_reply.h"
 #include "tools/mocapd/take_exports.h"
 
 namespace mocap::daemon {
@@ -15,16 +16,6 @@ MOCAP_LOG_CATEGORY(Outputs);
 namespace {
 
 using nlohmann::json;
-
-net::HttpReply reply(int status, json body) {
-  net::HttpReply r;
-  r.status = status;
-  r.body = body.dump();
-  return r;
-}
-net::HttpReply error_reply(int status, const std::string& message) {
-  return reply(status, json{{"error", message}});
-}
 
 std::int64_t unix_now_ns() { return monotonic_ns() + realtime_offset_ns(); }
 
@@ -129,7 +120,7 @@ std::optional<net::HttpReply> Outputs::handle(const net::HttpRequest& req) {
   json body = take_health(ignored);
   body["takes"] = list;
   body["dir"] = takes_dir_;
-  return reply(200, body);
+  return json_reply(200, body);
 }
 
 // GET /takes/<name>/<file>: a file the take lists (TakeExports::files), streamed;
@@ -154,7 +145,7 @@ std::optional<net::HttpReply> Outputs::take_file(const net::HttpRequest& req) {
   if (file == "export") {
     if (req.method != "POST") return error_reply(405, req.path + " takes POST");
     if (exports_) exports_->request(dir);
-    return reply(202, json{{"name", name}, {"exporting", true}});
+    return json_reply(202, json{{"name", name}, {"exporting", true}});
   }
   if (req.method != "GET" && req.method != "HEAD") return error_reply(405, req.path + " takes GET");
   const fs::path p = TakeExports::file_path(dir, file);
@@ -194,7 +185,7 @@ net::HttpReply Outputs::start_take(std::string name) {
   if (take_) (void)take_->finish(unix_now_ns());  // a take stopped on an error: already saved
   take_ = std::move(*t);
   MOCAP_LOG(Outputs, Info) << "take " << take_->dir().string() << " started";
-  return reply(201, take_json(*take_));
+  return json_reply(201, take_json(*take_));
 }
 
 net::HttpReply Outputs::stop_take() {
@@ -210,7 +201,7 @@ net::HttpReply Outputs::stop_take() {
                            << " frames";
   if (exports_) exports_->request(take_->dir());
   take_.reset();
-  return reply(200, j);
+  return json_reply(200, j);
 }
 
 void Outputs::finish() {

@@ -8,6 +8,7 @@
 #include "runtime/net/stream_server.h"
 #include "tools/mocapd/camera_views.h"
 #include "tools/mocapd/daemon.h"
+#include "tools/mocapd/json_reply.h"
 #include "tools/mocapd/metrics.h"
 
 namespace mocap::daemon {
@@ -15,17 +16,6 @@ namespace mocap::daemon {
 namespace {
 
 using nlohmann::json;
-
-net::HttpReply json_reply(int status, const json& body) {
-  net::HttpReply r;
-  r.status = status;
-  r.body = body.dump();
-  return r;
-}
-
-net::HttpReply error_reply(int status, const std::string& message) {
-  return json_reply(status, json{{"error", message}});
-}
 
 json camera_json(const Camera& c) {
   json k = json::array();
