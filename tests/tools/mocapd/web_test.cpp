@@ -210,6 +210,10 @@ TEST_F(WebTest, HostileRequestsGetClearErrorsAndTheBoxGoesOn) {
   EXPECT_EQ(request(port_, "POST", "/token/check", "x").status, 401);
   EXPECT_EQ(request(port_, "POST", "/token/check", daemon_->token()).status, 200);
   EXPECT_EQ(request(port_, "GET", "/health").status, 200);
+  // The pipeline goes on (under load the first frame may still be on its way).
+  for (int i = 0; i < 100 && daemon_->metrics().frames_out == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
   EXPECT_GT(daemon_->metrics().frames_out, 0u);
 }
 
