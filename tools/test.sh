@@ -42,4 +42,8 @@ else
 fi
 cmake --build "$B" "${BUILD_TARGET[@]}"
 # Line-buffered, so that a run cut short (a CI time limit) still shows the last test it started.
-stdbuf -oL ctest --test-dir "$B" --output-on-failure -j "$(nproc)" "${CTEST_ARGS[@]}"
+# Not under ASan: stdbuf works by LD_PRELOAD, which every test executable would inherit, and
+# ASan aborts when its runtime is not the first library loaded.
+LINE_BUFFERED=(stdbuf -oL)
+if [ "$SANITIZE" -eq 1 ]; then LINE_BUFFERED=(); fi
+"${LINE_BUFFERED[@]}" ctest --test-dir "$B" --output-on-failure -j "$(nproc)" "${CTEST_ARGS[@]}"
