@@ -23,6 +23,15 @@ Result<Simulator> Simulator::create(const RigOptions& rig, const SceneOptions& s
                                     const SkeletonTopology& topology) {
   Result<Calibration> calib = make_ring_rig(rig);
   if (!calib.ok()) return calib.error();
+  return create(std::move(calib).value(), scene, noise, topology);
+}
+
+Result<Simulator> Simulator::create(Calibration rig, const SceneOptions& scene,
+                                    const DetectionNoiseOptions& noise,
+                                    const SkeletonTopology& topology) {
+  if (rig.size() == 0)
+    return Error(ErrorCode::kInvalidArgument, "simulator: the rig has no camera");
+  Result<Calibration> calib(std::move(rig));
   Result<Scene> sc = Scene::create(scene);
   if (!sc.ok()) return sc.error();
   if (Status s = noise.validate(); !s.ok()) return s.error();
@@ -40,6 +49,13 @@ Status Simulator::next(RenderedFrame& out) {
   started_ = true;
   const std::uint64_t frame_seed = mix_seed(scene_.options().seed ^ kNoiseSalt, scene_.frame());
   return renderer_.render(truth_, rig_, *topology_, noise_, frame_seed, out);
+}
+
+void Simulator::skip_to(std::uint64_t frame) {
+  if (frame == 0 || (started_ && scene_.frame() + 1 >= frame)) return;
+  if (!started_) started_ = true;
+  while (scene_.frame() + 1 < frame) scene_.step();
+  scene_.ground_truth(truth_);
 }
 
 Result<RenderedFrame> Simulator::next() {

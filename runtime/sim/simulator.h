@@ -26,6 +26,14 @@ class Simulator {
                                   const DetectionNoiseOptions& noise,
                                   const SkeletonTopology& topology);
 
+  // The same on a rig of the caller's (e.g. some cameras of a larger ring: a detector node's
+  // share of a stage).
+  static Result<Simulator> create(Calibration rig, const SceneOptions& scene,
+                                  const DetectionNoiseOptions& noise,
+                                  const SkeletonTopology& topology);
+  // Advances the scene so that the next call of next() renders scene frame `frame` (no
+  // rendering on the way; nothing happens when the scene is there or past it).
+  void skip_to(std::uint64_t frame);
   // Detections of the next frame: the first call renders frame 0, every later call first
   // advances the scene by one frame. The frame's noise is seeded from the scene seed and the
   // frame index, so two simulators with equal options produce identical sequences.

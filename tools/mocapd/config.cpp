@@ -6,10 +6,12 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <sstream>
+#include <type_traits>
 
 #include "runtime/core/log.h"
 #include "runtime/out/vmc_sender.h"
@@ -24,13 +26,14 @@ Error bad(std::string_view expected, std::string_view text) {
                "expected " + std::string(expected) + ", got '" + std::string(text) + "'");
 }
 
-OptionSpec int_opt(std::string key, std::string unit, std::string help, int DaemonConfig::*field,
-                   int lo, int hi) {
+template <typename I>
+OptionSpec int_opt(std::string key, std::string unit, std::string help, I DaemonConfig::*field,
+                   std::type_identity_t<I> lo, std::type_identity_t<I> hi) {
   OptionSpec o{std::move(key),  OptionType::kInt, std::move(unit),
                std::move(help), nullptr,          nullptr};
   o.show = [field](const DaemonConfig& c) { return std::to_string(c.*field); };
   o.set = [field, lo, hi](DaemonConfig& c, std::string_view t) -> Status {
-    int v = 0;
+    I v = 0;
     auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
     const std::string range =
         "an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
@@ -286,6 +289,52 @@ std::vector<OptionSpec> make_options() {
   v.push_back(int_opt("self_calibration_frames", "frames",
                       "frames collected before each self-calibration attempt",
                       &DaemonConfig::self_calibration_frames, 30, 100000));
+  // Scale-out
+  v.push_back(enum_opt("role", "role",
+                       "standalone (cameras, CNN, association and outputs in this box), detector "
+                       "(cameras and CNN: 2D detections published over DDS) or fusion (every "
+                       "detector node's views associated here, every output served here)",
+                       &DaemonConfig::role,
+                       std::vector<std::pair<std::string, Role>>{{"standalone", Role::kStandalone},
+                                                                 {"detector", Role::kDetector},
+                                                                 {"fusion", Role::kFusion}}));
+  v.push_back(string_opt("node_name", "name",
+                         "this node's name in the stage (at most 63 characters); empty = the "
+                         "host name",
+                         &DaemonConfig::node_name));
+  v.push_back(string_opt("stage", "name",
+                         "the stage this node belongs to (the DDS partition): boxes with the "
+                         "same stage and dds_domain work together",
+                         &DaemonConfig::stage));
+  v.push_back(
+      int_opt("dds_domain", "id", "DDS domain id of the stage", &DaemonConfig::dds_domain, 0, 230));
+  v.push_back(double_opt("node_lease_s", "s",
+                         "liveliness lease: a node that stops (power, crash, cable) is noticed "
+                         "after this long",
+                         &DaemonConfig::node_lease_s, 0.1, 60));
+  v.push_back(double_opt("fusion_max_wait_ms", "ms",
+                         "fusion: longest a frame waits for the views of its live cameras after "
+                         "its first view arrived",
+                         &DaemonConfig::fusion_max_wait_ms, 1, 10000));
+  v.push_back(int_opt("sim_rig_views", "cameras",
+                      "simulated stage: cameras of the whole stage's ring (a detector node "
+                      "renders sim_views of them from sim_first_view on); 0 = sim_views",
+                      &DaemonConfig::sim_rig_views, 0, 64));
+  v.push_back(int_opt("sim_first_view", "camera",
+                      "simulated stage: a detector node's first camera in the stage ring",
+                      &DaemonConfig::sim_first_view, 0, 63));
+  v.push_back(int_opt("sim_epoch_unix_ms", "ms",
+                      "simulated stage: Unix time (ms) the scene starts at, the same on every "
+                      "node; 0 = this node's start (a single node)",
+                      &DaemonConfig::sim_epoch_unix_ms, 0, INT64_MAX));
+  v.push_back(double_opt("sim_stall_after_s", "s",
+                         "simulator: its cameras stall this long after the start (tests)",
+                         &DaemonConfig::sim_stall_after_s, 0, 86400));
+  v.push_back(double_opt("sim_stall_s", "s", "simulator: how long the cameras stall; 0 = never",
+                         &DaemonConfig::sim_stall_s, 0, 3600));
+  v.push_back(double_opt("sim_clock_offset_ms", "ms",
+                         "detector node: added to this node's clock, as if PTP were off (tests)",
+                         &DaemonConfig::sim_clock_offset_ms, -1e6, 1e6));
   // Status
   v.push_back(double_opt("status_log_interval_s", "s",
                          "how often a status line is logged; 0 = never",

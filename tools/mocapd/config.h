@@ -5,6 +5,7 @@
 // flag, the key and the reason. docs/mocapd.md lists the same table (a test checks it).
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <span>
 #include <string>
@@ -22,6 +23,11 @@ inline constexpr const char* kDefaultStateDir = "/var/lib/mocap";
 // When a stage queue is full: kAuto blocks for a replay at full speed (every frame processed)
 // and drops the oldest frame otherwise (live: latency stays bounded).
 enum class DropPolicyChoice { kAuto, kDropOldest, kBlock };
+
+// Many boxes, one stage (docs/scaleout.md): a standalone box does everything; a detector node
+// runs its cameras and the CNN and publishes 2D detections over DDS; the fusion node
+// associates every node's views and feeds every output.
+enum class Role { kStandalone, kDetector, kFusion };
 
 struct DaemonConfig {
   // Network
@@ -72,6 +78,19 @@ struct DaemonConfig {
   std::string vmc_targets;        // "HOST:PORT[,HOST:PORT...]": VMC to each, person k on PORT+k
   int vmc_slots = 4;              // people sent per VMC target (ports PORT .. PORT+slots-1)
   double vmc_slot_release_s = 2;  // a person's VMC port is freed after this long unseen
+  // Scale-out (docs/scaleout.md)
+  Role role = Role::kStandalone;
+  std::string node_name;        // empty = the host name
+  std::string stage = "mocap";  // DDS partition: the boxes of one stage
+  int dds_domain = 0;
+  double node_lease_s = 1.0;       // a dead node is noticed after this
+  double fusion_max_wait_ms = 30;  // a frame waits this long for its late views
+  int sim_rig_views = 0;   // detector/fusion simulator: cameras of the stage (0 = sim_views)
+  int sim_first_view = 0;  // detector simulator: its first camera in the stage rig
+  std::int64_t sim_epoch_unix_ms = 0;  // simulated stage: when the scene starts (0 = now)
+  double sim_stall_after_s = 0;        // simulator: its cameras stall this long after the start ...
+  double sim_stall_s = 0;              // ... for this long (0: never)
+  double sim_clock_offset_ms = 0;      // detector: a wrong clock, for tests
   // Status
   double status_log_interval_s = 30;
   std::string log;  // MOCAP_LOG syntax, e.g. "*:info,Pipeline:debug"

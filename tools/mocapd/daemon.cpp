@@ -1,5 +1,9 @@
 #include "tools/mocapd/daemon.h"
 
+#include "runtime/dds/detection_publisher.h"
+#include "runtime/dds/skeleton_publisher.h"
+#include "runtime/dds/stage.h"
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -104,7 +108,16 @@ std::string_view to_string(CalibrationState state) {
   return "?";
 }
 
-Daemon::~Daemon() { stop(); }
+Daemon::~Daemon() {
+  stop();
+  // The pipeline's source and sinks use the stage: they go first.
+  pipeline_view_.store(nullptr);
+  pipeline_.reset();
+  publisher_.reset();
+  skeleton_publisher_.reset();
+  pending_source_.reset();
+  stage_.reset();
+}
 
 Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, DaemonHooks hooks) {
   std::unique_ptr<Daemon> d(new Daemon());
@@ -113,7 +126,13 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
   d->unix_offset_ns_ = realtime_offset_ns();
   const fs::path board_dir =
       config.board_dir.empty() ? tools::share_path("board") : fs::path(config.board_dir);
-  const Status s = config.replay.empty() ? d->open_board(board_dir) : d->open_replay();
+  Status s;
+  if (config.role == Role::kFusion) {
+    s = d->open_fusion();
+  } else {
+    s = config.replay.empty() ? d->open_board(board_dir) : d->open_replay();
+    if (s.ok() && config.role == Role::kDetector) s = d->become_detector_node();
+  }
   if (!s.ok()) return s.error();
   auto outputs =
       Outputs::create(config, d->unix_offset_ns_, [raw = d.get()] { return raw->take_metadata(); });
@@ -143,6 +162,9 @@ Status Daemon::open_replay() {
   calibration_file_ = (fs::path(config_.replay) / "calibration.json").string();
   source_kind_ = "replay";
   cameras_ = std::move(parts->cameras);
+  for (std::size_t v = 0; v < cameras_.size(); ++v) {
+    camera_names_.push_back(cameras_[v].name().empty() ? std::to_string(v) : cameras_[v].name());
+  }
   detector_ = std::move(parts->detector);
   engine_ = std::move(parts->engine);
   if (!detector_->crops_off_reason().empty()) {
@@ -185,6 +207,16 @@ Status Daemon::open_simulator(double rate_hz) {
   so.bump_view = config_.sim_bump_view;
   so.bump_frame = static_cast<std::int64_t>(config_.sim_bump_after_s * rate_hz);
   so.bump_deg = config_.sim_bump_deg;
+  so.stall_after_s = config_.sim_stall_after_s;
+  so.stall_s = config_.sim_stall_s;
+  if (config_.role == Role::kDetector) {
+    // This node's share of a simulated stage, on the stage's clock.
+    so.rig_views = config_.sim_rig_views;
+    so.first_view = config_.sim_first_view;
+    so.stage_clock = true;
+    so.epoch_unix_ms = config_.sim_epoch_unix_ms;
+  }
+  frame_rate_hz_ = rate_hz;
   auto src = sim::SimulatorSource::open(so);
   if (!src.ok()) return src.error().with_context("simulator");
   calibration_state_ = CalibrationState::kOk;
@@ -198,6 +230,7 @@ Status Daemon::open_simulator(double rate_hz) {
   MOCAP_LOG(Daemon, Warn) << problems_.back();
   const Calibration calibration = (*src)->calibration();
   const SkeletonTopology& topology = (*src)->topology();
+  for (const Camera& cam : calibration.cameras) camera_names_.push_back(cam.name());
   pending_source_ = std::move(*src);
   if (!config_.sim_calibrated) {
     // The box calibrates itself from the simulated people, as it would with real cameras.
@@ -290,6 +323,12 @@ Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, dou
   if (!src.ok()) return src.error();
   source_kind_ = "cameras";
   pending_source_ = std::move(*src);
+  frame_rate_hz_ = rate_hz;
+  for (std::size_t v = 0; v < disc.cameras.size(); ++v) {
+    camera_names_.push_back(calibration && v < calibration->view_ids.size()
+                                ? calibration->view_ids[v]
+                                : std::to_string(v));
+  }
   if (Status s = open_trigger(disc, rate_hz); !s.ok()) return s;
   if (Status s = open_cnn(static_cast<int>(disc.cameras.size()), disc.board.preferred_gpu,
                           calibration ? calibration->cameras : std::vector<Camera>{});
@@ -586,8 +625,10 @@ Status Daemon::start() {
         camera_views_->observe(f.detections, monotonic_ns());
         return Status{};
       });
-  std::vector<pipeline::Sink*> sinks = {stream_sink_.get(), outputs_->take_sink(),
-                                        views_sink_.get()};
+  std::vector<pipeline::Sink*> sinks;
+  if (publisher_) sinks.push_back(publisher_.get());  // a detector node: first, least latency
+  sinks.insert(sinks.end(), {stream_sink_.get(), outputs_->take_sink(), views_sink_.get()});
+  if (skeleton_publisher_) sinks.push_back(skeleton_publisher_.get());
   if (outputs_->vmc_sink() != nullptr) sinks.push_back(outputs_->vmc_sink());
   if (hooks_.on_frame) {
     hook_sink_ =
@@ -824,6 +865,15 @@ std::string Daemon::health_json() const {
   if (pipe != nullptr) src["detail"] = json::parse(pipe->source().status_json(), nullptr, false);
   if (!notes_.empty()) src["notes"] = notes_;
   j["source"] = src;
+  // Scale-out: a detector's publishing, or the fusion node's nodes and cameras.
+  j["role"] = config_.role == Role::kFusion     ? "fusion"
+              : config_.role == Role::kDetector ? "detector"
+                                                : "standalone";
+  if (publisher_) {
+    j["stage"] = json::parse(publisher_->status_json(), nullptr, false);
+  } else if (config_.role == Role::kFusion && pipe != nullptr) {
+    j["stage"] = src["detail"];
+  }
   j["calibration"] = calibration;
   j["gpu"] = {{"backend", gpu_backend_}, {"device", gpu_description_}};
   if (detector_) {

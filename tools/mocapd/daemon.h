@@ -53,6 +53,12 @@ struct ResolvedCamera;
 struct SelfCalibrationResult;
 }  // namespace mocap::calib
 
+namespace mocap::dds {
+class Stage;
+class DetectionPublisher;
+class SkeletonPublisher;
+}  // namespace mocap::dds
+
 namespace mocap::daemon {
 
 class CameraViews;
@@ -109,6 +115,12 @@ class Daemon {
   Status open_replay();
   Status open_board(const std::filesystem::path& board_dir);
   Status open_simulator(double rate_hz);
+  // Scale-out roles (tools/mocapd/stage_roles.cpp, docs/scaleout.md). A detector node keeps
+  // its source and CNN, drops association and publishes; a fusion node's source is the stage.
+  Status become_detector_node();
+  Status open_fusion();
+  Result<Calibration> fusion_calibration(const SkeletonTopology*& topology);
+  Status join_stage(double rate_hz);
   Status open_cameras(hal::Discovery& disc, const std::filesystem::path& board_dir, double rate_hz);
   std::optional<Calibration> choose_calibration(hal::Discovery& disc,
                                                 const std::filesystem::path& board_dir,
@@ -175,6 +187,12 @@ class Daemon {
   std::unique_ptr<pipeline::CallbackSink> views_sink_;
   WebAssets web_;
   std::string token_;
+  // Scale-out: the DDS stage, a detector's publisher, a fusion node's skeletons.
+  std::vector<std::string> camera_names_;  // stable name of each view id (this node's)
+  double frame_rate_hz_ = 30;
+  std::unique_ptr<dds::Stage> stage_;
+  std::unique_ptr<dds::DetectionPublisher> publisher_;
+  std::unique_ptr<dds::SkeletonPublisher> skeleton_publisher_;
   std::unique_ptr<pipeline::Pipeline> pipeline_;
   std::atomic<const pipeline::Pipeline*> pipeline_view_{nullptr};  // for health_json()
   std::atomic<bool> stopped_{false};

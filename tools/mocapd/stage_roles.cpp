@@ -1,0 +1,125 @@
+// mocapd's scale-out roles (docs/scaleout.md): a detector node publishes its cameras'
+// detections over DDS; the fusion node's source is every detector's views, grouped by frame.
+#include <filesystem>
+
+#include "runtime/calib/background.h"
+#include "runtime/calib/monitor.h"
+#include "runtime/core/log.h"
+#include "runtime/dds/detection_publisher.h"
+#include "runtime/dds/fusion_source.h"
+#include "runtime/dds/skeleton_publisher.h"
+#include "runtime/dds/stage.h"
+#include "runtime/geometry/calibration.h"
+#include "runtime/sim/simulator_source.h"
+#include "runtime/skeleton/topology.h"
+#include "tools/mocapd/daemon.h"
+
+MOCAP_DECLARE_LOG_CATEGORY(Daemon);
+
+namespace mocap::daemon {
+
+namespace fs = std::filesystem;
+
+Status Daemon::join_stage(double rate_hz) {
+  dds::StageOptions so;
+  so.domain_id = config_.dds_domain;
+  so.stage = config_.stage;
+  so.node = config_.node_name;
+  so.lease_s = config_.node_lease_s;
+  so.frame_rate_hz = rate_hz;
+  auto st = dds::Stage::join(so);
+  if (!st.ok()) return st.error().with_context("stage " + config_.stage);
+  stage_ = std::move(*st);
+  return {};
+}
+
+Status Daemon::become_detector_node() {
+  // Association, calibration and the outputs are the fusion node's.
+  engine_.reset();
+  calibrator_.reset();
+  config_.calibration_check = false;
+  config_.self_calibrate = false;
+  calibration_state_ = CalibrationState::kOk;
+  calibration_file_ = "(the fusion node's: stage " + config_.stage + ")";
+  if (Status s = join_stage(frame_rate_hz_); !s.ok()) return s;
+  std::vector<std::string> names = camera_names_;
+  if (source_kind_ != "simulator") {
+    // Camera names are unique in the stage: this node's name first.
+    for (std::string& n : names) n = stage_->options().node + "/" + n;
+  }
+  dds::DetectionPublisherOptions po;
+  po.cameras = names;
+  po.frame_rate_hz = frame_rate_hz_;
+  po.clock_offset_ns = static_cast<std::int64_t>(config_.sim_clock_offset_ms * 1e6);
+  po.version = kDaemonVersion;
+  auto pub = dds::DetectionPublisher::create(*stage_, po);
+  if (!pub.ok()) return pub.error();
+  publisher_ = std::move(*pub);
+  MOCAP_LOG(Daemon, Info) << "detector node " << stage_->options().node << " of stage "
+                          << config_.stage << ": publishing " << names.size() << " cameras";
+  return {};
+}
+
+// The stage calibration: the one named, else the simulated stage's ring, else the state
+// folder's. Camera names in it are the names detector nodes publish.
+Result<Calibration> Daemon::fusion_calibration(const SkeletonTopology*& topology) {
+  topology = &coco17_topology();
+  if (!config_.calibration.empty()) {
+    calibration_file_ = config_.calibration;
+    return load_calibration(config_.calibration);
+  }
+  if (config_.sim_rig_views > 0) {
+    topology = &body19_topology();
+    calibration_file_ =
+        "(the simulated stage's ring of " + std::to_string(config_.sim_rig_views) + " cameras)";
+    return sim::simulator_ring(config_.sim_people, config_.sim_rig_views);
+  }
+  const fs::path file = fs::path(config_.state_dir) / "calibration.json";
+  calibration_file_ = file.string();
+  auto c = load_calibration(file);
+  if (!c.ok()) {
+    return Error(c.error().code(),
+                 "fusion node: no stage calibration (" + c.error().message() +
+                     "); give `calibration` a file naming every detector node's cameras "
+                     "(\"<node>/<camera>\"), or sim_rig_views for a simulated stage");
+  }
+  return c;
+}
+
+Status Daemon::open_fusion() {
+  const SkeletonTopology* topology = nullptr;
+  auto calibration = fusion_calibration(topology);
+  if (!calibration.ok()) return calibration.error();
+  frame_rate_hz_ = config_.frame_rate_hz > 0 ? config_.frame_rate_hz : 30;
+  if (Status s = join_stage(frame_rate_hz_); !s.ok()) return s;
+  dds::FusionSourceOptions fo;
+  for (std::size_t v = 0; v < calibration->size(); ++v) {
+    const std::string& name = calibration->cameras[v].name();
+    fo.cameras.push_back(name.empty() ? calibration->view_ids[v] : name);
+  }
+  fo.topology = topology;
+  fo.grouping.frame_rate_hz = frame_rate_hz_;
+  fo.grouping.max_wait_ms = config_.fusion_max_wait_ms;
+  fo.version = kDaemonVersion;
+  if (auto json = calibration_to_json(*calibration); json.ok()) fo.calibration_json = *json;
+  auto src = dds::FusionSource::open(*stage_, fo);
+  if (!src.ok()) return src.error();
+  pending_source_ = std::move(*src);
+  camera_names_ = fo.cameras;
+  source_kind_ = "fusion";
+  calibration_state_ = CalibrationState::kOk;
+  gpu_backend_ = "none";
+  gpu_description_ = "not used: the detector nodes run the CNN";
+  auto sp = dds::SkeletonPublisher::create(*stage_);
+  if (!sp.ok()) return sp.error();
+  skeleton_publisher_ = std::move(*sp);
+  const assoc::AssociationOptions options = topology == &coco17_topology()
+                                                ? assoc::posenet_coco17_options()
+                                                : assoc::AssociationOptions{};
+  MOCAP_LOG(Daemon, Info) << "fusion node " << stage_->options().node << " of stage "
+                          << config_.stage << ": " << fo.cameras.size() << " cameras, "
+                          << frame_rate_hz_ << " Hz";
+  return make_engine(*topology, *calibration, options);
+}
+
+}  // namespace mocap::daemon
