@@ -61,9 +61,10 @@ Status DetectionsEncoder::encode(const CameraDetections& in, const SkeletonTopol
     }
     limbs_[l].rows = static_cast<std::uint16_t>(m.rows);
     limbs_[l].cols = static_cast<std::uint16_t>(m.cols);
+    values_.resize(v.affinities.size());
+    values_[l].assign(m.values.begin(), m.values.end());
     limbs_[l].values = {static_cast<std::uint32_t>(m.values.size()),
-                        static_cast<std::uint32_t>(m.values.size()),
-                        const_cast<float*>(m.values.data()), false};
+                        static_cast<std::uint32_t>(m.values.size()), values_[l].data(), false};
   }
   sample_.joints = {static_cast<std::uint32_t>(joints_.size()),
                     static_cast<std::uint32_t>(joints_.size()), joints_.data(), false};

@@ -1,5 +1,5 @@
-// Our messages <-> the IDL types of mocap_wire.idl. Encoding points the wire sample at storage
-// the encoder owns (no copy of the candidate arrays); decoding checks everything a foreign or
+// Our messages <-> the IDL types of mocap_wire.idl. Encoding fills storage the encoder owns and
+// reuses (no allocation once warmed up); decoding checks everything a foreign or
 // broken writer could get wrong, and the error names the field: the fusion node drops such a
 // sample and counts it, it never trusts a size.
 #pragma once
@@ -36,6 +36,7 @@ class DetectionsEncoder {
   std::vector<mocap_wire_JointCandidates> joints_;
   std::vector<std::vector<mocap_wire_Candidate>> candidates_;
   std::vector<mocap_wire_LimbAffinity> limbs_;
+  std::vector<std::vector<float>> values_;
 };
 
 // Checks and converts a received sample. `topology` is the stage's: a sample of another

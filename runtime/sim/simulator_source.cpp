@@ -56,14 +56,19 @@ Result<Calibration> simulator_ring(int people, int views) {
   return make_ring_rig(rig);
 }
 
+SceneOptions simulator_scene(int people, double frame_rate_hz) {
+  SceneOptions scene;
+  scene.people = people;
+  scene.frame_rate_hz = frame_rate_hz;
+  scene.enter_leave = false;  // everyone stays in the room: the stream has `people` persons
+  scene.area_radius_m = area_radius_m(people);
+  return scene;
+}
+
 Result<std::unique_ptr<SimulatorSource>> SimulatorSource::open(
     const SimulatorSourceOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
-  SceneOptions scene;
-  scene.people = options.people;
-  scene.frame_rate_hz = options.frame_rate_hz;
-  scene.enter_leave = false;  // everyone stays in the room: the stream has `people` persons
-  scene.area_radius_m = area_radius_m(options.people);
+  const SceneOptions scene = simulator_scene(options.people, options.frame_rate_hz);
   auto ring =
       simulator_ring(options.people, options.rig_views != 0 ? options.rig_views : options.views);
   if (!ring.ok()) return ring.error();

@@ -47,6 +47,8 @@ struct SimulatorSourceOptions {
 // The ring of `views` cameras the simulator board uses for `people` simulated people (its
 // radius grows with the crowd): the whole stage's calibration for a simulated fusion node.
 Result<Calibration> simulator_ring(int people, int views);
+// Its scene: `people` walking in the ring at frame_rate_hz, nobody entering or leaving.
+SceneOptions simulator_scene(int people, double frame_rate_hz);
 
 class SimulatorSource final : public pipeline::FrameSource {
  public:
