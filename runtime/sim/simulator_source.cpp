@@ -104,7 +104,8 @@ Result<pipeline::SourceStatus> SimulatorSource::next_on_stage_clock(pipeline::So
   const std::int64_t offset_ns = realtime_offset_ns();  // realtime - monotonic
   const std::int64_t now_rt = monotonic_ns() + offset_ns;
   // The next frame due: the one after the last, or the latest already due (a skip).
-  std::int64_t k = std::max(last_index_.load() + 1, now_rt / period_ns);
+  // ... and never before the stage's epoch (a node started early waits for it).
+  std::int64_t k = std::max({last_index_.load() + 1, now_rt / period_ns, epoch_index_});
   const std::int64_t stall_from =
       start_realtime_ns_ + static_cast<std::int64_t>(options_.stall_after_s * 1e9);
   const std::int64_t stall_to = stall_from + static_cast<std::int64_t>(options_.stall_s * 1e9);
@@ -114,10 +115,6 @@ Result<pipeline::SourceStatus> SimulatorSource::next_on_stage_clock(pipeline::So
   const std::int64_t due_mono = k * period_ns - offset_ns;
   if (!sleep_until_ns(due_mono, timeout_ms)) return pipeline::SourceStatus::kTimeout;
   const std::int64_t scene_frame = k - epoch_index_;
-  if (scene_frame < 0) {
-    return Error(ErrorCode::kInvalidArgument,
-                 "simulator: epoch_unix_ms is in the future; give the stage's start time");
-  }
   sim_->skip_to(static_cast<std::uint64_t>(scene_frame));
   Result<RenderedFrame> r = sim_->next();
   if (!r.ok()) return r.error();

@@ -1,7 +1,7 @@
 // Many boxes, one stage, as a user runs it: build/bin/mocapd as one fusion node and four
 // detector nodes (8 simulated cameras each: one 32-camera ring, one seeded scene) in separate
 // processes over real Cyclone DDS. On loopback (CYCLONEDDS_URI set below: unicast discovery,
-// no multicast on lo); tests/dds/netns_test.sh runs the same over a bridge with multicast.
+// no multicast on lo).
 //
 //   - skeletons match the simulator's ground truth; no frame set lost while all are alive
 //   - one detector node SIGKILLed: noticed within 1.5 s, the stream goes on from 24 views with

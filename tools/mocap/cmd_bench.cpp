@@ -192,14 +192,16 @@ int run_bench(Args args) {
         "usage: mocap bench <what> [options]\n\nbenchmarks:\n"
         "  assoc    association + fitting per frame (mocap bench assoc --help)\n"
         "  cnn      pose CNN per frame, per layer, vs TF.js (mocap bench cnn --help)\n"
-        "  pipeline mocapd's whole path on a recording (mocap bench pipeline --help)\n",
+        "  pipeline mocapd's whole path on a recording (mocap bench pipeline --help)\n"
+        "  fusion   the fusion node: association at scale, the stage over DDS (--help)\n",
         args.empty() ? stderr : stdout);
     return args.empty() ? 2 : 0;
   }
   if (args[0] == "assoc") return bench_assoc(args.subspan(1));
   if (args[0] == "cnn") return run_bench_cnn(args.subspan(1));
   if (args[0] == "pipeline") return run_bench_pipeline(args.subspan(1));
-  std::fprintf(stderr, "mocap bench: unknown benchmark '%s' (try: assoc, cnn, pipeline)\n",
+  if (args[0] == "fusion") return run_bench_fusion(args.subspan(1));
+  std::fprintf(stderr, "mocap bench: unknown benchmark '%s' (try: assoc, cnn, pipeline, fusion)\n",
                std::string(args[0]).c_str());
   return 2;
 }
