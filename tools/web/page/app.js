@@ -310,6 +310,49 @@ function showHealth(h) {
     return tr;
   }));
   showCalibration(h.calibration || {});
+  showStage(h);
+}
+
+// Several boxes on one stage (docs/scaleout.md): the fusion node's nodes and cameras, or a
+// detector node's own publishing. Hidden on a standalone box.
+function showStage(h) {
+  const panel = $("stage-panel");
+  const st = h.stage;
+  panel.hidden = !st;
+  if (!st) return;
+  const row = (cells, cls) => {
+    const tr = document.createElement("tr");
+    if (cls) tr.className = cls;
+    for (const c of cells) {
+      const td = document.createElement("td");
+      td.textContent = c;
+      tr.append(td);
+    }
+    return tr;
+  };
+  const rows = [];
+  if (st.role === "fusion") {
+    const f = st.frames || {};
+    $("stage-summary").textContent =
+      `fusion · stage ${st.stage} · ${f.released ?? 0} frames, ${f.complete ?? 0} complete, ` +
+      `${f.on_deadline ?? 0} on deadline · transport p99 ${fmt(st.transport_ms?.p99, 2)} ms · ` +
+      `refused ${(st.refused?.malformed ?? 0) + (st.refused?.unknown_camera ?? 0)}`;
+    rows.push(row(["node", "alive", "cameras live", "late / missing", "clock ms"], "head"));
+    for (const n of st.nodes || []) {
+      const cams = (st.cameras || []).filter((c) => c.node === n.node);
+      const live = cams.filter((c) => c.live).length;
+      const late = cams.reduce((a, c) => a + c.late, 0);
+      const missing = cams.reduce((a, c) => a + c.missing, 0);
+      rows.push(row([n.node, n.alive ? "yes" : "LOST", `${live} / ${cams.length}`,
+                     `${late} / ${missing}`, fmt(n.clock_corrected_ms || n.clock_offset_ms, 2)],
+                    n.alive ? "" : "lost"));
+    }
+  } else {
+    $("stage-summary").textContent =
+      `detector ${st.node} · stage ${st.stage} · ${st.frames_published ?? 0} frames published`;
+    rows.push(row(["cameras", (st.cameras || []).join(", ")]));
+  }
+  $("stage").tBodies[0].replaceChildren(...rows);
 }
 
 function showCalibration(c) {
