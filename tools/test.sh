@@ -4,10 +4,11 @@
 #   tools/test.sh              Release build in build/
 #   tools/test.sh --sanitize   ASan + UBSan build in build-asan/ of the test executables (and
 #                              mocap, mocapd: the mixed-geometry test runs them), without
-#                              the hil, e2e and browser labels: the HIL VM boot, the
-#                              whole-recording runs (~1 min each under ASan) and the
-#                              headless-Chromium page tests (the browser's side) are in the
-#                              Release suite, to keep CI within its budget. No debug info
+#                              the hil, e2e, browser and scaleout labels: the HIL VM boot,
+#                              the whole-recording runs (~1 min each under ASan), the
+#                              headless-Chromium page tests (the browser's side) and the
+#                              five-process DDS stage (timing checks) are in the Release
+#                              suite, to keep CI within its budget. No debug info
 #                              (-g0): reports name functions (UBSan also file:line), and a
 #                              cold CI build took 14.7 instead of 15.4 min (one run each)
 # Extra arguments after -- go to ctest (e.g. -- -R Shelf).
@@ -33,7 +34,7 @@ if [ "$SANITIZE" -eq 1 ]; then
   cmake -S "$ROOT" -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMOCAP_SANITIZE=ON \
     -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g0 -DNDEBUG" >/dev/null
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
-  CTEST_ARGS=(-LE "hil|e2e|browser" "${CTEST_ARGS[@]}")
+  CTEST_ARGS=(-LE "hil|e2e|browser|scaleout" "${CTEST_ARGS[@]}")
   BUILD_TARGET=(--target mocap_tests)
 else
   B="$ROOT/build"
