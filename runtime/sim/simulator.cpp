@@ -23,12 +23,12 @@ Result<Simulator> Simulator::create(const RigOptions& rig, const SceneOptions& s
                                     const SkeletonTopology& topology) {
   Result<Calibration> calib = make_ring_rig(rig);
   if (!calib.ok()) return calib.error();
-  return create(std::move(calib).value(), scene, noise, topology);
+  return create_on_rig(std::move(calib).value(), scene, noise, topology);
 }
 
-Result<Simulator> Simulator::create(Calibration rig, const SceneOptions& scene,
-                                    const DetectionNoiseOptions& noise,
-                                    const SkeletonTopology& topology) {
+Result<Simulator> Simulator::create_on_rig(Calibration rig, const SceneOptions& scene,
+                                           const DetectionNoiseOptions& noise,
+                                           const SkeletonTopology& topology) {
   if (rig.size() == 0)
     return Error(ErrorCode::kInvalidArgument, "simulator: the rig has no camera");
   Result<Calibration> calib(std::move(rig));

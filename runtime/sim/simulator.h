@@ -28,9 +28,9 @@ class Simulator {
 
   // The same on a rig of the caller's (e.g. some cameras of a larger ring: a detector node's
   // share of a stage).
-  static Result<Simulator> create(Calibration rig, const SceneOptions& scene,
-                                  const DetectionNoiseOptions& noise,
-                                  const SkeletonTopology& topology);
+  static Result<Simulator> create_on_rig(Calibration rig, const SceneOptions& scene,
+                                         const DetectionNoiseOptions& noise,
+                                         const SkeletonTopology& topology);
   // Advances the scene so that the next call of next() renders scene frame `frame` (no
   // rendering on the way; nothing happens when the scene is there or past it).
   void skip_to(std::uint64_t frame);

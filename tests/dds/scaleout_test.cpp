@@ -123,8 +123,8 @@ class Truth {
  public:
   explicit Truth(std::int64_t epoch_ms) {
     auto ring = sim::simulator_ring(kPeople, kNodes * kViewsPerNode);
-    auto s = sim::Simulator::create(std::move(*ring), sim::simulator_scene(kPeople, kRateHz),
-                                    sim::DetectionNoiseOptions{}, body19_topology());
+    auto s = sim::Simulator::create_on_rig(std::move(*ring), sim::simulator_scene(kPeople, kRateHz),
+                                           sim::DetectionNoiseOptions{}, body19_topology());
     sim_ = std::make_unique<sim::Simulator>(std::move(*s));
     epoch_index_ = (epoch_ms * 1000000 + kPeriodNs / 2) / kPeriodNs;
   }

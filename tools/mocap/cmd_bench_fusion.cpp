@@ -50,8 +50,8 @@ struct FusionBenchOptions {
 Result<double> engine_ms(int views, int people, int frames) {
   auto ring = sim::simulator_ring(people, views);
   if (!ring.ok()) return ring.error();
-  auto s = sim::Simulator::create(*ring, sim::simulator_scene(people, 30),
-                                  sim::DetectionNoiseOptions{}, body19_topology());
+  auto s = sim::Simulator::create_on_rig(*ring, sim::simulator_scene(people, 30),
+                                         sim::DetectionNoiseOptions{}, body19_topology());
   if (!s.ok()) return s.error();
   auto engine =
       assoc::Engine::create(body19_topology(), ring->cameras, assoc::AssociationOptions{});
