@@ -326,9 +326,18 @@ TEST(ScaleOut, FourDetectorNodesAndAFusionNode) {
   std::printf("[ scaleout ] d3 clock offset %.2f ms, corrected by %.2f ms\n",
               d3->at("clock_offset_ms").get<double>(), d3->at("clock_corrected_ms").get<double>());
   EXPECT_NEAR(d3->at("clock_corrected_ms").get<double>(), 16.7, 3.0);
+  // No late or missing view of the node with the wrong clock while it was measured (a view
+  // of a node that joined after the first frame went out is late once, at the start).
+  std::map<std::string, int> late_before;
+  for (const json& c : before.at("stage").at("cameras")) {
+    late_before[c.at("camera").get<std::string>()] =
+        c.at("late").get<int>() + c.at("missing").get<int>();
+  }
   for (const json& c : after.at("stage").at("cameras")) {
     if (c.at("node") == "d3") {
-      EXPECT_EQ(c.at("late").get<int>(), 0) << c.dump();
+      EXPECT_EQ(c.at("late").get<int>() + c.at("missing").get<int>(),
+                late_before[c.at("camera").get<std::string>()])
+          << c.dump();
     }
   }
 
