@@ -1,7 +1,9 @@
 // mocap bench assoc --data DIR | --synthetic --views N --people P
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -32,6 +34,35 @@ Percentiles percentiles(const std::vector<double>& v) {
 void print_row(const char* name, const Percentiles& p) {
   std::printf("%-22s %9.3f %9.3f %9.3f %9.3f\n", name, p.median, p.p90, p.p99, p.max);
 }
+
+// FNV-1a over the bytes of every output value (ids, joints, confidences, rotations, 2D
+// evidence): equal digests mean an optimisation left the engine's results bit-identical.
+class Digest {
+ public:
+  template <typename T>
+  void add(const T& v) {
+    unsigned char b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));
+    for (unsigned char c : b) h_ = (h_ ^ c) * 1099511628211ull;
+  }
+  void add(const assoc::FrameResult& r) {
+    add(r.skeletons.persons.size());
+    for (const PersonSkeleton& p : r.skeletons.persons) {
+      add(p.person_id);
+      for (const Eigen::Vector3d& X : p.joints_m) add(X);
+      for (float c : p.confidence) add(c);
+      for (const Eigen::Quaterniond& q : p.joint_rotations) add(q.coeffs().eval());
+    }
+    for (const assoc::PersonEvidence& e : r.evidence) {
+      for (int k : e.candidate) add(k);
+      for (int n : e.views_used) add(n);
+    }
+  }
+  std::uint64_t value() const { return h_; }
+
+ private:
+  std::uint64_t h_ = 14695981039346656037ull;
+};
 
 // The simulator renders all frames first, so only the engine is timed.
 int bench_synthetic(int views, int people, int frames, bool no_fit) {
@@ -76,6 +107,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   std::vector<double> graph_ms, parse_ms, assemble_ms, fit_only_ms, track_first_ms, matching_ms;
   int count_ok = 0;
   int candidates = 0;
+  Digest digest;
   long track_first = 0, deferred = 0, cap_hits = 0, cliques = 0;
   for (std::size_t f = 0; f < rendered.size(); ++f) {
     auto r = (*engine)->process(rendered[f]);
@@ -83,6 +115,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
       std::fprintf(stderr, "error: %s\n", r.error().message().c_str());
       return 1;
     }
+    digest.add(*r);
     const auto& st = r->stats;
     assoc.push_back(st.graph_ms + st.parse_ms + st.assemble_ms);
     graph_ms.push_back(st.graph_ms);
@@ -119,6 +152,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
       "maximal cliques enumerated, %.2f limb types over the clique cap\n",
       static_cast<double>(track_first) / frames, static_cast<double>(deferred) / frames,
       static_cast<double>(cliques) / frames, static_cast<double>(cap_hits) / frames);
+  std::printf("output digest: %016llx\n", static_cast<unsigned long long>(digest.value()));
   std::printf("frames_per_s=%.0f\n", t.median > 0 ? 1000.0 / t.median : 0.0);
   std::printf("assoc_fit_median_ms=%.3f\n", t.median);
   return 0;
