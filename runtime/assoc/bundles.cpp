@@ -183,8 +183,8 @@ struct Scorer {
            len <= opt.max_limb_length_ratio * template_length_m;
   }
   double pair_match(const LimbEdge& x, const LimbEdge& y) const {
-    return 0.5 * (static_cast<double>(graph.match(limb.joint_a, x.ka, y.ka)) +
-                  static_cast<double>(graph.match(limb.joint_b, x.kb, y.kb)));
+    return 0.5 * (static_cast<double>(graph.match_value(limb.joint_a, x.ka, y.ka)) +
+                  static_cast<double>(graph.match_value(limb.joint_b, x.kb, y.kb)));
   }
   double track_match(int t, const LimbEdge& x) const {
     return 0.5 * (static_cast<double>(graph.track(limb.joint_a, t, x.ka)) +
@@ -847,8 +847,8 @@ void set_aside_inconsistent(FrameGraph& graph, const Limb& L, std::span<const Li
       if (c < 0 || v == x.view) continue;
       ++core_size;
       const LimbEdge& y = edges[ix(c)];
-      const float wa = graph.ensure_match(L.joint_a, x.ka, y.ka);
-      const float wb = wa > 0.f ? graph.ensure_match(L.joint_b, x.kb, y.kb) : 0.f;
+      const float wa = graph.compute_match_value(L.joint_a, x.ka, y.ka);
+      const float wb = wa > 0.f ? graph.compute_match_value(L.joint_b, x.kb, y.kb) : 0.f;
       consistent = wa > 0.f && wb > 0.f;
       match_sum += 0.5 * static_cast<double>(wa + wb);
     }
@@ -888,8 +888,8 @@ void keep_limb_clique(FrameGraph& graph, const Limb& L, std::span<const LimbEdge
   for (int end = 0; end < 2; ++end) {
     sc.ends.clear();
     for (const int e : members) sc.ends.push_back(end == 0 ? edges[ix(e)].ka : edges[ix(e)].kb);
-    graph.ensure_matches(end == 0 ? L.joint_a : L.joint_b, sc.ends,
-                         end == 0 ? sc.match_a : sc.match_b);
+    graph.compute_matches(end == 0 ? L.joint_a : L.joint_b, sc.ends,
+                          end == 0 ? sc.match_a : sc.match_b);
   }
   fail.assign(m * m, 0);
   pair_w.assign(m * m, 0.0);

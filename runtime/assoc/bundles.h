@@ -38,7 +38,8 @@ struct Bundle {
 // down to 0 at the deepest limbs. Empty for a topology that is not a tree (all 1).
 std::vector<double> limb_hierarchy_weights(const SkeletonTopology& topology);
 
-// Score of a bundle (see CliqueOptions). Bundles with no 2D limb score 0.
+// Score of a bundle (see CliqueOptions). Bundles with no 2D limb score 0. Matching edges the
+// graph has not stored are computed from the rays (FrameGraph::match_value).
 double score_bundle(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
                     double hierarchy_weight, const CliqueOptions& options, int track,
                     const std::vector<int>& edges);
@@ -76,8 +77,8 @@ void parse_limb_bundles(const FrameGraph& graph, const SkeletonTopology& topolog
 // pruning, it has >= 2 views and triangulates near the track. Everything else (views still
 // ambiguous, 2D limbs set aside or dropped, new people) is left to parse_limb_bundles, with the
 // taken 2D limbs, the 2D limbs sharing their candidates and the taken tracks recorded in
-// `exclusions`. Matching edges between the 2D limbs compared are computed here on demand
-// (FrameGraph::ensure_match).
+// `exclusions`. Matching edges between the 2D limbs compared are computed here from their rays
+// (FrameGraph::compute_matches, compute_match_value), not stored in the graph's table.
 void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, int limb,
                          double hierarchy_weight, const CliqueOptions& options,
                          std::vector<Bundle>& out, LimbExclusions& exclusions, ParsingStats& stats);

@@ -285,31 +285,29 @@ void FrameGraph::add_limb_edges(const SkeletonTopology& topo,
   }
 }
 
-void FrameGraph::matching_pair(int joint, int k1, int k2) {
+float FrameGraph::compute_match(int joint, int k1, int k2) const {
   const auto& cj = cands_[idx(joint)];
-  float& m12 = match_[idx(joint)][pair_index(joint, k1, k2)];
-  m12 = 0.f;
-  match_written_[idx(joint)].push_back(static_cast<int>(pair_index(joint, k1, k2)));
   const GraphCandidate& a = cj[idx(k1)];
   const GraphCandidate& b = cj[idx(k2)];
-  if (a.view == b.view) return;
+  if (a.view == b.view) return 0.f;
   const Eigen::Vector3d& u = a.ray.direction;
   const Eigen::Vector3d& oa = a.ray.origin_m;
   const Eigen::Vector3d& v = b.ray.direction;
   const Eigen::Vector3d& ob = b.ray.origin_m;
-  m12 = static_cast<float>(ray_pair_probability(
+  return static_cast<float>(ray_pair_probability(
       oa.x(), oa.y(), oa.z(), u.x(), u.y(), u.z(), u.x() * u.x() + u.y() * u.y() + u.z() * u.z(),
       ob.x(), ob.y(), ob.z(), v.x(), v.y(), v.z(), options_.max_epipolar_dist_m,
       kParallelAngle_rad * kParallelAngle_rad, options_.min_depth_m));
 }
 
-void FrameGraph::ensure_matches(int joint, std::span<const int> ks, std::span<float> pairs) {
+void FrameGraph::matching_pair(int joint, int k1, int k2) {
+  match_[idx(joint)][pair_index(joint, k1, k2)] = compute_match(joint, k1, k2);
+  match_written_[idx(joint)].push_back(static_cast<int>(pair_index(joint, k1, k2)));
+}
+
+void FrameGraph::load_batch(int joint, std::span<const int> ks) const {
   const std::size_t m = ks.size();
-  if (m < 2) return;
-  float* out = pairs.size() >= m * m ? pairs.data() : nullptr;
-  assert((pairs.empty() || out) && "ensure_matches: `pairs` must hold ks.size()^2 entries");
   const auto& cj = cands_[idx(joint)];
-  auto& mt = match_[idx(joint)];
   batch_ox_.resize(m);
   batch_oy_.resize(m);
   batch_oz_.resize(m);
@@ -328,6 +326,34 @@ void FrameGraph::ensure_matches(int joint, std::span<const int> ks, std::span<fl
     batch_dz_[i] = c.ray.direction.z();
     batch_view_[i] = c.view;
   }
+}
+
+void FrameGraph::compute_matches(int joint, std::span<const int> ks, std::span<float> pairs) const {
+  const std::size_t m = ks.size();
+  if (m < 2) return;
+  assert(pairs.size() >= m * m && "compute_matches: `pairs` must hold ks.size()^2 entries");
+  load_batch(joint, ks);
+  const double min_depth = options_.min_depth_m;
+  const double max_dist = options_.max_epipolar_dist_m;
+  const double par2 = kParallelAngle_rad * kParallelAngle_rad;
+  double* row = batch_row_.data();
+  float* out = pairs.data();
+  for (std::size_t i = 0; i + 1 < m; ++i) {
+    pair_row(batch_ox_.data(), batch_oy_.data(), batch_oz_.data(), batch_dx_.data(),
+             batch_dy_.data(), batch_dz_.data(), i, m, max_dist, par2, min_depth, row);
+    for (std::size_t j = i + 1; j < m; ++j) {
+      out[i * m + j] = batch_view_[i] == batch_view_[j] ? 0.f : static_cast<float>(row[j]);
+    }
+  }
+}
+
+void FrameGraph::ensure_matches(int joint, std::span<const int> ks, std::span<float> pairs) {
+  const std::size_t m = ks.size();
+  if (m < 2) return;
+  float* out = pairs.size() >= m * m ? pairs.data() : nullptr;
+  assert((pairs.empty() || out) && "ensure_matches: `pairs` must hold ks.size()^2 entries");
+  auto& mt = match_[idx(joint)];
+  load_batch(joint, ks);
   const double min_depth = options_.min_depth_m;
   const double max_dist = options_.max_epipolar_dist_m;
   const double par2 = kParallelAngle_rad * kParallelAngle_rad;

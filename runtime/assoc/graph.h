@@ -64,6 +64,21 @@ class FrameGraph {
   float match(int joint, int k1, int k2) const {
     return std::max(0.f, match_[idx(joint)][pair_index(joint, k1, k2)]);
   }
+  // The matching probability of candidates k1, k2 of `joint` whether or not it has been
+  // computed: the stored value, else computed here (the value ensure_match() would store;
+  // nothing is stored). What the scorer reads: a bundle's pairs may have been compared in a
+  // batch (compute_matches) that left the table alone.
+  float match_value(int joint, int k1, int k2) const {
+    if (k1 == k2) return 0.f;
+    const float m = match_[idx(joint)][pair_index(joint, k1, k2)];
+    return m >= 0.f ? m : compute_match(joint, std::min(k1, k2), std::max(k1, k2));
+  }
+  // The matching probability of candidates k1, k2 of `joint` computed from their rays, without
+  // reading or writing the table (the value ensure_match() stores): cheaper than a table entry
+  // that is not in cache.
+  float compute_match_value(int joint, int k1, int k2) const {
+    return k1 == k2 ? 0.f : compute_match(joint, std::min(k1, k2), std::max(k1, k2));
+  }
   // Whether the matching edge between candidates k1 != k2 of `joint` has been computed.
   bool match_computed(int joint, int k1, int k2) const {
     return match_[idx(joint)][pair_index(joint, k1, k2)] >= 0.f;
@@ -118,6 +133,12 @@ class FrameGraph {
   // pairs[i * m + j] for every i < j, so the caller need not look them up again.
   void ensure_matches(int joint, std::span<const int> ks, std::span<float> pairs = {});
 
+  // The matching probability of every two of the candidates `ks` of `joint` (distinct
+  // indices) into pairs[i * m + j] for i < j (pairs at least m x m, m = ks.size()): the values
+  // ensure_matches() computes, without reading or writing the table (a batch's entries are
+  // scattered over it, one row per candidate: storing them cost more than computing them).
+  void compute_matches(int joint, std::span<const int> ks, std::span<float> pairs) const;
+
   // How many tracks have a tracking edge to candidate k of `joint`.
   int tracks_of_candidate(int joint, int k) const { return track_deg_[idx(joint)][idx(k)]; }
   // The track with a tracking edge to candidate k of `joint` when there is exactly one
@@ -144,6 +165,10 @@ class FrameGraph {
 
   // Computes and stores the matching edge of candidates k1 < k2 of `joint` (not yet computed).
   void matching_pair(int joint, int k1, int k2);
+  // The matching probability of candidates k1 < k2 of `joint`, not stored.
+  float compute_match(int joint, int k1, int k2) const;
+  // Lays out the rays of candidates `ks` of `joint` by component in the batch scratch.
+  void load_batch(int joint, std::span<const int> ks) const;
 
   GraphOptions options_;
   int view_count_ = 0;
@@ -164,9 +189,9 @@ class FrameGraph {
   };
   std::vector<PairPass> pass_;
   // ensure_matches() scratch: the batch's rays by component, views, and one row of results.
-  std::vector<double> batch_ox_, batch_oy_, batch_oz_, batch_dx_, batch_dy_, batch_dz_;
-  std::vector<double> batch_row_;
-  std::vector<int> batch_view_;
+  mutable std::vector<double> batch_ox_, batch_oy_, batch_oz_, batch_dx_, batch_dy_, batch_dz_;
+  mutable std::vector<double> batch_row_;
+  mutable std::vector<int> batch_view_;
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
   // [joint][k1 * n + k2] for k1 < k2 (pair_index), negative until computed. Between frames
   // every entry is negative: only the entries written (listed in match_written_) are reset,
