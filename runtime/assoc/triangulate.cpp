@@ -42,12 +42,66 @@ bool solve_rays(std::span<const RayTerms> terms, unsigned used, Eigen::Vector3d*
   return X->allFinite();
 }
 
-// Reprojection error of X in observation o; +inf when behind the camera.
-double reprojection_error(const Observation& o, std::span<const Camera> cameras,
-                          const Eigen::Vector3d& X) {
-  const auto px = cameras[static_cast<std::size_t>(o.view)].project(X);
-  if (!px) return std::numeric_limits<double>::infinity();
-  return (*px - o.px).norm();
+// The observations' cameras and pixels by component, one lane per observation (at most 32),
+// for reprojection_errors().
+struct ObservationCameras {
+  std::array<double, 32> r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2;
+  std::array<double, 32> k1, k2, k3, p1, p2, distorted;  // distorted: 1 with distortion, else 0
+  std::array<double, 32> fx, skew, cx, fy, cy, u, v;     // (u, v): the observed pixel
+
+  void set(int i, const Camera& cam, const Eigen::Vector2d& px) {
+    const auto k = static_cast<std::size_t>(i);
+    const Eigen::Matrix3d& R = cam.R();
+    r00[k] = R(0, 0), r01[k] = R(0, 1), r02[k] = R(0, 2);
+    r10[k] = R(1, 0), r11[k] = R(1, 1), r12[k] = R(1, 2);
+    r20[k] = R(2, 0), r21[k] = R(2, 1), r22[k] = R(2, 2);
+    t0[k] = cam.t_m().x(), t1[k] = cam.t_m().y(), t2[k] = cam.t_m().z();
+    const Distortion& d = cam.distortion();
+    k1[k] = d.k1, k2[k] = d.k2, k3[k] = d.k3, p1[k] = d.p1, p2[k] = d.p2;
+    distorted[k] = cam.has_distortion() ? 1.0 : 0.0;
+    fx[k] = cam.fx(), skew[k] = cam.skew(), cx[k] = cam.cx(), fy[k] = cam.fy(), cy[k] = cam.cy();
+    u[k] = px.x(), v[k] = px.y();
+  }
+};
+
+// The reprojection error of X in observations 0..n-1 into err: |Camera::project(X) - px|, +inf
+// when X is not in front of the camera. The same operations as Camera::project
+// (camera_point(), the distortion, K) and Eigen's norm, in one loop over the observations that
+// the compiler vectorises (selects instead of branches; triangulate.cpp is compiled with
+// -fno-math-errno and -fno-trapping-math), so the same values bit for bit. On x86-64, GCC also
+// builds an AVX2 version (no FMA: the same operations).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define MOCAP_REPROJECTION_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define MOCAP_REPROJECTION_CLONES
+#endif
+MOCAP_REPROJECTION_CLONES
+void reprojection_errors(const ObservationCameras& __restrict c, int n, double X, double Y,
+                         double Z, double* __restrict err) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < n; ++i) {
+    const double xc = ((c.r00[i] * X + c.r01[i] * Y) + c.r02[i] * Z) + c.t0[i];
+    const double yc = ((c.r10[i] * X + c.r11[i] * Y) + c.r12[i] * Z) + c.t1[i];
+    const double zc = ((c.r21[i] * Y + c.r22[i] * Z) + c.r20[i] * X) + c.t2[i];
+    const bool front = zc > kMinProjectDepth_m;  // false for NaN, as in Camera::project
+    const double inv_z = 1.0 / (front ? zc : 1.0);
+    const double x = xc * inv_z;
+    const double y = yc * inv_z;
+    // distort_xy() of camera.cpp.
+    const double r2 = x * x + y * y;
+    const double radial = 1.0 + r2 * (c.k1[i] + r2 * (c.k2[i] + r2 * c.k3[i]));
+    const double xy2 = 2.0 * x * y;
+    const double xd = x * radial + c.p1[i] * xy2 + c.p2[i] * (r2 + 2.0 * x * x);
+    const double yd = y * radial + c.p1[i] * (r2 + 2.0 * y * y) + c.p2[i] * xy2;
+    const bool distorted = c.distorted[i] != 0.0;
+    const double xn = distorted ? xd : x;
+    const double yn = distorted ? yd : y;
+    // Camera::normalized_to_pixel, then the difference to the observed pixel.
+    const double du = (c.fx[i] * xn + c.skew[i] * yn + c.cx[i]) - c.u[i];
+    const double dv = (c.fy[i] * yn + c.cy[i]) - c.v[i];
+    const double e = std::sqrt(du * du + dv * dv);
+    err[i] = front ? e : kInf;
+  }
 }
 
 }  // namespace
@@ -68,6 +122,15 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
     add_ray_normal_equations(o.ray, o.weight, t.A, t.b);
   }
   const std::span<const RayTerms> rays(terms.data(), static_cast<std::size_t>(n));
+  thread_local ObservationCameras obs_cams;  // scratch: only lanes [0, n) are written and read
+  for (int i = 0; i < n; ++i) {
+    const Observation& o = obs[static_cast<std::size_t>(i)];
+    obs_cams.set(i, cameras[static_cast<std::size_t>(o.view)], o.px);
+  }
+  std::array<double, 32> err;  // reprojection errors of the point being scored
+  const auto errors = [&](const Eigen::Vector3d& X) {
+    reprojection_errors(obs_cams, n, X.x(), X.y(), X.z(), err.data());
+  };
 
   // Accepts X solved from `used` as the result.
   auto accept = [&](const Eigen::Vector3d& X, unsigned used, double worst) {
@@ -87,9 +150,10 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
   if (const double fast = options.all_views_accept_error_px; fast > 0) {
     Eigen::Vector3d X;
     if (solve_rays(rays, all, &X)) {
+      errors(X);
       double worst = 0;
       for (int i = 0; i < n && worst <= fast; ++i) {
-        worst = std::max(worst, reprojection_error(obs[static_cast<std::size_t>(i)], cameras, X));
+        worst = std::max(worst, err[static_cast<std::size_t>(i)]);
       }
       if (worst <= fast) return accept(X, all, worst);
     }
@@ -123,13 +187,14 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
       const int b = by_weight[static_cast<std::size_t>(ib)];
       Eigen::Vector3d X;
       if (!solve_rays(rays, (1u << a) | (1u << b), &X)) continue;
+      errors(X);
       unsigned set = 0;
       double score = 0;
       for (int i = 0; i < n; ++i) {
         if ((score + weight_after[static_cast<std::size_t>(i)]) * (1.0 + 1e-9) < best_score) {
           break;
         }
-        const double e = reprojection_error(obs[static_cast<std::size_t>(i)], cameras, X);
+        const double e = err[static_cast<std::size_t>(i)];
         if (e < thr) {
           set |= 1u << i;
           score += obs[static_cast<std::size_t>(i)].weight * (1.0 - e / thr);
@@ -148,11 +213,12 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
   while (std::popcount(used) >= options.min_views) {
     Eigen::Vector3d X;
     if (!solve_rays(rays, used, &X)) return out;
+    errors(X);
     double worst = -1;
     int worst_i = -1;
     for (int i = 0; i < n; ++i) {
       if (!(used & (1u << i))) continue;
-      const double e = reprojection_error(obs[static_cast<std::size_t>(i)], cameras, X);
+      const double e = err[static_cast<std::size_t>(i)];
       if (e > worst) {
         worst = e;
         worst_i = i;

@@ -164,7 +164,7 @@ Eigen::Matrix<double, 3, 4> Camera::projection_matrix() const {
 }
 
 std::optional<Eigen::Vector2d> Camera::project(const Eigen::Vector3d& X_m) const {
-  const Eigen::Vector3d Xc = R_ * X_m + t_m_;
+  const Eigen::Vector3d Xc = camera_point(R_, t_m_, X_m);
   if (!(Xc.z() > kMinProjectDepth_m)) return std::nullopt;  // also rejects NaN
   const double inv_z = 1.0 / Xc.z();
   Eigen::Vector2d x(Xc.x() * inv_z, Xc.y() * inv_z);

@@ -99,7 +99,9 @@ class Camera {
   // World point -> camera frame (metres).
   Eigen::Vector3d to_camera(const Eigen::Vector3d& X_m) const { return R_ * X_m + t_m_; }
   // World point -> (distorted) pixel. nullopt when the point is not in front of the camera
-  // (camera-frame z <= kMinProjectDepth_m). The pixel may lie outside the image.
+  // (camera-frame z <= kMinProjectDepth_m). The pixel may lie outside the image. The camera
+  // frame point is camera_point() (a fixed order of operations, so that batched copies of this
+  // arithmetic, e.g. triangulation's, give the same values bit for bit).
   std::optional<Eigen::Vector2d> project(const Eigen::Vector3d& X_m) const;
   // Same, without lens distortion (the pixel of the ideal pinhole camera with the same K).
   std::optional<Eigen::Vector2d> project_undistorted(const Eigen::Vector3d& X_m) const;
@@ -137,6 +139,16 @@ class Camera {
   int height_px_ = 1;
   std::string name_;
 };
+
+// R X + t with each coordinate summed in a fixed order: rows 0 and 1 left to right, row 2 from
+// its second term, then the translation (the order Eigen's SSE2 evaluation of R * X + t
+// takes, so Camera::project gives the values it gave when it was written with Eigen).
+inline Eigen::Vector3d camera_point(const Eigen::Matrix3d& R, const Eigen::Vector3d& t,
+                                    const Eigen::Vector3d& X) {
+  return {((R(0, 0) * X.x() + R(0, 1) * X.y()) + R(0, 2) * X.z()) + t.x(),
+          ((R(1, 0) * X.x() + R(1, 1) * X.y()) + R(1, 2) * X.z()) + t.y(),
+          ((R(2, 1) * X.y() + R(2, 2) * X.z()) + R(2, 0) * X.x()) + t.z()};
+}
 
 // Closest points of two infinite lines: on_a = a.point_at(s_a_m), on_b = b.point_at(s_b_m).
 // For (near-)parallel lines `parallel` is set, s_b_m = 0 and on_a is the foot of b.origin_m

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <vector>
@@ -142,6 +143,50 @@ TEST_F(TriangulateTest, TwoDisagreeingViewsAreInvalid) {
   const std::vector<Observation> o = {obs(0, X_), obs(1, X_ + Eigen::Vector3d(0, 0, 1.0))};
   ASSERT_GT(ray_ray_distance_m(o[0].ray, o[1].ray), 0.3);
   EXPECT_FALSE(triangulate(o, cams_, opt_).valid);
+}
+
+// The reprojection errors triangulation scores with (computed for all views at once) are
+// Camera::project's bit for bit, with and without lens distortion and skew: the reported worst
+// error equals the one recomputed from the camera for the views used.
+TEST_F(TriangulateTest, ReprojectionErrorsAreCameraProjectsBitForBit) {
+  std::vector<Camera> cams = cams_;
+  for (int v = 0; v < 4; ++v) {
+    Camera c = ring_camera(kPi / 2 * v + 1.1, 3.5, 0.8 + 0.3 * v, Eigen::Vector3d(0.1, 0, 1.1));
+    Eigen::Matrix3d K = c.K();
+    K(0, 1) = 0.7 * v;  // skew
+    c.set_intrinsics(K);
+    c.set_distortion(Distortion{-0.12 + 0.01 * v, 0.03, 0.001, -0.0005, 0.002 * v});
+    cams.push_back(c);
+  }
+  int checked = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const Eigen::Vector3d X = X_ + Eigen::Vector3d(0.01 * trial, -0.02 * (trial % 7), 0.015);
+    std::vector<Observation> o;
+    for (int v = 0; v < static_cast<int>(cams.size()); ++v) {
+      const Camera& cam = cams[static_cast<std::size_t>(v)];
+      Observation ob;
+      ob.view = v;
+      // Noise up to ~16 px; one view in five far off (left out by the consensus).
+      ob.px = *cam.project(X) +
+              Eigen::Vector2d(std::sin(trial * 1.3 + v) * 9, std::cos(trial * 0.7 + 2 * v) * 9) *
+                  ((trial + v) % 5 == 0 ? 8.0 : 1.0);
+      ob.ray = cam.backproject(ob.px);
+      ob.weight = 0.5 + 0.05 * v;
+      o.push_back(ob);
+    }
+    const TriangulatedPoint p = triangulate(o, cams, opt_);
+    if (!p.valid) continue;
+    double worst = -1;
+    for (const Observation& ob : o) {
+      if (!(p.view_mask & (1u << ob.view))) continue;
+      const auto px = cams[static_cast<std::size_t>(ob.view)].project(p.X_m);
+      ASSERT_TRUE(px.has_value());
+      worst = std::max(worst, (*px - ob.px).norm());
+    }
+    EXPECT_EQ(p.max_reprojection_error_px, worst) << "trial " << trial;
+    ++checked;
+  }
+  EXPECT_GT(checked, 30);
 }
 
 }  // namespace
