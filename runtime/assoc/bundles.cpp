@@ -737,6 +737,11 @@ struct TrackFirstScratch {
   std::vector<double> evidence;         // [i] summed matching edges of member i
   std::vector<double> pair_w;           // [i * m + j] pair_match of members i, j
   std::vector<char> used_a, used_b;     // [k] candidate in a taken 2D limb
+  // set_aside_inconsistent: per track, its core picks (view order) by view and by candidate at
+  // each end (core_at[t] = where they start, -1 until gathered), and one 2D limb's matching
+  // edges to them.
+  std::vector<int> core_at, core_view, core_ka, core_kb;
+  std::vector<float> core_wa, core_wb;
 };
 
 // Each 2D limb goes to the track closest to both its endpoints (the larger of the smaller
@@ -832,6 +837,10 @@ void set_aside_inconsistent(FrameGraph& graph, const Limb& L, std::span<const Li
                             const CliqueOptions& options, TrackFirstScratch& sc) {
   const int V = graph.view_count();
   sc.core = sc.pick;
+  sc.core_at.assign(ix(graph.track_count() + 1), -1);
+  sc.core_view.clear();
+  sc.core_ka.clear();
+  sc.core_kb.clear();
   for (const int e : sc.to_track) {
     const int t = sc.assigned[ix(e)];
     const LimbEdge& x = edges[ix(e)];
@@ -839,16 +848,38 @@ void set_aside_inconsistent(FrameGraph& graph, const Limb& L, std::span<const Li
       // Its view is unambiguous, unless a candidate is shared with another track's limb.
       if (sc.owner_a[ix(x.ka)] >= 0 && sc.owner_b[ix(x.kb)] >= 0) continue;
     }
+    if (sc.core_at[ix(t)] < 0) {  // the track's core picks, gathered once
+      sc.core_at[ix(t)] = static_cast<int>(sc.core_view.size());
+      for (int v = 0; v < V; ++v) {
+        const int c = sc.core[ix(t * V + v)];
+        if (c < 0) continue;
+        sc.core_view.push_back(v);
+        sc.core_ka.push_back(edges[ix(c)].ka);
+        sc.core_kb.push_back(edges[ix(c)].kb);
+      }
+      sc.core_view.push_back(-1);  // end of the track's list
+      sc.core_ka.push_back(-1);
+      sc.core_kb.push_back(-1);
+    }
+    const std::size_t c0 = ix(sc.core_at[ix(t)]);
+    std::size_t nc = 0;
+    while (sc.core_view[c0 + nc] >= 0) ++nc;
+    // Its matching edges to every core pick at both ends, in one batch each (the values
+    // compute_match_value gives); then the picks in view order as before.
+    sc.core_wa.resize(nc);
+    sc.core_wb.resize(nc);
+    graph.compute_matches_of(L.joint_a, x.ka, std::span<const int>(sc.core_ka).subspan(c0, nc),
+                             sc.core_wa);
+    graph.compute_matches_of(L.joint_b, x.kb, std::span<const int>(sc.core_kb).subspan(c0, nc),
+                             sc.core_wb);
     int core_size = 0;
     bool consistent = true;
     double match_sum = 0;
-    for (int v = 0; v < V && consistent; ++v) {
-      const int c = sc.core[ix(t * V + v)];
-      if (c < 0 || v == x.view) continue;
+    for (std::size_t i = 0; i < nc && consistent; ++i) {
+      if (sc.core_view[c0 + i] == x.view) continue;
       ++core_size;
-      const LimbEdge& y = edges[ix(c)];
-      const float wa = graph.compute_match_value(L.joint_a, x.ka, y.ka);
-      const float wb = wa > 0.f ? graph.compute_match_value(L.joint_b, x.kb, y.kb) : 0.f;
+      const float wa = sc.core_wa[i];
+      const float wb = wa > 0.f ? sc.core_wb[i] : 0.f;
       consistent = wa > 0.f && wb > 0.f;
       match_sum += 0.5 * static_cast<double>(wa + wb);
     }

@@ -69,6 +69,33 @@ void pair_row(const double* __restrict ox, const double* __restrict oy, const do
   }
 }
 
+// ray_pair_probability() of ray x (candidate index kx) and each ray i = 0..m-1 (by component,
+// candidate indices k[i]) into row[i], the two rays of a pair in ascending candidate order as
+// FrameGraph::compute_match() takes them (so the same values; selects, not branches, so that
+// the loop vectorises).
+MOCAP_PAIR_ROW_CLONES
+void pair_row_ordered(double xox, double xoy, double xoz, double xdx, double xdy, double xdz,
+                      double kx, const double* __restrict ox, const double* __restrict oy,
+                      const double* __restrict oz, const double* __restrict dx,
+                      const double* __restrict dy, const double* __restrict dz,
+                      const double* __restrict k, std::size_t m, double max_dist, double par2,
+                      double min_depth, double* __restrict row) {
+  for (std::size_t i = 0; i < m; ++i) {
+    const bool x_first = kx < k[i];
+    const double ax = x_first ? xox : ox[i], ay = x_first ? xoy : oy[i];
+    const double az = x_first ? xoz : oz[i];
+    const double ux = x_first ? xdx : dx[i], uy = x_first ? xdy : dy[i];
+    const double uz = x_first ? xdz : dz[i];
+    const double bx = x_first ? ox[i] : xox, by = x_first ? oy[i] : xoy;
+    const double bz = x_first ? oz[i] : xoz;
+    const double vx = x_first ? dx[i] : xdx, vy = x_first ? dy[i] : xdy;
+    const double vz = x_first ? dz[i] : xdz;
+    const double uu = ux * ux + uy * uy + uz * uz;
+    row[i] = ray_pair_probability(ax, ay, az, ux, uy, uz, uu, bx, by, bz, vx, vy, vz, max_dist,
+                                  par2, min_depth);
+  }
+}
+
 // The views of `detections` sorted by id (so candidates come grouped by view); an error naming
 // the frame when a view id has no camera.
 Status sorted_views(const DetectionSet& detections, int view_count,
@@ -344,6 +371,28 @@ void FrameGraph::compute_matches(int joint, std::span<const int> ks, std::span<f
     for (std::size_t j = i + 1; j < m; ++j) {
       out[i * m + j] = batch_view_[i] == batch_view_[j] ? 0.f : static_cast<float>(row[j]);
     }
+  }
+}
+
+void FrameGraph::compute_matches_of(int joint, int k, std::span<const int> ks,
+                                    std::span<float> out) const {
+  const std::size_t m = ks.size();
+  if (m == 0) return;
+  assert(out.size() >= m && "compute_matches_of: `out` must hold ks.size() entries");
+  load_batch(joint, ks);
+  batch_k_.resize(m);
+  for (std::size_t i = 0; i < m; ++i) batch_k_[i] = ks[i];
+  const GraphCandidate& x = cands_[idx(joint)][idx(k)];
+  const Eigen::Vector3d& o = x.ray.origin_m;
+  const Eigen::Vector3d& d = x.ray.direction;
+  pair_row_ordered(o.x(), o.y(), o.z(), d.x(), d.y(), d.z(), k, batch_ox_.data(), batch_oy_.data(),
+                   batch_oz_.data(), batch_dx_.data(), batch_dy_.data(), batch_dz_.data(),
+                   batch_k_.data(), m, options_.max_epipolar_dist_m,
+                   kParallelAngle_rad * kParallelAngle_rad, options_.min_depth_m,
+                   batch_row_.data());
+  for (std::size_t i = 0; i < m; ++i) {
+    const bool zero = ks[i] == k || batch_view_[i] == x.view;
+    out[i] = zero ? 0.f : static_cast<float>(batch_row_[i]);
   }
 }
 

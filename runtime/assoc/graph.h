@@ -139,6 +139,10 @@ class FrameGraph {
   // scattered over it, one row per candidate: storing them cost more than computing them).
   void compute_matches(int joint, std::span<const int> ks, std::span<float> pairs) const;
 
+  // compute_match_value(joint, k, ks[i]) into out[i] for every i (out at least ks.size()), in
+  // one vectorised pass over the rays of ks.
+  void compute_matches_of(int joint, int k, std::span<const int> ks, std::span<float> out) const;
+
   // How many tracks have a tracking edge to candidate k of `joint`.
   int tracks_of_candidate(int joint, int k) const { return track_deg_[idx(joint)][idx(k)]; }
   // The track with a tracking edge to candidate k of `joint` when there is exactly one
@@ -192,6 +196,7 @@ class FrameGraph {
   mutable std::vector<double> batch_ox_, batch_oy_, batch_oz_, batch_dx_, batch_dy_, batch_dz_;
   mutable std::vector<double> batch_row_;
   mutable std::vector<int> batch_view_;
+  mutable std::vector<double> batch_k_;             // candidate indices (compute_matches_of)
   std::vector<std::vector<GraphCandidate>> cands_;  // [joint][k]
   // [joint][k1 * n + k2] for k1 < k2 (pair_index), negative until computed. Between frames
   // every entry is negative: only the entries written (listed in match_written_) are reset,

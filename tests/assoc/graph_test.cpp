@@ -512,6 +512,55 @@ TEST(GraphSimTest, BatchedMatchingEdgesEqualThePairwiseOnes) {
   }
 }
 
+// The matching edges computed without the table (compute_matches, compute_matches_of,
+// match_value, compute_match_value: what track-first parsing and the scorer use) are the
+// stored ones bit for bit, same-view pairs included (0), in either candidate order; none of
+// them stores anything.
+TEST(GraphSimTest, MatchingEdgesComputedWithoutTheTableEqualTheStoredOnes) {
+  sim::SceneOptions scene;
+  scene.people = 6;
+  Result<SimFrame> f = first_sim_frame(scene, 8);
+  ASSERT_TRUE(f.ok()) << f.error().message();
+  FrameGraph eager;
+  ASSERT_TRUE(eager.build(f->detections, f->cameras, {}, GraphOptions{}).ok());
+  FrameGraph lazy;
+  ASSERT_TRUE(lazy.build(f->detections, f->cameras, {}, GraphOptions{}, /*matching=*/false).ok());
+  long edges = 0;
+  for (int j = 0; j < lazy.joint_count(); ++j) {
+    const int n = lazy.candidate_count(j);
+    std::vector<int> ks;  // every other candidate, descending (several per view)
+    for (int k = n - 1; k >= 0; k -= 2) ks.push_back(k);
+    const std::size_t m = ks.size();
+    std::vector<float> pairs(m * m, -2.f);
+    lazy.compute_matches(j, ks, pairs);
+    for (std::size_t a = 0; a < m; ++a) {
+      for (std::size_t b = a + 1; b < m; ++b) {
+        EXPECT_EQ(pairs[a * m + b], eager.match(j, ks[a], ks[b]))
+            << "joint " << j << " " << ks[a] << "-" << ks[b];
+      }
+    }
+    std::vector<float> row(m, -2.f);
+    for (int k = 0; k < n; ++k) {
+      lazy.compute_matches_of(j, k, ks, row);
+      for (std::size_t i = 0; i < m; ++i) {
+        EXPECT_EQ(row[i], eager.match(j, k, ks[i])) << "joint " << j << " " << k << "-" << ks[i];
+        EXPECT_EQ(lazy.compute_match_value(j, k, ks[i]), eager.match(j, k, ks[i]));
+        EXPECT_EQ(lazy.compute_match_value(j, ks[i], k), eager.match(j, k, ks[i]));
+        EXPECT_EQ(lazy.match_value(j, ks[i], k), eager.match(j, k, ks[i]));
+        edges += row[i] > 0.f ? 1 : 0;
+      }
+    }
+    for (int k1 = 0; k1 < n; ++k1) {
+      for (int k2 = 0; k2 < n; ++k2) {
+        if (k1 != k2) {
+          EXPECT_FALSE(lazy.match_computed(j, k1, k2));
+        }
+      }
+    }
+  }
+  EXPECT_GT(edges, 100);
+}
+
 // On a crowded simulated frame (12 views, 10 people, false candidates) the matching table equals
 // a brute-force evaluation of every candidate pair with closest_points (the line-to-line
 // prefilter changes no edge), neighbour lists are ascending and in other views, and limb edges
