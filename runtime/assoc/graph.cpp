@@ -467,9 +467,39 @@ void FrameGraph::build_matching(std::span<const std::vector<char>> settled) {
     for (int k = 0; k < n; ++k) {
       if (!sj || !(*sj)[idx(k)]) open.push_back(k);
     }
+    auto& nb = nbr_[idx(j)];
+    const std::size_t m = open.size();
+    if (match_written_[idx(j)].empty() && m >= 2) {
+      // Nothing of this joint computed yet this frame (the engine's case): every pair is
+      // computed and stored row by row without reading the table first, and the neighbour lists
+      // are filled from the values just computed (in the order of the loops below).
+      load_batch(j, open);
+      auto& mt = match_[idx(j)];
+      auto& written = match_written_[idx(j)];
+      written.resize(m * (m - 1) / 2);
+      std::size_t nw = 0;
+      const double par2 = kParallelAngle_rad * kParallelAngle_rad;
+      for (std::size_t i1 = 0; i1 + 1 < m; ++i1) {
+        pair_row(batch_ox_.data(), batch_oy_.data(), batch_oz_.data(), batch_dx_.data(),
+                 batch_dy_.data(), batch_dz_.data(), i1, m, options_.max_epipolar_dist_m, par2,
+                 options_.min_depth_m, batch_row_.data());
+        const int k1 = open[i1];
+        for (std::size_t i2 = i1 + 1; i2 < m; ++i2) {
+          const int k2 = open[i2];
+          const std::size_t e = pair_index(j, k1, k2);
+          const float value =
+              batch_view_[i1] == batch_view_[i2] ? 0.f : static_cast<float>(batch_row_[i2]);
+          mt[e] = value;
+          written[nw++] = static_cast<int>(e);
+          if (value <= 0.f) continue;
+          nb[idx(k1)].push_back(k2);
+          nb[idx(k2)].push_back(k1);
+        }
+      }
+      continue;
+    }
     ensure_matches(j, open);
     // Pairs (k1 < k2) in ascending k1 then k2: every neighbour list comes out ascending.
-    auto& nb = nbr_[idx(j)];
     for (std::size_t i1 = 0; i1 < open.size(); ++i1) {
       for (std::size_t i2 = i1 + 1; i2 < open.size(); ++i2) {
         const int k1 = open[i1];
