@@ -519,6 +519,19 @@ double FastProblem::evaluate(const Eigen::Vector3d& rr, const std::vector<Eigen:
     m[ix(j)].setZero();
   }
   double c = 0;
+  // The sums of the joint being accumulated (observations come grouped by joint) are kept in
+  // locals, not in M and m: the same additions in the same order, without a store and reload
+  // per observation; they go back to M and m when the joint changes.
+  int cur = -1;
+  double s00 = 0, s01 = 0, s02 = 0, s11 = 0, s12 = 0, s22 = 0, g0 = 0, g1 = 0, g2 = 0;
+  const auto flush = [&] {
+    if (cur < 0) return;
+    Eigen::Matrix3d& Mj = M[ix(cur)];
+    Eigen::Vector3d& mj = m[ix(cur)];
+    Mj(0, 0) = s00, Mj(0, 1) = s01, Mj(0, 2) = s02, Mj(1, 1) = s11, Mj(1, 2) = s12;
+    Mj(2, 2) = s22;
+    mj(0) = g0, mj(1) = g1, mj(2) = g2;
+  };
   for (const JointObservation& o : observations_) {
     if (!usable(o)) continue;
     Eigen::Vector2d proj;
@@ -531,16 +544,32 @@ double FastProblem::evaluate(const Eigen::Vector3d& rr, const std::vector<Eigen:
     c += 0.5 * huber(e2);
     if (e2 > a_ * a_) w *= std::sqrt(a_ / std::sqrt(e2));  // IRLS weight of the Huber loss
     const double w2 = w * w;
-    // M += w²JᵀJ (symmetric) and m += w²Jᵀres, written out for the 2x3 Jacobian.
-    Eigen::Matrix3d& Mj = M[ix(o.joint)];
-    Eigen::Vector3d& mj = m[ix(o.joint)];
-    for (int q = 0; q < 3; ++q) {
-      const double a0 = w2 * Jp(0, q);
-      const double a1 = w2 * Jp(1, q);
-      for (int k = q; k < 3; ++k) Mj(q, k) += a0 * Jp(0, k) + a1 * Jp(1, k);
-      mj(q) += a0 * rx + a1 * ry;
+    if (o.joint != cur) {
+      flush();
+      cur = o.joint;
+      const Eigen::Matrix3d& Mj = M[ix(cur)];
+      const Eigen::Vector3d& mj = m[ix(cur)];
+      s00 = Mj(0, 0), s01 = Mj(0, 1), s02 = Mj(0, 2), s11 = Mj(1, 1), s12 = Mj(1, 2);
+      s22 = Mj(2, 2);
+      g0 = mj(0), g1 = mj(1), g2 = mj(2);
     }
+    // M += w²JᵀJ (symmetric, upper triangle) and m += w²Jᵀres, written out for the 2x3
+    // Jacobian: for each row q, a = w²J(:, q), M(q, k) += a0 J(0, k) + a1 J(1, k) for k >= q,
+    // m(q) += a0 rx + a1 ry.
+    const double a00 = w2 * Jp(0, 0), a10 = w2 * Jp(1, 0);
+    const double a01 = w2 * Jp(0, 1), a11 = w2 * Jp(1, 1);
+    const double a02 = w2 * Jp(0, 2), a12 = w2 * Jp(1, 2);
+    s00 += a00 * Jp(0, 0) + a10 * Jp(1, 0);
+    s01 += a00 * Jp(0, 1) + a10 * Jp(1, 1);
+    s02 += a00 * Jp(0, 2) + a10 * Jp(1, 2);
+    g0 += a00 * rx + a10 * ry;
+    s11 += a01 * Jp(0, 1) + a11 * Jp(1, 1);
+    s12 += a01 * Jp(0, 2) + a11 * Jp(1, 2);
+    g1 += a01 * rx + a11 * ry;
+    s22 += a02 * Jp(0, 2) + a12 * Jp(1, 2);
+    g2 += a02 * rx + a12 * ry;
   }
+  flush();
   for (int j = 0; j < J_; ++j) {
     Eigen::Matrix3d& Mj = M[ix(j)];
     Mj(1, 0) = Mj(0, 1);
