@@ -6,6 +6,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <map>
+#include <string>
+#include <string_view>
+#include <utility>
 
 #include "runtime/assoc/triangulate.h"
 #include "runtime/core/log.h"
@@ -162,9 +166,9 @@ struct Scorer {
   std::span<const LimbEdge> edges;
   double weight_sum;
   double template_length_m = 0;  // 0 = no plausibility check
-  // view_energy(n) for n = 0..view_count (a clique has at most one 2D limb per view), filled
-  // by make_scorer: the score is evaluated for every candidate removal while pruning.
-  std::vector<double> view_term = {};
+  // view_energy(n) for n = 0..view_count (a clique has at most one 2D limb per view), from
+  // make_scorer: the score is evaluated for every candidate removal while pruning.
+  std::span<const double> view_term = {};
 
   // Limb length from the least-squares 3D points of both endpoints' rays (normal equations
   // accumulated by the caller: A = Σ I − ddᵀ, b = Σ (I − ddᵀ) o).
@@ -240,6 +244,38 @@ struct Scorer {
   }
 };
 
+// A limb's template length (fit::known_template_bone_length_m, a lookup by joint names),
+// remembered per thread by the limb's joint names: make_scorer runs for every limb type twice
+// a frame and for every bundle assembling splits.
+double limb_template_length_m(const SkeletonTopology& topology, const Limb& L) {
+  struct Entry {
+    std::string a, b;
+    double length_m;
+  };
+  thread_local std::vector<Entry> known;
+  const std::string_view a = topology.joint_name(L.joint_a);
+  const std::string_view b = topology.joint_name(L.joint_b);
+  for (const Entry& e : known) {
+    if (e.a == a && e.b == b) return e.length_m;
+  }
+  const double length_m = fit::known_template_bone_length_m(a, b);
+  if (known.size() < 256) known.push_back(Entry{std::string(a), std::string(b), length_m});
+  return length_m;
+}
+
+// Scorer::view_energy(n) for n = 0..view_count, remembered per thread for each (view count,
+// view_welsch_c) seen (a few: one per rig); the tables stay where they are (std::map nodes).
+std::span<const double> view_energy_table(const Scorer& s) {
+  thread_local std::map<std::pair<int, double>, std::vector<double>> tables;
+  const int V = s.graph.view_count();
+  std::vector<double>& t = tables[{V, s.opt.view_welsch_c}];
+  if (t.empty()) {
+    t.resize(ix(V + 1));
+    for (int n = 0; n <= V; ++n) t[ix(n)] = s.view_energy(n);
+  }
+  return t;
+}
+
 // The scorer of one limb type (its 2D limbs, weights and template length).
 // `view_table`: fill Scorer::view_term (worth it when many cliques are scored).
 Scorer make_scorer(const FrameGraph& graph, const SkeletonTopology& topology, int limb,
@@ -251,12 +287,8 @@ Scorer make_scorer(const FrameGraph& graph, const SkeletonTopology& topology, in
            options,
            graph.limb_edges(limb),
            options.w_match + options.w_track + options.w_paf + options.w_view + options.w_hier,
-           fit::known_template_bone_length_m(topology.joint_name(L.joint_a),
-                                             topology.joint_name(L.joint_b))};
-  if (view_table) {
-    s.view_term.resize(ix(graph.view_count() + 1));
-    for (int n = 0; n <= graph.view_count(); ++n) s.view_term[ix(n)] = s.view_energy(n);
-  }
+           limb_template_length_m(topology, L)};
+  if (view_table) s.view_term = view_energy_table(s);
   return s;
 }
 
