@@ -351,13 +351,17 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
   for (int i = 0; i < k; ++i) {
     const LimbEdge& x = s.edges[ix(members[ix(i)])];
     paf += static_cast<double>(x.p);
+    // Row i's sum in a local (the rows j > i are other entries; kept in memory, row i would be
+    // stored and reloaded for every pair, a chain through memory).
+    double row_i = row[ix(i)];
     for (int j = i + 1; j < k; ++j) {
       const double w =
           pair.empty() ? s.pair_match(x, s.edges[ix(members[ix(j)])]) : pair[ix(i * k + j)];
-      row[ix(i)] += w;
+      row_i += w;
       row[ix(j)] += w;
       match += w;
     }
+    row[ix(i)] = row_i;
     if (track >= 0) {
       trk[ix(i)] = s.track_match(track, x);
       tsum += trk[ix(i)];
@@ -960,12 +964,13 @@ void keep_limb_clique(FrameGraph& graph, const Limb& L, std::span<const LimbEdge
   evidence.assign(m, 0.0);
   int total = 0;
   for (std::size_t i = 0; i < m; ++i) {
+    double evidence_i = evidence[i];  // in a local, as prune_clique's row sums
     for (std::size_t j = i + 1; j < m; ++j) {
       // The members are in different views: their candidates are distinct at both ends.
       const float wa = sc.match_a[i * m + j];
       const float wb = wa > 0.f ? sc.match_b[i * m + j] : 0.f;
       if (wa > 0.f && wb > 0.f) {
-        evidence[i] += static_cast<double>(wa + wb);
+        evidence_i += static_cast<double>(wa + wb);
         evidence[j] += static_cast<double>(wa + wb);
         // Scorer::pair_match, for prune_clique.
         pair_w[i * m + j] = pair_w[j * m + i] =
@@ -977,6 +982,7 @@ void keep_limb_clique(FrameGraph& graph, const Limb& L, std::span<const LimbEdge
         ++total;
       }
     }
+    evidence[i] = evidence_i;
   }
   while (total > 0) {
     std::size_t worst = m;
