@@ -384,18 +384,16 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
     add_ray_normal_equations(ray_b(i), 1.0, Pb, qb);
   };
   int n = k;
-  auto eval = [&](int n2, double paf2, double match2, bool has_track, double t2,
-                  const Eigen::Matrix3d& A2a, const Eigen::Vector3d& b2a,
-                  const Eigen::Matrix3d& A2b, const Eigen::Vector3d& b2b) {
-    if (check_length && n2 >= 2 && !s.plausible_length(A2a, b2a, A2b, b2b)) return -1.0;
-    return s.combine(n2, paf2, match2, has_track, t2);
-  };
-  double best = eval(n, paf, match, track >= 0, tsum, Aa, ba, Ab, bb);
+  // Whether the current sums give a plausible length (checked once: dropping the track keeps
+  // them, and a member's removal is made only when its sums passed the check).
+  const bool checks = check_length && n >= 2;
+  bool plausible = !checks || s.plausible_length(Aa, ba, Ab, bb);
+  double best = plausible ? s.combine(n, paf, match, track >= 0, tsum) : -1.0;
   while (true) {
     double cand_best = best;
     int drop = -2;  // -1 = drop the track, i >= 0 = drop members[i]
     if (track >= 0) {
-      const double sc = eval(n, paf, match, false, 0.0, Aa, ba, Ab, bb);
+      const double sc = plausible ? s.combine(n, paf, match, false, 0.0) : -1.0;
       if (sc > cand_best) {
         cand_best = sc;
         drop = -1;
@@ -437,6 +435,8 @@ double prune_clique(const Scorer& s, int& track, std::vector<int>& members,
         Ab -= Pb;
         bb -= qb;
       }
+      // Checked (and passed) when the removal was chosen, whenever eval would check it.
+      plausible = true;
       for (int j = 0; j < k; ++j) {
         if (!alive[ix(j)]) continue;
         row[ix(j)] -=
