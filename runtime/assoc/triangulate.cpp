@@ -43,7 +43,7 @@ bool solve_rays(std::span<const RayTerms> terms, unsigned used, Eigen::Vector3d*
 }
 
 // The observations' cameras and pixels by component, one lane per observation (at most 32),
-// for reprojection_errors().
+// for the reprojection_errors_* kernels.
 struct ObservationCameras {
   std::array<double, 32> r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2;
   std::array<double, 32> k1, k2, k3, p1, p2, distorted;  // distorted: 1 with distortion, else 0
@@ -75,9 +75,10 @@ struct ObservationCameras {
 #else
 #define MOCAP_REPROJECTION_CLONES
 #endif
-MOCAP_REPROJECTION_CLONES
-void reprojection_errors(const ObservationCameras& __restrict c, int n, double X, double Y,
-                         double Z, double* __restrict err) {
+template <bool kDistorted>
+inline __attribute__((always_inline)) void reprojection_errors_of(
+    const ObservationCameras& __restrict c, int n, double X, double Y, double Z,
+    double* __restrict err) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   for (int i = 0; i < n; ++i) {
     const double xc = ((c.r00[i] * X + c.r01[i] * Y) + c.r02[i] * Z) + c.t0[i];
@@ -85,23 +86,41 @@ void reprojection_errors(const ObservationCameras& __restrict c, int n, double X
     const double zc = ((c.r21[i] * Y + c.r22[i] * Z) + c.r20[i] * X) + c.t2[i];
     const bool front = zc > kMinProjectDepth_m;  // false for NaN, as in Camera::project
     const double inv_z = 1.0 / (front ? zc : 1.0);
-    const double x = xc * inv_z;
-    const double y = yc * inv_z;
-    // distort_xy() of camera.cpp.
-    const double r2 = x * x + y * y;
-    const double radial = 1.0 + r2 * (c.k1[i] + r2 * (c.k2[i] + r2 * c.k3[i]));
-    const double xy2 = 2.0 * x * y;
-    const double xd = x * radial + c.p1[i] * xy2 + c.p2[i] * (r2 + 2.0 * x * x);
-    const double yd = y * radial + c.p1[i] * (r2 + 2.0 * y * y) + c.p2[i] * xy2;
-    const bool distorted = c.distorted[i] != 0.0;
-    const double xn = distorted ? xd : x;
-    const double yn = distorted ? yd : y;
+    double xn = xc * inv_z;
+    double yn = yc * inv_z;
+    if constexpr (kDistorted) {
+      // distort_xy() of camera.cpp, for the cameras with distortion.
+      const double x = xn;
+      const double y = yn;
+      const double r2 = x * x + y * y;
+      const double radial = 1.0 + r2 * (c.k1[i] + r2 * (c.k2[i] + r2 * c.k3[i]));
+      const double xy2 = 2.0 * x * y;
+      const double xd = x * radial + c.p1[i] * xy2 + c.p2[i] * (r2 + 2.0 * x * x);
+      const double yd = y * radial + c.p1[i] * (r2 + 2.0 * y * y) + c.p2[i] * xy2;
+      const bool distorted = c.distorted[i] != 0.0;
+      xn = distorted ? xd : x;
+      yn = distorted ? yd : y;
+    }
     // Camera::normalized_to_pixel, then the difference to the observed pixel.
     const double du = (c.fx[i] * xn + c.skew[i] * yn + c.cx[i]) - c.u[i];
     const double dv = (c.fy[i] * yn + c.cy[i]) - c.v[i];
     const double e = std::sqrt(du * du + dv * dv);
     err[i] = front ? e : kInf;
   }
+}
+
+MOCAP_REPROJECTION_CLONES
+void reprojection_errors_distorted(const ObservationCameras& __restrict c, int n, double X,
+                                   double Y, double Z, double* __restrict err) {
+  reprojection_errors_of<true>(c, n, X, Y, Z, err);
+}
+
+// When no observation's camera has lens distortion (pinhole rigs, Shelf, the simulator): the
+// same values without the distortion's arithmetic.
+MOCAP_REPROJECTION_CLONES
+void reprojection_errors_pinhole(const ObservationCameras& __restrict c, int n, double X, double Y,
+                                 double Z, double* __restrict err) {
+  reprojection_errors_of<false>(c, n, X, Y, Z, err);
 }
 
 }  // namespace
@@ -128,8 +147,16 @@ TriangulatedPoint triangulate(std::span<const Observation> obs, std::span<const 
     obs_cams.set(i, cameras[static_cast<std::size_t>(o.view)], o.px);
   }
   std::array<double, 32> err;  // reprojection errors of the point being scored
+  bool any_distorted = false;
+  for (int i = 0; i < n; ++i) {
+    any_distorted = any_distorted || obs_cams.distorted[static_cast<std::size_t>(i)] != 0.0;
+  }
   const auto errors = [&](const Eigen::Vector3d& X) {
-    reprojection_errors(obs_cams, n, X.x(), X.y(), X.z(), err.data());
+    if (any_distorted) {
+      reprojection_errors_distorted(obs_cams, n, X.x(), X.y(), X.z(), err.data());
+    } else {
+      reprojection_errors_pinhole(obs_cams, n, X.x(), X.y(), X.z(), err.data());
+    }
   };
 
   // Accepts X solved from `used` as the result.
