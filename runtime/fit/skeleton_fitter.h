@@ -154,11 +154,12 @@ class SkeletonFitter {
 };
 
 // The projection the fitter minimises (Camera::project without its behind-camera test: depth
-// is clamped to 1e-6 m) and its 2x3 Jacobian with respect to X, analytically (the fast
-// solver's hot loop: the derivatives a 3-wide Jet would carry, at a third of the work).
+// is clamped to 1e-6 m) and its 2x3 Jacobian with respect to X, analytically (the derivatives a
+// 3-wide Jet would carry, at a third of the work). The fast solver runs the same operations on
+// all observations at once (skeleton_fitter.cpp), so the same values bit for bit.
 inline void project_with_jacobian(const Camera& cam, const Eigen::Vector3d& X, Eigen::Vector2d& px,
                                   Eigen::Matrix<double, 2, 3>& J) {
-  const Eigen::Vector3d xc = cam.R() * X + cam.t_m();
+  const Eigen::Vector3d xc = camera_point(cam.R(), cam.t_m(), X);
   double z = xc.z();
   const bool clamped = z < 1e-6;
   if (clamped) z = 1e-6;  // behind the camera: clamped as in project_generic (z constant)
