@@ -34,6 +34,7 @@
 #include "runtime/sim/simulator.h"
 #include "runtime/sim/simulator_source.h"
 #include "runtime/skeleton/topology.h"
+#include "tests/dds/stage_probe.h"
 #include "tests/support/line_client.h"
 #include "tests/support/mocapd_process.h"
 #include "tests/support/temp_dir.h"
@@ -56,13 +57,6 @@ std::int64_t unix_ms() {
              std::chrono::system_clock::now().time_since_epoch())
       .count();
 }
-
-json health(int port) {
-  const std::string body = http_body(http_get(port, "/health", 5000));
-  return json::parse(body, nullptr, false);
-}
-
-void sleep_ms(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
 
 class Stage {
  public:
@@ -196,32 +190,6 @@ int gaps(const std::vector<std::int64_t>& frames) {
   int g = 0;
   for (std::size_t i = 1; i < frames.size(); ++i) g += frames[i] != frames[i - 1] + 1 ? 1 : 0;
   return g;
-}
-
-const json* node_of(const json& h, const std::string& name) {
-  for (const json& n : h.at("stage").at("nodes")) {
-    if (n.at("node") == name) return &n;
-  }
-  return nullptr;
-}
-
-int live_cameras(const json& h) {
-  int n = 0;
-  for (const json& c : h.at("stage").at("cameras")) n += c.at("live").get<bool>() ? 1 : 0;
-  return n;
-}
-
-// Waits up to `ms` for `pred(health)`.
-template <typename P>
-json wait_for(int port, int ms, P pred) {
-  const auto end = Clock::now() + std::chrono::milliseconds(ms);
-  json h;
-  while (Clock::now() < end) {
-    h = health(port);
-    if (h.is_object() && h.contains("stage") && pred(h)) return h;
-    sleep_ms(50);
-  }
-  return h;
 }
 
 // A foreign participant: malformed samples on mocap/detections, then datagrams of garbage at
