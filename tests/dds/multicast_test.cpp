@@ -113,7 +113,8 @@ TEST(ScaleOutMulticast, NodesInNamespacesOnABridge) {
   unsetenv("CYCLONEDDS_URI");  // Cyclone's defaults: multicast discovery
   TestTempDir dir("multicast");
   NetnsLab lab(kConsumerNs + 1, dir.path());
-  ASSERT_TRUE(lab.ok()) << lab.error();
+  // A kernel or container that refuses veths or bridges: loopback (scaleout_test) remains.
+  if (!lab.ok()) GTEST_SKIP() << "cannot build the namespace LAN: " << lab.error();
   std::string stage = "lan";
   stage += std::to_string(getpid());
   const int domain = 1 + getpid() % 200;

@@ -3,12 +3,14 @@
 // measured. tests/web/page_test.cpp starts mocapd on the simulator board and checks the JSON.
 //
 //   NODE_PATH=tools/web/node_modules node tests/web/page_test.cjs --url http://127.0.0.1:PORT
-//     --token TOKEN --out DIR [--chromium /usr/bin/chromium] [--mode page|keepup] [--seconds N]
+//     --token TOKEN --out DIR [--chromium /usr/bin/chromium] [--mode page|keepup|stage]
+//     [--seconds N]
 //
 // page:   loads the page (console errors, requests outside the box), counts each person's colour
 //         on a screenshot after 2 s, the person list, a camera thumbnail, record/stop without
 //         and with the token, the take's BVH downloaded through the page.
 // keepup: watches the page for N s: the lag of each drawn frame and the tab's JS heap.
+// stage:  a fusion node's page: the Stage panel's summary and its rows (node, alive, cameras).
 "use strict";
 const fs = require("fs");
 const path = require("path");
@@ -170,6 +172,24 @@ async function keepupMode(a, browser, result) {
   await page.screenshot({ path: path.join(a.out, "keepup.png") });
 }
 
+async function stageMode(a, browser, result) {
+  const page = await browser.newPage();
+  result.console_errors = [];
+  page.on("console", (m) => { if (m.type() === "error") result.console_errors.push(m.text()); });
+  page.on("pageerror", (e) => result.console_errors.push("pageerror: " + e.message));
+  await page.goto(a.url, { waitUntil: "load" });
+  await page.waitForFunction(() => !document.querySelector("#stage-panel").hidden &&
+                             document.querySelectorAll("#stage tr").length > 1,
+                             { timeout: 10000 }).catch(() => {});
+  await sleep(1500);  // a refresh or two of /health
+  result.panel_hidden = await page.$eval("#stage-panel", (e) => e.hidden);
+  result.summary = await page.$eval("#stage-summary", (e) => e.textContent);
+  result.rows = await page.$$eval("#stage tr", (trs) => trs.map((tr) => ({
+    cls: tr.className, cells: [...tr.cells].map((td) => td.textContent) })));
+  const panel = await page.$("#stage-panel");
+  await panel.screenshot({ path: path.join(a.out, "stage.png") });
+}
+
 (async () => {
   const a = args();
   const result = { mode: a.mode };
@@ -178,6 +198,7 @@ async function keepupMode(a, browser, result) {
     browser = await launch(a);
     result.browser = await browser.version();
     if (a.mode === "keepup") await keepupMode(a, browser, result);
+    else if (a.mode === "stage") await stageMode(a, browser, result);
     else await pageMode(a, browser, result);
   } catch (e) {
     result.error = String(e && e.stack || e);

@@ -8,15 +8,19 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "runtime/net/token_file.h"
 #include "tests/support/data.h"
+#include "tests/support/line_client.h"
 #include "tests/support/mocapd_process.h"
 #include "tests/support/subprocess.h"
 #include "tests/support/temp_dir.h"
@@ -159,6 +163,82 @@ TEST_F(Browser, KeepsUpWithA60HzStreamForAMinute) {
       << "heap grew from " << first["heap_mb"] << " to " << last["heap_mb"] << " MB";
   std::printf("[ browser ] heap %.1f -> %.1f MB (max %.1f), worst p95 lag %.1f ms\n",
               first["heap_mb"].get<double>(), last["heap_mb"].get<double>(), heap_max, worst_lag);
+}
+
+// A fusion node's page with two detector nodes over DDS on loopback (as tests/dds/scaleout_test),
+// one of them SIGKILLed: the Stage panel lists both, the live one with its cameras and the
+// killed one as LOST.
+TEST_F(Browser, StagePanelShowsTheNodesAndALostOne) {
+  ::setenv("CYCLONEDDS_URI",
+           "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface "
+           "name=\"lo\"/></Interfaces></General><Discovery><Peers><Peer "
+           "address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>",
+           1);
+  std::string stage = "web";
+  stage += std::to_string(::getpid());
+  const std::string domain = std::to_string(1 + ::getpid() % 200);
+  const auto epoch_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                            std::chrono::system_clock::now().time_since_epoch())
+                            .count();
+  const std::vector<std::string> common = {"--frame-rate-hz",
+                                           "30",
+                                           "--sim-people",
+                                           "2",
+                                           "--sim-rig-views",
+                                           "8",
+                                           "--sim-epoch-unix-ms",
+                                           std::to_string(epoch_ms),
+                                           "--stage",
+                                           stage,
+                                           "--dds-domain",
+                                           domain,
+                                           "--calibration-check=false"};
+  auto args = common;
+  args.insert(args.end(), {"--role", "fusion", "--node-name", "fusion"});
+  testing::MocapdProcess fusion = testing::start_mocapd(kBin, dir_.path() / "fusion", args);
+  ASSERT_GT(fusion.http_port, 0) << fusion.process->err_so_far();
+  std::vector<testing::MocapdProcess> det;
+  for (const char* name : {"east", "west"}) {
+    args = common;
+    args.insert(args.end(), {"--role", "detector", "--node-name", name, "--sim-views", "4",
+                             "--sim-first-view", det.empty() ? "0" : "4"});
+    det.push_back(testing::start_mocapd(kBin, dir_.path() / name, args));
+    ASSERT_GT(det.back().http_port, 0) << det.back().process->err_so_far();
+  }
+  // Both nodes seen, then "west" killed and its loss noticed (the liveliness lease).
+  auto nodes_alive = [&] {
+    const std::string body = testing::http_body(testing::http_get(fusion.http_port, "/health"));
+    const json h = json::parse(body, nullptr, false);
+    int alive = 0;
+    if (h.is_object() && h.contains("stage") && h.at("stage").contains("nodes")) {
+      for (const json& n : h.at("stage").at("nodes")) alive += n.at("alive").get<bool>() ? 1 : 0;
+    }
+    return alive;
+  };
+  for (int i = 0; i < 200 && nodes_alive() < 2; ++i) ::usleep(100000);
+  ASSERT_EQ(nodes_alive(), 2) << fusion.process->err_so_far();
+  det[1].process->signal(SIGKILL);
+  for (int i = 0; i < 50 && nodes_alive() > 1; ++i) ::usleep(100000);
+  ASSERT_EQ(nodes_alive(), 1);
+
+  const fs::path out = artefacts("stage");
+  const json r = drive(fusion, out, "stage", 0, dir_.path());
+  ASSERT_TRUE(r.is_object());
+  EXPECT_TRUE(r["console_errors"].empty()) << r["console_errors"].dump();
+  EXPECT_FALSE(r["panel_hidden"].get<bool>());
+  std::printf("[ browser ] stage panel: %s\n", r["summary"].get<std::string>().c_str());
+  EXPECT_NE(r["summary"].get<std::string>().find("fusion · stage " + stage), std::string::npos)
+      << r["summary"];
+  std::map<std::string, json> rows;
+  for (const json& row : r["rows"]) {
+    std::printf("[ browser ]   %s\n", row["cells"].dump().c_str());
+    rows[row["cells"][0].get<std::string>()] = row;
+  }
+  ASSERT_TRUE(rows.contains("east") && rows.contains("west")) << r["rows"].dump();
+  EXPECT_EQ(rows["east"]["cells"][1], "yes");
+  EXPECT_EQ(rows["east"]["cells"][2], "4 / 4");
+  EXPECT_EQ(rows["west"]["cells"][1], "LOST");
+  EXPECT_EQ(rows["west"]["cls"], "lost");
 }
 
 }  // namespace
