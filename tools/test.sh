@@ -11,16 +11,22 @@
 #                              suite, to keep CI within its budget. No debug info
 #                              (-g0): reports name functions (UBSan also file:line), and a
 #                              cold CI build took 14.7 instead of 15.4 min (one run each)
+#   tools/test.sh --tsan       ThreadSanitizer build in build-tsan/ of the tests of threaded
+#                              code only (label "threads": pipeline, stream server, capture
+#                              rig, trigger, self-calibration worker, mocapd, fusion node),
+#                              those tests run under it; suppressions: tests/tsan.supp
 # Extra arguments after -- go to ctest (e.g. -- -R Shelf).
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 SANITIZE=0
+TSAN=0
 CTEST_ARGS=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --sanitize) SANITIZE=1 ;;
+    --tsan) TSAN=1 ;;
     --) shift; CTEST_ARGS=("$@"); break ;;
-    -h|--help) sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "test.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
   esac
   shift
@@ -36,6 +42,13 @@ if [ "$SANITIZE" -eq 1 ]; then
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
   CTEST_ARGS=(-LE "hil|e2e|browser|scaleout" "${CTEST_ARGS[@]}")
   BUILD_TARGET=(--target mocap_tests)
+elif [ "$TSAN" -eq 1 ]; then
+  B="$ROOT/build-tsan"
+  cmake -S "$ROOT" -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMOCAP_TSAN=ON \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" >/dev/null
+  export TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$ROOT/tests/tsan.supp"
+  CTEST_ARGS=(-L threads -LE "hil|e2e|browser|scaleout" "${CTEST_ARGS[@]}")
+  BUILD_TARGET=(--target mocap_thread_tests)
 else
   B="$ROOT/build"
   cmake -S "$ROOT" -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
@@ -46,5 +59,5 @@ cmake --build "$B" "${BUILD_TARGET[@]}"
 # Not under ASan: stdbuf works by LD_PRELOAD, which every test executable would inherit, and
 # ASan aborts when its runtime is not the first library loaded.
 LINE_BUFFERED=(stdbuf -oL)
-if [ "$SANITIZE" -eq 1 ]; then LINE_BUFFERED=(); fi
+if [ "$SANITIZE" -eq 1 ] || [ "$TSAN" -eq 1 ]; then LINE_BUFFERED=(); fi
 "${LINE_BUFFERED[@]}" ctest --test-dir "$B" --output-on-failure -j "$(nproc)" "${CTEST_ARGS[@]}"
