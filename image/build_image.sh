@@ -374,6 +374,15 @@ ExecStart=-/sbin/agetty --autologin root --keep-baud 115200,57600,38400,9600 %I 
 EOF
 fi
 
+# mocapd's user and device groups (lib/sysusers.d/mocap.conf) made now, not at first boot: the
+# daemon never runs as root, and the state directory is handed to that user by systemd.
+in_chroot "$rootfs" systemd-sysusers >"$work/sysusers.log" 2>&1 || {
+    cat "$work/sysusers.log" >&2
+    die "systemd-sysusers failed in the rootfs (log above)" "check lib/sysusers.d/mocap.conf in the install"
+}
+in_chroot "$rootfs" id mocap >/dev/null 2>&1 ||
+    die "the rootfs has no user mocap after systemd-sysusers" "the install must put tools/mocapd/mocap-sysusers.conf in lib/sysusers.d"
+
 in_chroot "$rootfs" systemctl enable mocapd.service mocap-qemu-import.service systemd-networkd.service \
     systemd-resolved.service systemd-timesyncd.service >"$work/enable.log" 2>&1 || {
     cat "$work/enable.log" >&2
