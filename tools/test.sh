@@ -4,10 +4,11 @@
 #   tools/test.sh              Release build in build/
 #   tools/test.sh --sanitize   ASan + UBSan build in build-asan/ of the test executables (and
 #                              mocap, mocapd: the mixed-geometry test runs them), without
-#                              the hil, e2e, browser and scaleout labels: the HIL VM boot,
+#                              the hil, e2e, browser, scaleout and soak labels: the HIL VM boot,
 #                              the whole-recording runs (~1 min each under ASan), the
 #                              headless-Chromium page tests (the browser's side) and the
-#                              five-process DDS stage (timing checks) are in the Release
+#                              five-process DDS stage (timing checks) and the 3-minute soak
+#                              (a process of its own) are in the Release
 #                              suite, to keep CI within its budget. No debug info
 #                              (-g0): reports name functions (UBSan also file:line), and a
 #                              cold CI build took 14.7 instead of 15.4 min (one run each)
@@ -26,7 +27,7 @@ while [ $# -gt 0 ]; do
     --sanitize) SANITIZE=1 ;;
     --tsan) TSAN=1 ;;
     --) shift; CTEST_ARGS=("$@"); break ;;
-    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "test.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
   esac
   shift
@@ -40,7 +41,7 @@ if [ "$SANITIZE" -eq 1 ]; then
   cmake -S "$ROOT" -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMOCAP_SANITIZE=ON \
     -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g0 -DNDEBUG" >/dev/null
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
-  CTEST_ARGS=(-LE "hil|e2e|browser|scaleout" "${CTEST_ARGS[@]}")
+  CTEST_ARGS=(-LE "hil|e2e|browser|scaleout|soak" "${CTEST_ARGS[@]}")
   BUILD_TARGET=(--target mocap_tests)
 elif [ "$TSAN" -eq 1 ]; then
   B="$ROOT/build-tsan"

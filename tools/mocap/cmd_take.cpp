@@ -1,9 +1,5 @@
 // mocap take start NAME | stop | list: record takes on a running mocapd (docs/outputs.md),
 // through its HTTP port (POST /takes/start?name=NAME, POST /takes/stop, GET /takes).
-#include <netdb.h>
-#include <poll.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 
@@ -17,6 +13,7 @@
 
 #include "runtime/core/error.h"
 #include "runtime/net/token_file.h"
+#include "tools/common/box_http.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
 
@@ -34,54 +31,6 @@ constexpr const char* kUsage =
     "  start  record a take under <state_dir>/takes/NAME/ (skeleton stream + take.json)\n"
     "  stop   end the take being recorded\n"
     "  list   the takes on the box, with frames and status\n";
-
-constexpr int kTimeoutMs = 5000;
-
-struct HttpAnswer {
-  int status = 0;
-  std::string body;
-};
-
-// Reads the whole answer (the server closes the connection after it).
-Result<std::string> read_all(int fd, const std::string& box) {
-  std::string in;
-  char buf[4096];
-  for (;;) {
-    pollfd p{fd, POLLIN, 0};
-    if (poll(&p, 1, kTimeoutMs) <= 0) {
-      return Error(ErrorCode::kIo, "mocapd at " + box + " did not answer within 5 s");
-    }
-    const ssize_t n = read(fd, buf, sizeof buf);
-    if (n < 0) return Error(ErrorCode::kIo, "reading from " + box + ": " + strerror(errno));
-    if (n == 0) return in;
-    in.append(buf, static_cast<std::size_t>(n));
-  }
-}
-
-Result<int> connect_to(const std::string& host, const std::string& port, const std::string& box) {
-  addrinfo hints{};
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_STREAM;
-  addrinfo* res = nullptr;
-  if (const int rc = getaddrinfo(host.c_str(), port.c_str(), &hints, &res); rc != 0) {
-    return Error(ErrorCode::kNotFound,
-                 "box '" + box + "': " + gai_strerror(rc) + " (--box HOST[:PORT])");
-  }
-  int fd = -1;
-  for (addrinfo* a = res; a != nullptr && fd < 0; a = a->ai_next) {
-    fd = socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, 0);
-    if (fd >= 0 && connect(fd, a->ai_addr, a->ai_addrlen) != 0) {
-      close(fd);
-      fd = -1;
-    }
-  }
-  freeaddrinfo(res);
-  if (fd < 0) {
-    return Error(ErrorCode::kIo, "cannot reach mocapd at " + box +
-                                     ": is it running? (--box HOST:PORT, its http_port)");
-  }
-  return fd;
-}
 
 // Where `mocap take` finds the box and its access token (start and stop need it).
 struct BoxArgs {
@@ -105,30 +54,6 @@ struct BoxArgs {
   }
 };
 
-Result<HttpAnswer> request(const std::string& box, const std::string& method,
-                           const std::string& target, const std::string& token) {
-  const std::size_t colon = box.rfind(':');
-  const std::string host = colon == std::string::npos ? box : box.substr(0, colon);
-  const std::string port = colon == std::string::npos ? "9871" : box.substr(colon + 1);
-  auto fd = connect_to(host, port, box);
-  if (!fd) return fd.error();
-  const std::string req = method + " " + target + " HTTP/1.1\r\nHost: " + host +
-                          (token.empty() ? std::string() : "\r\nX-Mocap-Token: " + token) +
-                          "\r\nContent-Length: 0\r\nConnection: close\r\n\r\n";
-  const bool sent = write(*fd, req.data(), req.size()) == static_cast<ssize_t>(req.size());
-  auto text =
-      sent ? read_all(*fd, box) : Result<std::string>(Error(ErrorCode::kIo, "write failed"));
-  close(*fd);
-  if (!text) return text.error();
-  HttpAnswer a;
-  if (std::sscanf(text->c_str(), "HTTP/1.%*d %d", &a.status) != 1) {
-    return Error(ErrorCode::kParse, "the answer from " + box + " is not HTTP: is it mocapd?");
-  }
-  const std::size_t body = text->find("\r\n\r\n");
-  a.body = body == std::string::npos ? std::string() : text->substr(body + 4);
-  return a;
-}
-
 std::string percent_encode(std::string_view s) {
   std::string out;
   for (const char c : s) {
@@ -146,7 +71,7 @@ std::string percent_encode(std::string_view s) {
 // Sends the request; prints the error (the server's, when it gave one) and returns nullopt.
 std::optional<json> call(const BoxArgs& b, const std::string& method, const std::string& target) {
   const std::string& box = b.box;
-  auto a = request(box, method, target, b.resolve_token());
+  auto a = box_request(box, method, target, b.resolve_token());
   if (!a) {
     std::fprintf(stderr, "error: %s\n", a.error().message().c_str());
     return std::nullopt;

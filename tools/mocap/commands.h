@@ -25,6 +25,7 @@ int run_trigger_cmd(Args args);     // mocap trigger --chip C --line L [--monito
 int run_sync_cmd(Args args);        // mocap sync --device A,B ...
 int run_export(Args args);          // mocap export bvh|gltf|ndjson --take DIR ...
 int run_take(Args args);            // mocap take start NAME | stop | list (against mocapd)
+int run_soak(Args args);            // mocap soak --replay DIR --minutes N
 int run_token(Args args);           // mocap token [--state-dir DIR]
 
 }  // namespace mocap::tools

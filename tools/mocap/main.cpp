@@ -23,6 +23,7 @@ const Command kCommands[] = {
   {"export",  "export a take as BVH, glTF or NDJSON (Blender, Unity, ...)", mocap::tools::run_export, nullptr},
   {"take",    "start, stop or list takes on a running mocapd",            mocap::tools::run_take, nullptr},
   {"token",   "print the box's access token (web page and HTTP actions)", mocap::tools::run_token, nullptr},
+  {"soak",    "run mocapd for a long time on a looping replay, watching for leaks", mocap::tools::run_soak, nullptr},
   {"bench",   "benchmarks: assoc, cnn, pipeline",                         mocap::tools::run_bench, nullptr},
   {"infer",   "run the pose CNN on a tensor or an image",                 mocap::tools::run_infer, nullptr},
   {"model",   "convert and inspect model files",                          mocap::tools::run_model, nullptr},
