@@ -9,6 +9,9 @@ if(MOCAP_TSAN)
   if(MOCAP_SANITIZE)
     message(FATAL_ERROR "MOCAP_TSAN and MOCAP_SANITIZE cannot be combined (one build each)")
   endif()
-  add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
+  # GCC 12 under -fsanitize=thread reports std::vector growth as freeing a non-heap pointer
+  # (-Wfree-nonheap-object in TriggerMonitor::stats, a plain push_back loop): a known false
+  # positive of its instrumented inlining, off in this build only.
+  add_compile_options(-fsanitize=thread -fno-omit-frame-pointer -Wno-free-nonheap-object)
   add_link_options(-fsanitize=thread)
 endif()
