@@ -345,7 +345,7 @@ struct StreamServer::Impl {
   void shutdown_all();
   int poll_timeout_ms() const;
   void expire(Clock::time_point now);
-  void accept_from(int listen_fd, bool http);
+  void accept_from(int listen_fd, bool http, std::size_t polled);
   void handle(Connection& c, short revents);
   void flush(Connection& c);
   void consume(Connection& c, std::size_t n);
@@ -398,8 +398,8 @@ void StreamServer::Impl::run() {
       const short revents = fds[3 + i].revents;
       if (revents != 0 && !conns[i]->dead) handle(*conns[i], revents);
     }
-    if ((fds[1].revents & POLLIN) != 0) accept_from(stream_listen_fd, false);
-    if ((fds[2].revents & POLLIN) != 0) accept_from(http_listen_fd, true);
+    if ((fds[1].revents & POLLIN) != 0) accept_from(stream_listen_fd, false, polled);
+    if ((fds[2].revents & POLLIN) != 0) accept_from(http_listen_fd, true, polled);
     expire(Clock::now());
   }
   shutdown_all();
@@ -530,8 +530,16 @@ void StreamServer::Impl::expire(Clock::time_point now) {
   }
 }
 
-void StreamServer::Impl::accept_from(int listen_fd, bool http) {
+// A connection accepted in this round has not been polled yet: it may already be closed by its
+// peer (a burst of connect-and-close while this thread was busy). So when the limit is reached
+// with fresh connections among the live ones, the rest wait in the backlog for the next round,
+// which reaps the closed ones first; only a limit reached by settled connections refuses.
+void StreamServer::Impl::accept_from(int listen_fd, bool http, std::size_t polled) {
+  std::size_t live = 0;
+  for (const auto& c : conns) live += c->dead ? 0 : 1;
   for (int i = 0; i < kAcceptsPerEvent; ++i) {
+    const bool full = live >= static_cast<std::size_t>(options.max_clients);
+    if (full && conns.size() > polled) return;  // the fresh ones first: next round
     sockaddr_in addr{};
     socklen_t len = sizeof(addr);
     const int fd = ::accept4(listen_fd, reinterpret_cast<sockaddr*>(&addr), &len,
@@ -551,7 +559,7 @@ void StreamServer::Impl::accept_from(int listen_fd, bool http) {
       }
       continue;  // EINTR, ECONNABORTED and network errors of that one connection
     }
-    if (conns.size() >= static_cast<std::size_t>(options.max_clients)) {
+    if (full) {
       ::close(fd);
       ++local.rejected_full;
       MOCAP_LOG(Net, Debug) << "connection from " << format_peer(addr)
@@ -577,6 +585,7 @@ void StreamServer::Impl::accept_from(int listen_fd, bool http) {
     ++local.accepted;
     MOCAP_LOG(Net, Debug) << (http ? "http" : "stream") << " client " << c->peer << " connected";
     conns.push_back(std::move(c));
+    ++live;
   }
 }
 

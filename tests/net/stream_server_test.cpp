@@ -4,9 +4,12 @@
 #include "runtime/net/stream_server.h"
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <netinet/in.h>
+#include <signal.h>
 #include <sys/socket.h>
 #include <sys/time.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <gtest/gtest.h>
@@ -748,6 +751,75 @@ TEST(StreamServer, SurvivesConnectCloseChurn) {
   LineReader late_reader(late);
   EXPECT_TRUE(receives_in_order(late_reader, kRounds, 1));
   EXPECT_TRUE(receives_in_order(reader, kRounds, 1));
+}
+
+// A server in a child process, stopped while clients queue in its backlog (the kernel completes
+// their handshakes) and resumed on demand; killed when the test ends.
+class StoppedServer {
+ public:
+  explicit StoppedServer(const StreamServerOptions& options) {
+    int fds[2];
+    if (::pipe2(fds, O_CLOEXEC) != 0) return;
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      ::close(fds[0]);
+      auto server = StreamServer::start(options, [] { return std::string(kHealthJson); });
+      const std::array<int, 2> ports{server.ok() ? (*server)->stream_port() : -1,
+                                     server.ok() ? (*server)->http_port() : -1};
+      if (::write(fds[1], ports.data(), sizeof(ports)) != sizeof(ports)) ::_exit(1);
+      for (;;) ::pause();
+    }
+    ::close(fds[1]);
+    if (pid_ > 0 && ::read(fds[0], ports_.data(), sizeof(ports_)) != sizeof(ports_)) ports_ = {};
+    ::close(fds[0]);
+    int status = 0;
+    if (ready() && (::kill(pid_, SIGSTOP) != 0 || ::waitpid(pid_, &status, WUNTRACED) != pid_)) {
+      ports_ = {};
+    }
+  }
+  ~StoppedServer() {
+    if (pid_ <= 0) return;
+    ::kill(pid_, SIGKILL);
+    ::waitpid(pid_, nullptr, 0);
+  }
+  StoppedServer(const StoppedServer&) = delete;
+  StoppedServer& operator=(const StoppedServer&) = delete;
+  bool ready() const { return pid_ > 0 && ports_[0] > 0 && ports_[1] > 0; }
+  int stream_port() const { return ports_[0]; }
+  int http_port() const { return ports_[1]; }
+  void resume() const { ::kill(pid_, SIGCONT); }
+
+ private:
+  pid_t pid_ = -1;
+  std::array<int, 2> ports_{};
+};
+
+// (b') A burst of connect-and-close that piles up while the server is busy must not fill
+// max_clients with connections that are already gone and refuse the live ones behind them
+// (seen once in CI under load: /health answered by a bare close).
+TEST(StreamServer, ClosedConnectionsInTheBacklogDoNotCrowdOutLiveOnes) {
+  StreamServerOptions o = test_options();
+  o.max_clients = 8;
+  StoppedServer server(o);
+  ASSERT_TRUE(server.ready());
+  for (int i = 0; i < 40; ++i) {
+    Socket gone_stream = connect_to(server.stream_port());
+    Socket gone_http = connect_to(server.http_port());
+    ASSERT_TRUE(gone_stream.valid() && gone_http.valid()) << i;
+  }
+  Socket late = connect_to(server.stream_port());
+  Socket health = connect_to(server.http_port());
+  ASSERT_TRUE(late.valid() && health.valid());
+  ASSERT_TRUE(send_all(health, "GET /health HTTP/1.1\r\n\r\n"));
+  server.resume();
+  std::string response;
+  EXPECT_EQ(read_to_end(health, &response), End::kEof);
+  EXPECT_EQ(status_code(response), 200) << response;
+  const timeval short_wait{1, 0};
+  ::setsockopt(late.fd(), SOL_SOCKET, SO_RCVTIMEO, &short_wait, sizeof(short_wait));
+  char byte = 0;
+  EXPECT_EQ(::recv(late.fd(), &byte, 1, 0), -1) << "the stream client was closed";
+  EXPECT_TRUE(errno == EAGAIN || errno == EWOULDBLOCK) << std::strerror(errno);
 }
 
 // (c) Garbage on both ports closes (or is ignored on) that connection only.
