@@ -16,6 +16,8 @@ std::string_view to_string(ErrorCode code) {
       return "unsupported";
     case ErrorCode::kDevice:
       return "device error";
+    case ErrorCode::kDeviceLost:
+      return "device lost";
     case ErrorCode::kInternal:
       return "internal error";
   }

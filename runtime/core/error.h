@@ -18,6 +18,7 @@ enum class ErrorCode {
   kIo,               // reading/writing failed
   kUnsupported,      // a valid request the build or hardware cannot serve
   kDevice,           // hardware or driver failure
+  kDeviceLost,       // the GPU device was lost (VK_ERROR_DEVICE_LOST): re-create its context
   kInternal,         // a bug in this program
 };
 

@@ -6,6 +6,7 @@
 #endif
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cstdlib>
 #include <cstring>
@@ -251,7 +252,8 @@ const char* vk_result_name(VkResult r) {
 Error vk_error(VkResult r, const std::string& what) {
   const ErrorCode code = r == VK_ERROR_INCOMPATIBLE_DRIVER || r == VK_ERROR_INITIALIZATION_FAILED
                              ? ErrorCode::kUnsupported
-                             : ErrorCode::kDevice;
+                         : r == VK_ERROR_DEVICE_LOST ? ErrorCode::kDeviceLost
+                                                     : ErrorCode::kDevice;
   return Error(code, "Vulkan: " + what + " failed (" + vk_result_name(r) + ", " +
                          std::to_string(static_cast<int>(r)) + ")");
 }
@@ -739,7 +741,28 @@ Result<Kernel> Context::create_kernel(std::span<const std::uint32_t> spirv, cons
   return k;
 }
 
+// Fault injection for the recovery tests (docs/hardening.md): MOCAP_FAULT_DEVICE_LOST_AT_SUBMIT=N
+// makes the process's N-th submission report VK_ERROR_DEVICE_LOST, and every later one on that
+// context, as a lost device does; a context created afterwards works.
+namespace {
+std::int64_t device_lost_at_submit() {
+  static const std::int64_t at = [] {
+    const char* v = std::getenv("MOCAP_FAULT_DEVICE_LOST_AT_SUBMIT");
+    return v != nullptr ? std::strtoll(v, nullptr, 10) : 0;
+  }();
+  return at;
+}
+std::atomic<std::int64_t> g_submits{0};
+}  // namespace
+
 Status Context::submit_and_wait(VkCommandBuffer cb) {
+  if (const std::int64_t at = device_lost_at_submit(); at > 0 && ++g_submits == at) {
+    injected_lost_ = true;
+  }
+  if (injected_lost_) {
+    return vk_error(VK_ERROR_DEVICE_LOST,
+                    "submitting work (injected by MOCAP_FAULT_DEVICE_LOST_AT_SUBMIT)");
+  }
   VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
   si.commandBufferCount = 1;
   si.pCommandBuffers = &cb;

@@ -192,6 +192,7 @@ class Context {
   std::uint32_t queue_family_ = 0;
   VkCommandPool pool_ = VK_NULL_HANDLE;
   VkFence fence_ = VK_NULL_HANDLE;
+  bool injected_lost_ = false;  // MOCAP_FAULT_DEVICE_LOST_AT_SUBMIT (context.cpp)
   VkPipelineCache pipeline_cache_ = VK_NULL_HANDLE;
   std::filesystem::path cache_path_;
 };

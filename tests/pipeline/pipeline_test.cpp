@@ -16,6 +16,7 @@
 #include "runtime/assoc/engine.h"
 #include "runtime/core/clock.h"
 #include "runtime/pipeline/pipeline.h"
+#include "runtime/pipeline/recovering_detector.h"
 #include "runtime/pipeline/sinks.h"
 #include "runtime/sim/simulator_source.h"
 #include "runtime/skeleton/topology.h"
@@ -177,6 +178,116 @@ TEST(Pipeline, DetectorErrorsSkipTheFrameAndAreCounted) {
   EXPECT_TRUE(m.ended);
   EXPECT_EQ(m.errors, 2u);
   EXPECT_EQ(rec.ids, (std::vector<std::uint64_t>{0, 1, 2, 4, 5, 6, 8, 9}));
+}
+
+// A detector whose device is lost at frame `lost_at`: that call and every later one fail with
+// kDeviceLost, as a lost GPU does.
+class LosingDetector final : public Detector {
+ public:
+  explicit LosingDetector(std::uint64_t lost_at) : lost_at_(lost_at) {}
+  Result<DetectionSet> detect(const FrameSet& frames) override {
+    if (frames.frame_id >= lost_at_) {
+      return Error(ErrorCode::kDeviceLost, "Vulkan: waiting for the GPU failed (fake lost device)");
+    }
+    return ok_.detect(frames);
+  }
+  std::string description() const override { return "losing detector"; }
+
+ private:
+  std::uint64_t lost_at_;
+  FakeDetector ok_;
+};
+
+// Opens the scripted detectors in turn (a null entry: that open fails); records cpu_only.
+struct ScriptedOpener {
+  std::vector<std::unique_ptr<Detector>> script;
+  std::vector<bool> cpu_only;
+  RecoveringDetector::Opener opener() {
+    return [this](bool cpu) -> Result<std::unique_ptr<Detector>> {
+      cpu_only.push_back(cpu);
+      const std::size_t i = cpu_only.size() - 1;
+      if (i >= script.size() || script[i] == nullptr) {
+        return Error(ErrorCode::kDevice, "no Vulkan device (scripted)");
+      }
+      return std::move(script[i]);
+    };
+  }
+};
+
+std::vector<std::uint64_t> run_ten_frames(Detector& det, PipelineMetrics* m = nullptr) {
+  Recorder rec;
+  CallbackSink sink = rec.sink();
+  auto p = make(std::make_unique<FakeSource>(FakeSource::Options{.frames = 10, .images = true}),
+                &det, {&sink}, blocking());
+  EXPECT_TRUE(p->start().ok());
+  EXPECT_TRUE(p->wait(30000));
+  if (m != nullptr) *m = p->metrics();
+  return rec.ids;
+}
+
+TEST(RecoveringDetector, ALostDeviceIsOpenedAgainAndNoFrameIsLost) {
+  ScriptedOpener o;
+  o.script.push_back(std::make_unique<LosingDetector>(4));
+  o.script.push_back(std::make_unique<FakeDetector>());
+  auto det = RecoveringDetector::open(o.opener());
+  ASSERT_TRUE(det.ok()) << det.error().message();
+  EXPECT_EQ((*det)->description(), "losing detector");
+  PipelineMetrics m;
+  EXPECT_EQ(run_ten_frames(**det, &m), (std::vector<std::uint64_t>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9}));
+  EXPECT_EQ(m.errors, 0u);
+  const DetectorRecoveryStats s = (*det)->stats();
+  EXPECT_EQ(s.devices_lost, 1u);
+  EXPECT_EQ(s.reopened, 1u);
+  EXPECT_EQ(s.on_cpu_since, 0u);
+  EXPECT_EQ(s.active, "fake detector");
+  EXPECT_NE(s.last_error.find("lost device"), std::string::npos) << s.last_error;
+  EXPECT_EQ(o.cpu_only, (std::vector<bool>{false, false}));
+}
+
+TEST(RecoveringDetector, WhenTheGpuCannotBeOpenedAgainTheCpuTakesOver) {
+  ScriptedOpener o;
+  o.script.push_back(std::make_unique<LosingDetector>(2));
+  o.script.push_back(nullptr);  // the GPU does not come back
+  o.script.push_back(std::make_unique<FakeDetector>());
+  auto det = RecoveringDetector::open(o.opener());
+  ASSERT_TRUE(det.ok());
+  PipelineMetrics m;
+  EXPECT_EQ(run_ten_frames(**det, &m).size(), 10u);
+  EXPECT_EQ(m.errors, 0u);
+  EXPECT_EQ((*det)->stats().on_cpu_since, 1u);
+  EXPECT_EQ(o.cpu_only, (std::vector<bool>{false, false, true}));
+}
+
+TEST(RecoveringDetector, NothingOpensThatFrameIsAnErrorAndTheNextTriesAgain) {
+  ScriptedOpener o;
+  o.script.push_back(std::make_unique<LosingDetector>(4));
+  o.script.push_back(nullptr);  // neither the GPU
+  o.script.push_back(nullptr);  // nor the CPU, this time
+  o.script.push_back(std::make_unique<FakeDetector>());
+  auto det = RecoveringDetector::open(o.opener());
+  ASSERT_TRUE(det.ok());
+  PipelineMetrics m;
+  EXPECT_EQ(run_ten_frames(**det, &m), (std::vector<std::uint64_t>{0, 1, 2, 3, 5, 6, 7, 8, 9}));
+  EXPECT_EQ(m.errors, 1u);
+  const DetectorRecoveryStats s = (*det)->stats();
+  EXPECT_EQ(s.failed_reopens, 1u);
+  EXPECT_EQ(s.reopened, 1u);
+  EXPECT_EQ(s.devices_lost, 2u);
+}
+
+TEST(RecoveringDetector, OtherErrorsPassThroughAndABadOpenerIsRefused) {
+  ScriptedOpener o;
+  o.script.push_back(std::make_unique<FakeDetector>(std::set<std::uint64_t>{3}));
+  auto det = RecoveringDetector::open(o.opener());
+  ASSERT_TRUE(det.ok());
+  PipelineMetrics m;
+  EXPECT_EQ(run_ten_frames(**det, &m).size(), 9u);
+  EXPECT_EQ(m.errors, 1u);
+  EXPECT_EQ((*det)->stats().devices_lost, 0u);
+  EXPECT_EQ(o.cpu_only.size(), 1u);
+  EXPECT_FALSE(RecoveringDetector::open(nullptr).ok());
+  ScriptedOpener none;
+  EXPECT_FALSE(RecoveringDetector::open(none.opener()).ok());
 }
 
 TEST(Pipeline, ImagesWithoutADetectorStopWithTheReason) {

@@ -30,6 +30,7 @@ Result<ReplayParts> open_replay(const ReplayPartsOptions& options) {
   cnn.max_views = parts.source->view_count();
   set_frame_size(cnn, parts.cameras);
   if (!cnn.crop_model.empty()) cnn.cameras = parts.cameras;
+  parts.cnn_options = cnn;
   auto det = gpu::CnnDetector::open(cnn);
   if (!det.ok()) return det.error();
   parts.detector = std::move(*det);

@@ -25,6 +25,7 @@ struct ReplayParts {
   std::unique_ptr<hal::ReplaySource> source;  // moved into the pipeline
   std::vector<Camera> cameras;                // the recording's calibrated views
   std::unique_ptr<gpu::CnnDetector> detector;
+  gpu::CnnOptions cnn_options;  // what the detector was opened with (to open it again)
   std::unique_ptr<assoc::Engine> engine;
   // The pipeline's parts (moves the source out); the sinks are the caller's.
   pipeline::PipelineParts pipeline_parts(std::vector<pipeline::Sink*> sinks);

@@ -395,15 +395,22 @@ void print_minute(int minute, const ProcessSample& p, StreamTally& st, HttpTally
     loops = h.at("source").at("detail").at("loops").get<std::uint64_t>();
   } catch (const json::exception&) {
   }
+  double heap_mib = std::nan(""), retained_mib = std::nan("");
+  if (h.contains("memory") && h.at("memory").is_object()) {
+    heap_mib = h.at("memory").value("heap_in_use_mib", heap_mib);
+    retained_mib = h.at("memory").value("heap_free_retained_mib", retained_mib);
+  }
   std::printf(
-      "minute %3d: rss %.1f MiB, fds %d, threads %d | p99 ms source %.1f cnn %.1f assoc %.2f "
+      "minute %3d: rss %.1f MiB (heap in use %.1f, free held %.1f), fds %d, threads %d | p99 ms "
+      "source %.1f cnn %.1f assoc %.2f "
       "publish %.2f | messages %llu, lost %llu, id switches %llu, ids %llu, loops %llu, "
       "clients %llu | http %llu (errors %llu), takes %llu\n",
-      minute, p.rss_mib, p.fds, p.threads, p99_of(h, "source"), p99_of(h, "cnn"),
-      p99_of(h, "assoc"), p99_of(h, "publish"), static_cast<unsigned long long>(messages),
-      static_cast<unsigned long long>(lost), static_cast<unsigned long long>(switches),
-      static_cast<unsigned long long>(ids), static_cast<unsigned long long>(loops),
-      static_cast<unsigned long long>(clients), static_cast<unsigned long long>(ht.requests.load()),
+      minute, p.rss_mib, heap_mib, retained_mib, p.fds, p.threads, p99_of(h, "source"),
+      p99_of(h, "cnn"), p99_of(h, "assoc"), p99_of(h, "publish"),
+      static_cast<unsigned long long>(messages), static_cast<unsigned long long>(lost),
+      static_cast<unsigned long long>(switches), static_cast<unsigned long long>(ids),
+      static_cast<unsigned long long>(loops), static_cast<unsigned long long>(clients),
+      static_cast<unsigned long long>(ht.requests.load()),
       static_cast<unsigned long long>(ht.errors.load()),
       static_cast<unsigned long long>(ht.takes.load()));
   std::fflush(stdout);

@@ -4,6 +4,7 @@
 #include <string_view>
 #include <vector>
 
+#include "tools/common/allocator.h"
 #include "tools/mocap/commands.h"
 
 namespace {
@@ -48,6 +49,7 @@ void print_usage(std::FILE* out) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  mocap::configure_allocator();  // as mocapd: replay and bench run the same pipeline
   std::vector<std::string_view> args(argv + 1, argv + argc);
   if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
     print_usage(args.empty() ? stderr : stdout);

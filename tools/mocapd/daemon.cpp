@@ -23,6 +23,7 @@
 #include "runtime/net/token_file.h"
 #include "runtime/sim/simulator_source.h"
 #include "runtime/skeleton/topology.h"
+#include "tools/common/allocator.h"
 #include "tools/common/crop_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
@@ -165,18 +166,9 @@ Status Daemon::open_replay() {
   for (std::size_t v = 0; v < cameras_.size(); ++v) {
     camera_names_.push_back(cameras_[v].name().empty() ? std::to_string(v) : cameras_[v].name());
   }
-  detector_ = std::move(parts->detector);
   engine_ = std::move(parts->engine);
-  if (!detector_->crops_off_reason().empty()) {
-    MOCAP_LOG(Daemon, Info) << detector_->crops_off_reason();
-  }
   pending_source_ = std::move(parts->source);
-  gpu_description_ = detector_->backend_description();
-  gpu_backend_ = detector_->backend() == gpu::PoseBackend::kVulkan ? "vulkan" : "cpu";
-  if (!detector_->fallback_reason().empty()) {
-    problems_.push_back("the CNN runs on the CPU: " + detector_->fallback_reason());
-  }
-  return {};
+  return adopt_cnn(std::move(parts->detector), parts->cnn_options);
 }
 
 Status Daemon::open_board(const fs::path& board_dir) {
@@ -572,15 +564,33 @@ Status Daemon::open_cnn(int views, const std::string& preferred_gpu,
   }
   auto det = gpu::CnnDetector::open(o);
   if (!det.ok()) return det.error();
-  detector_ = std::move(*det);
-  if (!detector_->crops_off_reason().empty()) {
-    MOCAP_LOG(Daemon, Info) << detector_->crops_off_reason();
+  return adopt_cnn(std::move(*det), o);
+}
+
+// The opened CNN as the pipeline's detector, behind a RecoveringDetector: when its GPU is lost
+// it is opened again with the same options, on the CPU when the GPU cannot be (/health: gpu).
+Status Daemon::adopt_cnn(std::unique_ptr<gpu::CnnDetector> first, const gpu::CnnOptions& options) {
+  crops_off_reason_ = first->crops_off_reason();
+  if (!crops_off_reason_.empty()) {
+    MOCAP_LOG(Daemon, Info) << crops_off_reason_;
   }
-  gpu_description_ = detector_->backend_description();
-  gpu_backend_ = detector_->backend() == gpu::PoseBackend::kVulkan ? "vulkan" : "cpu";
-  if (!detector_->fallback_reason().empty()) {
-    problems_.push_back("the CNN runs on the CPU: " + detector_->fallback_reason());
+  gpu_description_ = first->backend_description();
+  gpu_backend_ = first->backend() == gpu::PoseBackend::kVulkan ? "vulkan" : "cpu";
+  if (!first->fallback_reason().empty()) {
+    problems_.push_back("the CNN runs on the CPU: " + first->fallback_reason());
   }
+  auto pending = std::make_shared<std::unique_ptr<gpu::CnnDetector>>(std::move(first));
+  auto opener = [pending, options](bool cpu_only) -> Result<std::unique_ptr<pipeline::Detector>> {
+    if (*pending) return std::unique_ptr<pipeline::Detector>(std::move(*pending));
+    gpu::CnnOptions o = options;
+    if (cpu_only) o.backend = gpu::BackendRequest::kCpu;
+    auto d = gpu::CnnDetector::open(o);
+    if (!d.ok()) return d.error();
+    return std::unique_ptr<pipeline::Detector>(std::move(*d));
+  };
+  auto rd = pipeline::RecoveringDetector::open(std::move(opener));
+  if (!rd.ok()) return rd.error();
+  detector_ = std::move(*rd);
   return {};
 }
 
@@ -859,6 +869,9 @@ std::string Daemon::health_json() const {
   j["problems"] = problems;
   j["version"] = kDaemonVersion;
   j["uptime_s"] = static_cast<double>(monotonic_ns() - started_ns_) * 1e-9;
+  const HeapFigures heap = heap_figures();
+  j["memory"] = {{"heap_in_use_mib", heap.in_use_bytes / (1 << 20)},
+                 {"heap_free_retained_mib", heap.retained_bytes / (1 << 20)}};
   json src;
   src["kind"] = source_kind_;
   if (!board_name_.empty()) src["board"] = board_name_;
@@ -877,9 +890,17 @@ std::string Daemon::health_json() const {
   j["calibration"] = calibration;
   j["gpu"] = {{"backend", gpu_backend_}, {"device", gpu_description_}};
   if (detector_) {
-    // The network(s) and their input, the 3D-guided crops when on, or why auto left them off.
+    // The network(s) and their input, the 3D-guided crops when on, or why auto left them off;
+    // devices lost and what took over.
     j["gpu"]["detector"] = detector_->description();
-    if (!detector_->crops_off_reason().empty()) j["gpu"]["crops"] = detector_->crops_off_reason();
+    if (!crops_off_reason_.empty()) j["gpu"]["crops"] = crops_off_reason_;
+    const pipeline::DetectorRecoveryStats r = detector_->stats();
+    if (r.devices_lost > 0) {
+      j["gpu"]["devices_lost"] = r.devices_lost;
+      j["gpu"]["reopened"] = r.reopened;
+      j["gpu"]["last_device_error"] = r.last_error;
+      if (r.on_cpu_since > 0) j["gpu"]["backend"] = "cpu";
+    }
   }
   j["output"] = engine_ ? "skeletons" : "detections";
   json p;

@@ -31,6 +31,7 @@
 #include "runtime/core/error.h"
 #include "runtime/geometry/calibration.h"
 #include "runtime/pipeline/pipeline.h"
+#include "runtime/pipeline/recovering_detector.h"
 #include "runtime/pipeline/sinks.h"
 #include "tools/mocapd/config.h"
 #include "tools/mocapd/outputs.h"
@@ -41,7 +42,8 @@ class StreamServer;
 }
 namespace mocap::gpu {
 class CnnDetector;
-}
+struct CnnOptions;
+}  // namespace mocap::gpu
 namespace mocap::hal {
 class TriggerMaster;
 struct Discovery;
@@ -118,6 +120,7 @@ class Daemon {
   // Scale-out roles (tools/mocapd/stage_roles.cpp, docs/scaleout.md). A detector node keeps
   // its source and CNN, drops association and publishes; a fusion node's source is the stage.
   Status become_detector_node();
+  Status adopt_cnn(std::unique_ptr<gpu::CnnDetector> first, const gpu::CnnOptions& options);
   Status open_fusion();
   Result<Calibration> fusion_calibration(const SkeletonTopology*& topology);
   Status join_stage(double rate_hz);
@@ -166,7 +169,9 @@ class Daemon {
   std::int64_t unix_offset_ns_ = 0;
   std::int64_t started_ns_ = 0;
   std::vector<Camera> cameras_;
-  std::unique_ptr<gpu::CnnDetector> detector_;
+  // The CNN behind a RecoveringDetector (a lost GPU is opened again, or the CPU takes over).
+  std::unique_ptr<pipeline::RecoveringDetector> detector_;
+  std::string crops_off_reason_;
   std::unique_ptr<assoc::Engine> engine_;
   std::unique_ptr<calib::BackgroundCalibrator> calibrator_;
   std::unique_ptr<calib::CalibrationMonitor> monitor_;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "runtime/core/log.h"
+#include "tools/common/allocator.h"
 #include "tools/mocapd/config.h"
 #include "tools/mocapd/daemon.h"
 
@@ -27,6 +28,11 @@ constexpr int kExitFailed = 1;  // the pipeline or a device failed at run time
 
 int main(int argc, char** argv) {
   using namespace mocap::daemon;
+  if (!mocap::configure_allocator()) {
+    std::fprintf(stderr,
+                 "mocapd: the C library refused the allocator thresholds; frame buffers may stay "
+                 "resident after use\n");
+  }
   std::vector<std::string_view> args(argv + 1, argv + argc);
   auto cmd = parse_command_line(args);
   if (!cmd.ok()) {
@@ -77,8 +83,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "mocapd: %s\n", daemon.error().message().c_str());
     // A device that is not (yet) there is worth a retry by systemd; a bad file is not.
     const mocap::ErrorCode code = daemon.error().code();
-    return code == mocap::ErrorCode::kDevice || code == mocap::ErrorCode::kIo ? kExitFailed
-                                                                              : kExitConfig;
+    return code == mocap::ErrorCode::kDevice || code == mocap::ErrorCode::kDeviceLost ||
+                   code == mocap::ErrorCode::kIo
+               ? kExitFailed
+               : kExitConfig;
   }
   if (mocap::Status s = (*daemon)->start(); !s.ok()) {
     std::fprintf(stderr, "mocapd: %s\n", s.error().message().c_str());

@@ -148,6 +148,12 @@ void box_metrics(Exposition& e, const json& health) {
            num(health, "uptime_s"));
   e.single("mocap_problems", "gauge", "Problems /health names (0 when the status is ok).",
            static_cast<double>(health.value("problems", json::array()).size()));
+  const json& mem = health.value("memory", json::object());
+  e.single("mocap_heap_in_use_bytes", "gauge", "Bytes allocated and not freed.",
+           num(mem, "heap_in_use_mib") * (1 << 20));
+  e.single("mocap_heap_free_retained_bytes", "gauge",
+           "Bytes the allocator holds free (resident, reusable).",
+           num(mem, "heap_free_retained_mib") * (1 << 20));
   const json& cal = health.value("calibration", json::object());
   e.family("mocap_calibration_state", "gauge", "1 for the calibration's current state.");
   for (const char* s : {"ok", "missing", "invalid", "mismatch", "calibrating"}) {
