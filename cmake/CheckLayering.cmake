@@ -2,7 +2,9 @@
 #   runtime  runtime/ includes no hardware header (V4L2, libcamera, libgpiod, media controller,
 #            DRM, FFmpeg) and nothing from hal/: the core stays portable.
 #   tools    nothing outside tools/ includes tools/, but the tests of the executables
-#            (tests/tools/): the executables compose runtime/ and hal/, never the reverse.
+#            (tests/tools/, and the fuzz target of mocapd's configuration,
+#            tests/fuzz/fuzz_config_json.cpp): the executables compose runtime/ and hal/, never
+#            the reverse.
 if(RULE STREQUAL "runtime")
   file(GLOB_RECURSE files "${ROOT}/runtime/*.h" "${ROOT}/runtime/*.hpp" "${ROOT}/runtime/*.cpp"
        "${ROOT}/runtime/*.cc")
@@ -12,6 +14,7 @@ elseif(RULE STREQUAL "tools")
   file(GLOB_RECURSE files "${ROOT}/runtime/*.h" "${ROOT}/runtime/*.cpp" "${ROOT}/hal/*.h"
        "${ROOT}/hal/*.cpp" "${ROOT}/tests/*.h" "${ROOT}/tests/*.cpp")
   list(FILTER files EXCLUDE REGEX "^${ROOT}/tests/tools/")
+  list(FILTER files EXCLUDE REGEX "^${ROOT}/tests/fuzz/fuzz_config_json\\.cpp$")
   set(regex "tools/")
   set(what "tools/ included from outside tools/")
 else()

@@ -1,12 +1,17 @@
 #include "hal/board.h"
 
+#include <algorithm>
+#include <cstdint>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 namespace mocap::hal {
 namespace {
 
 using nlohmann::json;
+
+constexpr int kMaxBoardCameras = 32;
 
 Result<CameraBackend> parse_backend(const std::string& s) {
   if (s == "v4l2") return CameraBackend::kV4l2;
@@ -34,7 +39,13 @@ Result<Board> load_board(const std::filesystem::path& board_json) {
     return Error(ErrorCode::kNotFound,
                  file + ": cannot open board file (boards live in board/<name>/board.json)");
   }
-  json j = json::parse(in, nullptr, /*allow_exceptions=*/false);
+  std::stringstream text;
+  text << in.rdbuf();
+  return parse_board_json(text.str(), file);
+}
+
+Result<Board> parse_board_json(std::string_view text, const std::string& file) {
+  json j = json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded() || !j.is_object()) {
     return Error(ErrorCode::kParse, file + ": not a JSON object");
   }
@@ -42,7 +53,22 @@ Result<Board> load_board(const std::filesystem::path& board_json) {
   try {
     b.name = j.at("name").get<std::string>();
     b.description = j.value("description", "");
-    b.max_cameras = j.value("max_cameras", 8);
+    if (const auto it = j.find("max_cameras"); it != j.end()) {
+      // Checked before converting: a float or a huge number has no int value (and
+      // get<int>() of 1e10 is undefined behaviour; found by fuzz_board_json).
+      std::int64_t v = 0;  // 0: not an integer (refused below)
+      if (it->is_number_unsigned()) {
+        v = static_cast<std::int64_t>(std::min<std::uint64_t>(it->get<std::uint64_t>(), 1u << 20));
+      } else if (it->is_number_integer()) {
+        v = it->get<std::int64_t>();
+      }
+      if (v < 1 || v > kMaxBoardCameras) {
+        return Error(ErrorCode::kInvalidArgument,
+                     file + ": max_cameras must be an integer in [1, " +
+                         std::to_string(kMaxBoardCameras) + "], got " + it->dump());
+      }
+      b.max_cameras = static_cast<int>(v);
+    }
     b.frame_rate_hz = j.value("frame_rate_hz", 30.0);
     b.preferred_gpu = j.value("preferred_gpu", "");
     if (j.contains("calibration")) b.calibration = j.at("calibration").get<std::string>();
@@ -68,9 +94,6 @@ Result<Board> load_board(const std::filesystem::path& board_json) {
   }
   if (b.frame_rate_hz <= 0 || b.frame_rate_hz > 1000) {
     return Error(ErrorCode::kInvalidArgument, file + ": frame_rate_hz must be in (0, 1000]");
-  }
-  if (b.max_cameras < 1 || b.max_cameras > 32) {
-    return Error(ErrorCode::kInvalidArgument, file + ": max_cameras must be in [1, 32]");
   }
   if (b.trigger.mode != SyncMode::kSoftware &&
       (b.trigger.gpio_chip.empty() || b.trigger.gpio_line.empty())) {

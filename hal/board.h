@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "runtime/core/error.h"
@@ -39,5 +40,8 @@ struct Board {
 
 // Loads and validates board/<name>/board.json. Errors name the file and the field.
 Result<Board> load_board(const std::filesystem::path& board_json);
+// The same for the file's text; `file` names it in the errors (load_board reads the file and
+// calls this; tests/fuzz/fuzz_board_json.cpp feeds it arbitrary bytes).
+Result<Board> parse_board_json(std::string_view text, const std::string& file);
 
 }  // namespace mocap::hal

@@ -352,7 +352,10 @@ std::string FusionSource::status_json() const {
     nodes.push_back(nj);
   }
   j["nodes"] = nodes;
-  return j.dump();
+  // Node names, roles and camera lists of NodeStatus samples come from any writer on the stage:
+  // bytes that are not UTF-8 print as U+FFFD instead of throwing (decode() refuses such names in
+  // detections; found by fuzz_dds_detections).
+  return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
 }  // namespace mocap::dds

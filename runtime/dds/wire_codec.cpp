@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "runtime/skeleton/topology.h"
 
@@ -15,12 +16,53 @@ Error bad(const std::string& camera, const std::string& what) {
   return Error(ErrorCode::kParse, "detections of camera '" + camera + "': " + what);
 }
 
+// Length of the UTF-8 sequence starting at s[i] (1..4), or 0 when it is not well-formed
+// (overlong forms, surrogates and code points over U+10FFFF included).
+std::size_t utf8_sequence(const std::string& s, std::size_t i) {
+  const auto b = [&](std::size_t k) { return static_cast<unsigned char>(s[k]); };
+  const unsigned char c = b(i);
+  if (c < 0x80) return 1;
+  std::size_t n = 0;
+  unsigned char lo = 0x80, hi = 0xBF;  // the allowed range of the second byte
+  if (c >= 0xC2 && c <= 0xDF) {
+    n = 2;
+  } else if (c >= 0xE0 && c <= 0xEF) {
+    n = 3;
+    if (c == 0xE0) lo = 0xA0;
+    if (c == 0xED) hi = 0x9F;
+  } else if (c >= 0xF0 && c <= 0xF4) {
+    n = 4;
+    if (c == 0xF0) lo = 0x90;
+    if (c == 0xF4) hi = 0x8F;
+  } else {
+    return 0;
+  }
+  if (i + n > s.size() || b(i + 1) < lo || b(i + 1) > hi) return 0;
+  for (std::size_t k = 2; k < n; ++k) {
+    if (b(i + k) < 0x80 || b(i + k) > 0xBF) return 0;
+  }
+  return n;
+}
+
+// Non-empty UTF-8 without control characters: the names go into logs and JSON (mocapd's
+// status and stage pages), whose writer throws on bytes that are not UTF-8.
 bool printable_name(const std::string& s) {
   if (s.empty()) return false;
-  for (const char c : s) {
-    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) return false;
+  for (std::size_t i = 0; i < s.size();) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    if (c < 0x20 || c == 0x7f) return false;
+    const std::size_t n = utf8_sequence(s, i);
+    if (n == 0) return false;
+    i += n;
   }
   return true;
+}
+
+// A bounded string of the IDL (string<N-1>) ends within its array; one that does not came
+// from a writer that does not follow the type.
+template <std::size_t N>
+bool terminated(const char (&field)[N]) {
+  return std::memchr(field, '\0', N) != nullptr;
 }
 
 }  // namespace
@@ -77,8 +119,15 @@ Result<CameraDetections> decode(const mocap_wire_Detections& s, const SkeletonTo
   CameraDetections out;
   out.camera = wire_string(s.camera);
   out.node = wire_string(s.node);
-  if (!printable_name(out.camera)) return bad(out.camera, "empty or unprintable camera name");
-  if (!printable_name(out.node)) return bad(out.camera, "empty or unprintable node name");
+  // Found by fuzz_dds_detections: a name filling its whole array was taken (and could not be
+  // sent again), and names that are not UTF-8 reached the JSON of the status pages.
+  if (!terminated(s.camera) || !terminated(s.node) || !terminated(s.topology)) {
+    return bad(printable_name(out.camera) ? out.camera : "?",
+               "a camera, node or topology name longer than its bound (63, 63, 31 bytes)");
+  }
+  if (!printable_name(out.camera)) return bad("?", "empty, unprintable or non-UTF-8 camera name");
+  if (!printable_name(out.node))
+    return bad(out.camera, "empty, unprintable or non-UTF-8 node name");
   const std::string topo = wire_string(s.topology);
   if (topo != topology.name()) {
     return bad(out.camera, "topology '" + topo + "', the stage runs '" + topology.name() + "'");

@@ -27,7 +27,7 @@
 #include <vector>
 
 #include "runtime/core/log.h"
-#include "runtime/net/sha1.h"
+#include "runtime/net/websocket.h"
 
 MOCAP_LOG_CATEGORY(Net)
 
@@ -37,8 +37,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-constexpr std::string_view kWebSocketGuid = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11";
-constexpr std::size_t kMaxClientFrameBytes = 64 * 1024;  // payload of one frame from a client
 constexpr std::size_t kReadChunk = 16 * 1024;
 constexpr int kReadsPerEvent = 4;     // per connection and poll round: one client cannot starve
 constexpr int kAcceptsPerEvent = 64;  // the others
@@ -52,47 +50,6 @@ constexpr auto kAcceptPause = std::chrono::milliseconds(100);  // after EMFILE/E
 constexpr std::uint16_t kWsProtocolError = 1002;
 
 std::string errno_text(int err) { return std::strerror(err); }
-
-bool is_base64_nonce(std::string_view key) {  // 16 bytes, base64: 22 characters + "=="
-  if (key.size() != 24 || key.substr(22) != "==") return false;
-  return std::all_of(key.begin(), key.begin() + 22, [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '+' ||
-           c == '/';
-  });
-}
-
-// ------------------------------------------------------------------------------- WebSocket
-
-// One unmasked server frame (FIN set): 7-bit, 16-bit or 64-bit payload length.
-std::string websocket_frame(std::uint8_t opcode, std::string_view payload) {
-  std::string out;
-  const std::size_t n = payload.size();
-  out.reserve(n + 10);
-  out.push_back(static_cast<char>(0x80u | opcode));
-  if (n < 126) {
-    out.push_back(static_cast<char>(n));
-  } else if (n <= 0xFFFF) {
-    out.push_back(static_cast<char>(126));
-    out.push_back(static_cast<char>((n >> 8) & 0xFFu));
-    out.push_back(static_cast<char>(n & 0xFFu));
-  } else {
-    out.push_back(static_cast<char>(127));
-    const auto n64 = static_cast<std::uint64_t>(n);
-    for (int shift = 56; shift >= 0; shift -= 8) {
-      out.push_back(static_cast<char>((n64 >> shift) & 0xFFu));
-    }
-  }
-  out.append(payload);
-  return out;
-}
-
-std::string websocket_close_frame(std::uint16_t status) {
-  const std::array<char, 2> payload = {static_cast<char>(status >> 8),
-                                       static_cast<char>(status & 0xFFu)};
-  return websocket_frame(0x8, std::string_view(payload.data(), payload.size()));
-}
-
-std::uint8_t byte_at(std::string_view s, std::size_t i) { return static_cast<std::uint8_t>(s[i]); }
 
 // ------------------------------------------------------------------------------ connections
 
@@ -228,13 +185,6 @@ int bound_port(int fd) {
 }
 
 }  // namespace
-
-std::string websocket_accept_key(std::string_view client_key) {
-  std::string text(client_key);
-  text += kWebSocketGuid;
-  const auto digest = sha1(text);
-  return base64_encode(digest);
-}
 
 Status StreamServerOptions::validate() const {
   auto bad = [](std::string message) {
@@ -836,7 +786,7 @@ void StreamServer::Impl::answer_request(Connection& c, std::size_t head_end) {
     return;
   }
   const std::string* key = req->header("sec-websocket-key");
-  if (!req->has_token("connection", "upgrade") || key == nullptr || !is_base64_nonce(*key)) {
+  if (!req->has_token("connection", "upgrade") || key == nullptr || !is_websocket_key(*key)) {
     ++local.dropped_bad_input;
     MOCAP_LOG(Net, Debug) << "http client " << c.peer << ": malformed WebSocket handshake";
     respond(c, text_response(400,
@@ -987,50 +937,18 @@ void StreamServer::Impl::websocket_fail(Connection& c, const char* reason) {
 void StreamServer::Impl::parse_frames(Connection& c) {
   std::size_t pos = 0;
   while (c.phase == Phase::kWebSocket) {
-    const std::string_view b = std::string_view(c.in).substr(pos);
-    if (b.size() < 2) break;
-    const std::uint8_t b0 = byte_at(b, 0);
-    const std::uint8_t b1 = byte_at(b, 1);
-    const bool fin = (b0 & 0x80u) != 0;
-    const std::uint8_t opcode = b0 & 0x0Fu;
-    if ((b0 & 0x70u) != 0) return websocket_fail(c, "reserved bits set");
-    if ((b1 & 0x80u) == 0) return websocket_fail(c, "unmasked frame");
-    const bool control = (opcode & 0x8u) != 0;
-    if (opcode > 0x2 && (opcode < 0x8 || opcode > 0xA)) {
-      return websocket_fail(c, "unknown opcode");
-    }
-    std::uint64_t length = b1 & 0x7Fu;
-    if (control && (!fin || length > 125)) return websocket_fail(c, "invalid control frame");
-    std::size_t header = 2;
-    if (length == 126) {
-      if (b.size() < 4) break;
-      length = (std::uint64_t{byte_at(b, 2)} << 8) | byte_at(b, 3);
-      header = 4;
-    } else if (length == 127) {
-      if (b.size() < 10) break;
-      length = 0;
-      for (std::size_t i = 2; i < 10; ++i) length = (length << 8) | byte_at(b, i);
-      header = 10;
-    }
-    if (length > kMaxClientFrameBytes) return websocket_fail(c, "frame over 64 KiB");
-    const std::size_t size = static_cast<std::size_t>(length);
-    header += 4;  // masking key
-    if (b.size() < header + size) break;
-    pos += header + size;
-    if (opcode == 0x9 || opcode == 0x8) {
-      std::string payload(b.substr(header, size));
-      for (std::size_t i = 0; i < size; ++i) {
-        payload[i] = static_cast<char>(byte_at(payload, i) ^ byte_at(b, header - 4 + (i % 4)));
-      }
-      if (opcode == 0x9) {
-        queue(c, websocket_frame(0xA, payload));  // pong
-      } else {
-        if (size == 1) return websocket_fail(c, "close frame with a 1-byte payload");
-        MOCAP_LOG(Net, Debug) << "websocket client " << c.peer << " closed";
-        drop_unsent(c);
-        respond(c, websocket_frame(0x8, std::string_view(payload).substr(0, 2)));  // echo
-        return;
-      }
+    const DecodedClientFrame d = decode_client_frame(std::string_view(c.in).substr(pos));
+    if (d.status == FrameDecode::kNeedMore) break;
+    if (d.status == FrameDecode::kBad) return websocket_fail(c, d.error);
+    pos += d.frame.bytes;
+    if (d.frame.opcode == kWsPing) {
+      queue(c, websocket_frame(kWsPong, d.frame.payload));
+    } else if (d.frame.opcode == kWsClose) {
+      MOCAP_LOG(Net, Debug) << "websocket client " << c.peer << " closed";
+      drop_unsent(c);
+      respond(c,
+              websocket_frame(kWsClose, std::string_view(d.frame.payload).substr(0, 2)));  // echo
+      return;
     }
     // Text, binary, continuation and pong frames from a client are ignored.
   }
@@ -1081,7 +999,7 @@ void StreamServer::publish(std::string message) {
   std::shared_ptr<const std::string> frame;
   std::shared_ptr<const std::string> line;
   if (s.websocket_subscribers.load() > 0) {
-    frame = std::make_shared<const std::string>(websocket_frame(0x1, message));
+    frame = std::make_shared<const std::string>(websocket_frame(kWsText, message));
   }
   if (s.stream_subscribers.load() > 0) {
     message.push_back('\n');

@@ -36,6 +36,7 @@
 #include "runtime/core/error.h"
 #include "runtime/net/access.h"
 #include "runtime/net/http.h"
+#include "runtime/net/websocket.h"
 
 namespace mocap::net {
 
@@ -106,8 +107,5 @@ class StreamServer {
   explicit StreamServer(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
-
-// Sec-WebSocket-Accept for a Sec-WebSocket-Key (RFC 6455 §4.2.2: base64(SHA-1(key + GUID))).
-std::string websocket_accept_key(std::string_view client_key);
 
 }  // namespace mocap::net

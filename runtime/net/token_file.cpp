@@ -58,14 +58,24 @@ Result<std::string> read_token(const std::filesystem::path& path) {
   if (!in) return file_error(path, "cannot be read (run as the user mocapd runs as, or root)");
   std::stringstream ss;
   ss << in.rdbuf();
-  std::string token = ss.str();
-  while (!token.empty() && (token.back() == '\n' || token.back() == '\r')) token.pop_back();
-  AccessOptions check;
-  check.token = token;
-  if (Status s = check.validate(); !s.ok()) {
-    return file_error(path, s.error().message() + "; delete it and restart mocapd for a new one");
+  auto token = parse_token_text(ss.str());
+  if (!token.ok()) {
+    return file_error(path,
+                      token.error().message() + "; delete it and restart mocapd for a new one");
   }
   return token;
+}
+
+Result<std::string> parse_token_text(std::string_view text) {
+  while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.remove_suffix(1);
+  // An empty token means "no access control" to AccessOptions: from a file (cut off by a power
+  // loss before its first write reached the disk) it is an error, never an open box (found by
+  // fuzz_access_token).
+  if (text.empty()) return Error(ErrorCode::kInvalidArgument, "empty (no token in it)");
+  AccessOptions check;
+  check.token = std::string(text);
+  if (Status s = check.validate(); !s.ok()) return s.error();
+  return std::move(check.token);
 }
 
 Result<TokenFile> load_or_create_token(const std::filesystem::path& path) {

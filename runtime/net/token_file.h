@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <string>
+#include <string_view>
 
 #include "runtime/core/error.h"
 
@@ -20,6 +21,9 @@ struct TokenFile {
 Result<TokenFile> load_or_create_token(const std::filesystem::path& path);
 // Reads an existing token file (`mocap token`, clients on the box).
 Result<std::string> read_token(const std::filesystem::path& path);
+// A token file's text as read_token checks it: the token without its trailing newline, or an
+// error saying what is wrong with it (no file name: read_token adds it).
+Result<std::string> parse_token_text(std::string_view text);
 // 64 hex digits from getrandom(2).
 Result<std::string> random_token();
 

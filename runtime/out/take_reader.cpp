@@ -474,6 +474,24 @@ void LineReader::fill() {
   }
 }
 
+// The lines of a text in memory, as LineReader gives a file's (parse_stream_text).
+class MemoryLineReader {
+ public:
+  explicit MemoryLineReader(std::string_view text) : rest_(text) {}
+  bool next(std::string_view& line, bool& complete) {
+    if (rest_.empty()) return false;
+    const std::size_t nl = rest_.find('\n');
+    complete = nl != std::string_view::npos;
+    line = rest_.substr(0, nl);
+    rest_ = complete ? rest_.substr(nl + 1) : std::string_view();
+    return true;
+  }
+  bool failed() const { return false; }
+
+ private:
+  std::string_view rest_;
+};
+
 // Complete lines waiting to be parsed, copied out of the reader's buffer.
 struct LineBatch {
   static constexpr std::size_t kLines = 4096;
@@ -524,7 +542,8 @@ Status flush_batch(const LineBatch& batch, StreamParser& parser) {
   return {};
 }
 
-Status read_lines(LineReader& in, StreamParser& parser, TakeData& data, int& lines) {
+template <typename Reader>
+Status read_lines(Reader& in, StreamParser& parser, TakeData& data, int& lines) {
   std::string_view line;
   bool complete = false;
   LineBatch batch;
@@ -564,6 +583,18 @@ Error no_frames_error(const fs::path& file, const TakeData& data) {
                file.string() + ": the take has no skeleton frames" +
                    (data.partial_lines > 0 ? " (only an incomplete line)" : "") +
                    ": was the box calibrated while recording?");
+}
+
+// What every stream needs once its lines are read: a line at all, and a skeleton frame.
+Result<TakeData> finish_stream(const fs::path& ndjson, TakeData data, int lines) {
+  if (lines == 0) {
+    return Error(ErrorCode::kInvalidArgument,
+                 ndjson.string() +
+                     ": empty: the take recorded nothing (stopped right away, or "
+                     "the box sent no frame)");
+  }
+  if (data.frames.empty()) return no_frames_error(ndjson, data);
+  return data;
 }
 
 // Runs f over the file's bytes in blocks; false with errno set when reading fails.
@@ -611,17 +642,7 @@ bool being_recorded(const fs::path& stream) {
 Result<json> read_take_json(const fs::path& file) {
   Result<std::string> text = io::read_text_file(file, kMaxTakeJson_bytes);
   if (!text.ok()) return text.error();
-  const json j = json::parse(*text, nullptr, false);
-  if (j.is_discarded() || !j.is_object()) {
-    return Error(ErrorCode::kParse, file.string() +
-                                        ": not valid JSON: the take's metadata is damaged (move "
-                                        "it away to read the stream alone)");
-  }
-  if (str_field(j, "schema") != kTakeSchema) {
-    return Error(ErrorCode::kParse, file.string() + ": not a mocap-box take (no \"schema\": \"" +
-                                        kTakeSchema + "\"): " + kStreamHint);
-  }
-  return j;
+  return parse_take_json(*text, file);
 }
 
 TakeInfo describe_take(const fs::path& dir) {
@@ -672,6 +693,20 @@ std::string takes_folder_hint(const fs::path& dir) {
 
 }  // namespace
 
+Result<json> parse_take_json(std::string_view text, const fs::path& file) {
+  const json j = json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object()) {
+    return Error(ErrorCode::kParse, file.string() +
+                                        ": not valid JSON: the take's metadata is damaged (move "
+                                        "it away to read the stream alone)");
+  }
+  if (str_field(j, "schema") != kTakeSchema) {
+    return Error(ErrorCode::kParse, file.string() + ": not a mocap-box take (no \"schema\": \"" +
+                                        kTakeSchema + "\"): " + kStreamHint);
+  }
+  return j;
+}
+
 Result<TakeData> read_stream_file(const fs::path& ndjson) {
   std::error_code ec;
   if (!fs::exists(ndjson, ec)) {
@@ -698,14 +733,16 @@ Result<TakeData> read_stream_file(const fs::path& ndjson) {
     return Error(ErrorCode::kIo, ndjson.string() + ": read error after line " +
                                      std::to_string(lines) + ": check the disk");
   }
-  if (lines == 0) {
-    return Error(ErrorCode::kInvalidArgument,
-                 ndjson.string() +
-                     ": empty: the take recorded nothing (stopped right away, or "
-                     "the box sent no frame)");
-  }
-  if (data.frames.empty()) return no_frames_error(ndjson, data);
-  return data;
+  return finish_stream(ndjson, std::move(data), lines);
+}
+
+Result<TakeData> parse_stream_text(std::string_view text, const fs::path& name) {
+  TakeData data;
+  StreamParser parser(name, data);
+  MemoryLineReader in(text);
+  int lines = 0;
+  if (Status s = read_lines(in, parser, data, lines); !s.ok()) return s.error();
+  return finish_stream(name, std::move(data), lines);
 }
 
 Result<TakeData> read_take(const fs::path& take_dir) {

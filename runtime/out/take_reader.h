@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "runtime/core/error.h"
@@ -53,6 +54,12 @@ Result<TakeData> read_take(const std::filesystem::path& take_dir);
 
 // A stream file: the messages one per line, as the TCP stream sends them.
 Result<TakeData> read_stream_file(const std::filesystem::path& ndjson);
+// The same for a stream file's bytes in memory; `name` names it in the errors (tests,
+// tests/fuzz/fuzz_take_stream.cpp).
+Result<TakeData> parse_stream_text(std::string_view text, const std::filesystem::path& name);
+// take.json's text as read_take and list_takes check it: a JSON object with "schema":
+// "mocap-box.take/1"; `file` names it in the errors.
+Result<nlohmann::json> parse_take_json(std::string_view text, const std::filesystem::path& file);
 
 // The byte length of the complete lines of a stream file (up to and including its last
 // newline): what a copy of the stream without an incomplete last line keeps.

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "runtime/skeleton/topology.h"
@@ -109,6 +110,35 @@ TEST(WireCodec, MalformedSamplesAreRefusedNamingTheField) {
                  "outside the image");
   expect_refused([](S& s, V&) { s.node[0] = '\0'; }, "node name");
   expect_refused([](S& s, V&) { s.joints._buffer[2].candidates._length = 65; }, "");
+}
+
+// Found by fuzz_dds_detections: a camera name filling its whole 64-byte array (no NUL within
+// the bound of string<63>) was accepted, and could not be encoded again; names that are not
+// UTF-8 were accepted and reached the fusion node's status JSON, whose writer throws on them.
+TEST(WireCodec, NamesOverTheirBoundOrNotUtf8AreRefused) {
+  DetectionsEncoder enc;
+  ASSERT_TRUE(enc.encode(sample_view(), body19_topology()).ok());
+
+  mocap_wire_Detections unterminated = enc.sample();
+  std::memset(unterminated.camera, 'c', sizeof unterminated.camera);
+  auto r = decode(unterminated, body19_topology());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message().find("longer than its bound"), std::string::npos)
+      << r.error().message();
+
+  for (const char* name : {"\xff\xfe", "caf\xc3", "\xed\xa0\x80", "\xc0\xaf", "tab\there"}) {
+    mocap_wire_Detections s = enc.sample();
+    std::memset(s.node, 0, sizeof s.node);
+    std::strcpy(s.node, name);
+    auto bad = decode(s, body19_topology());
+    ASSERT_FALSE(bad.ok()) << name;
+    EXPECT_NE(bad.error().message().find("node name"), std::string::npos) << bad.error().message();
+  }
+  mocap_wire_Detections utf8 = enc.sample();
+  std::strcpy(utf8.node, "b\xc3\xbchne-\xe2\x82\xac-\xf0\x9f\x8e\xa5");  // "bühne-€-🎥"
+  auto ok = decode(utf8, body19_topology());
+  ASSERT_TRUE(ok.ok()) << ok.error().message();
+  EXPECT_EQ(ok->node, "b\xc3\xbchne-\xe2\x82\xac-\xf0\x9f\x8e\xa5");
 }
 
 }  // namespace

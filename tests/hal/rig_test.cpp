@@ -343,4 +343,21 @@ TEST(BoardFilesTest, EveryShippedBoardLoads) {
 }
 
 }  // namespace
+// Found by fuzz_board_json: a max_cameras of 1e10 was converted to int (undefined behaviour),
+// 2.5 silently became 2. Both are refused with the field and the range.
+TEST(BoardFilesTest, MaxCamerasMustBeAnIntegerInRange) {
+  for (const char* v : {"1e10", "2.5", "0", "33", "-1", "18446744073709551615", "\"8\""}) {
+    const std::string text = std::string(R"({"name": "x", "max_cameras": )") + v + "}";
+    auto b = parse_board_json(text, "x/board.json");
+    ASSERT_FALSE(b.ok()) << v;
+    EXPECT_NE(b.error().message().find("x/board.json"), std::string::npos) << v;
+    EXPECT_NE(b.error().message().find("max_cameras must be an integer in [1, 32]"),
+              std::string::npos)
+        << b.error().message();
+  }
+  auto ok = parse_board_json(R"({"name": "x", "max_cameras": 32})", "x/board.json");
+  ASSERT_TRUE(ok.ok()) << ok.error().message();
+  EXPECT_EQ(ok->max_cameras, 32);
+}
+
 }  // namespace mocap::hal

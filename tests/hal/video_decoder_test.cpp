@@ -214,6 +214,25 @@ TEST_F(VideoDecoderTest, TruncatedCopyFailsNamingTheFile) {
   }
 }
 
+// Found by fuzz_video_probe: a damaged 16x16 MPEG-4 file (555 bytes) made FFmpeg 5.1's
+// frame-threaded decoder abort the process (av_assert0 in libavcodec/decode.c) under
+// AV_EF_EXPLODE. With slice threads it decodes or fails with an Error naming the file.
+TEST_F(VideoDecoderTest, DamagedMpeg4ThatAbortedFrameThreadsIsAnErrorOrFrames) {
+  const fs::path p =
+      fs::path(MOCAP_SOURCE_DIR) / "tests/fuzz/corpus/video_probe/mpeg4_frame_thread_assert.mp4";
+  ASSERT_TRUE(fs::exists(p)) << p;
+  auto d = VideoDecoder::open(p);
+  if (!d.ok()) {
+    EXPECT_NE(d.error().message().find(p.string()), std::string::npos) << d.error().message();
+    return;
+  }
+  std::int64_t frames = 0;
+  const std::string err = decode_all(**d, &frames);
+  if (!err.empty()) {
+    EXPECT_NE(err.find(p.string()), std::string::npos) << err;
+  }
+}
+
 // Garbage over part of the coded frames (the index intact): decoding stops with an error that
 // names the file and the frame, after the undamaged frames before it.
 TEST_F(VideoDecoderTest, CorruptDataMidStreamIsAnError) {

@@ -123,6 +123,25 @@ TEST(TokenFile, MadeOnceMode0600ThenReadAndBadFilesNamed) {
   EXPECT_FALSE(read_token(dir.path() / "none").ok());
 }
 
+// Found by fuzz_access_token: an empty token file (or one with only a newline) was read as the
+// empty token, which AccessOptions takes as "no access control": the box was open to anyone.
+TEST(TokenFile, AnEmptyTokenFileIsAnErrorNotAnOpenBox) {
+  testing::TestTempDir dir("token-empty");
+  const fs::path file = dir.path() / "token";
+  for (const char* text : {"", "\n", "\r\n\n"}) {
+    std::ofstream(file, std::ios::trunc) << text;
+    ::chmod(file.c_str(), 0600);
+    auto t = read_token(file);
+    ASSERT_FALSE(t.ok()) << "read '" << *t << "'";
+    EXPECT_NE(t.error().message().find("empty"), std::string::npos) << t.error().message();
+    EXPECT_NE(t.error().message().find("delete it"), std::string::npos) << t.error().message();
+    EXPECT_FALSE(load_or_create_token(file).ok());
+  }
+  EXPECT_FALSE(parse_token_text("").ok());
+  EXPECT_EQ(parse_token_text("0123456789abcdef0123456789abcdef\n").value(),
+            "0123456789abcdef0123456789abcdef");
+}
+
 // ---------------------------------------------------------------------------- the server
 
 int status_of(const std::string& response) {

@@ -934,5 +934,69 @@ TEST(StreamServer, FiftyConcurrentClientsGetEveryMessage) {
   EXPECT_EQ(st.websocket_clients, kWebSockets);
 }
 
+// ------------------------------------------------------------ the frame decoder, no sockets
+
+// decode_client_frame is what parse_frames runs on the bytes a client sent (exposed for the
+// fuzz target, tests/fuzz/fuzz_websocket_frame.cpp): one frame at a time, "need more" for a
+// partial one, the reason for a protocol error.
+TEST(WebSocketDecode, FramesPartialFramesAndProtocolErrors) {
+  const std::string ping = client_frame(0x89, "are you there");
+  const std::string text = client_frame(0x81, std::string(300, 't'));  // 16-bit length
+  const std::string close = client_frame(0x88, std::string("\x03\xe8"
+                                                           "bye",
+                                                           5));
+  const std::string all = ping + text + close;
+
+  DecodedClientFrame d = decode_client_frame(all);
+  ASSERT_EQ(d.status, FrameDecode::kFrame);
+  EXPECT_TRUE(d.frame.fin);
+  EXPECT_EQ(d.frame.opcode, kWsPing);
+  EXPECT_EQ(d.frame.bytes, ping.size());
+  EXPECT_EQ(d.frame.payload, "are you there");  // unmasked
+  d = decode_client_frame(std::string_view(all).substr(ping.size()));
+  ASSERT_EQ(d.status, FrameDecode::kFrame);
+  EXPECT_EQ(d.frame.opcode, kWsText);
+  EXPECT_EQ(d.frame.payload_size, 300u);
+  EXPECT_TRUE(d.frame.payload.empty());  // data frames are ignored: not unmasked
+  d = decode_client_frame(std::string_view(all).substr(ping.size() + text.size()));
+  ASSERT_EQ(d.status, FrameDecode::kFrame);
+  EXPECT_EQ(d.frame.opcode, kWsClose);
+  EXPECT_EQ(d.frame.payload.substr(0, 2), std::string("\x03\xe8", 2));  // 1000, echoed
+
+  for (std::size_t n = 0; n < text.size(); ++n) {
+    EXPECT_EQ(decode_client_frame(std::string_view(text).substr(0, n)).status,
+              FrameDecode::kNeedMore)
+        << n << " bytes";
+  }
+
+  auto error_of = [](const std::string& bytes) {
+    const DecodedClientFrame e = decode_client_frame(bytes);
+    return e.status == FrameDecode::kBad ? std::string(e.error) : std::string("(no error)");
+  };
+  EXPECT_EQ(error_of(client_frame(0x81, "x", /*masked=*/false)), "unmasked frame");
+  EXPECT_EQ(error_of(client_frame(0xC1, "x")), "reserved bits set");
+  EXPECT_EQ(error_of(client_frame(0x83, "x")), "unknown opcode");
+  EXPECT_EQ(error_of(client_frame(0x09, "x")), "invalid control frame");  // ping without FIN
+  EXPECT_EQ(error_of(client_frame(0x89, std::string(126, 'p'))), "invalid control frame");
+  EXPECT_EQ(error_of(client_frame(0x82, "", true, kMaxClientFrameBytes + 1)), "frame over 64 KiB");
+  EXPECT_EQ(error_of(client_frame(0x88, "x")), "close frame with a 1-byte payload");
+  EXPECT_EQ(decode_client_frame(client_frame(0x82, std::string(kMaxClientFrameBytes, 'b'))).status,
+            FrameDecode::kFrame);  // the limit itself
+}
+
+// The server's own frames decode as a client's would once masked: the 7-, 16- and 64-bit
+// lengths of websocket_frame.
+TEST(WebSocketDecode, ServerFramesUseTheShortestLength) {
+  EXPECT_EQ(websocket_frame(kWsText, "hi"), std::string("\x81\x02hi", 4));
+  EXPECT_EQ(websocket_frame(kWsText, std::string(126, 'a')).substr(0, 4),
+            std::string("\x81\x7e\x00\x7e", 4));
+  EXPECT_EQ(websocket_frame(kWsBinary, std::string(70000, 'a')).substr(0, 10),
+            std::string("\x82\x7f\x00\x00\x00\x00\x00\x01\x11\x70", 10));
+  EXPECT_EQ(websocket_close_frame(1002), std::string("\x88\x02\x03\xea", 4));
+  EXPECT_TRUE(is_websocket_key("dGhlIHNhbXBsZSBub25jZQ=="));
+  EXPECT_FALSE(is_websocket_key("dGhlIHNhbXBsZSBub25jZQ="));
+  EXPECT_EQ(websocket_accept_key("dGhlIHNhbXBsZSBub25jZQ=="), "s3pPLMBiTxaQ9kYGzzhZRbK+xOo=");
+}
+
 }  // namespace
 }  // namespace mocap::net

@@ -406,6 +406,37 @@ TEST(TakeReader, FastPathGivesWhatNlohmannGives) {
   expect_same_take(*fast, *with_spaces);
 }
 
+// parse_stream_text (what fuzz_take_stream feeds) reads bytes in memory as read_stream_file
+// reads a file: the same frames, skipped messages, cut-off last line and errors.
+TEST(TakeReader, TextInMemoryReadsAsTheFile) {
+  testing::TestTempDir tmp("take_text");
+  std::mt19937 rng(11);
+  std::string text;
+  for (int f = 0; f < 150; ++f) {
+    text += (f % 40 == 5 ? detections_message(f) : random_skeletons(rng, f)) + "\n";
+  }
+  text += "\n" + skeletons_message(150, {0}).substr(0, 60);  // a blank line, a cut-off line
+  write_text(tmp.path() / "s.ndjson", text);
+  auto file = read_stream_file(tmp.path() / "s.ndjson");
+  auto memory = parse_stream_text(text, tmp.path() / "s.ndjson");
+  ASSERT_TRUE(file.ok()) << file.error().to_string();
+  ASSERT_TRUE(memory.ok()) << memory.error().to_string();
+  EXPECT_EQ(memory->partial_lines, 1);
+  EXPECT_EQ(memory->skipped_messages, file->skipped_messages);
+  expect_same_take(*file, *memory);
+
+  const std::string bad = skeletons_message(0, {0}) + "\n{\"schema\": 1}\n";
+  write_text(tmp.path() / "bad.ndjson", bad);
+  auto file_error = read_stream_file(tmp.path() / "bad.ndjson");
+  auto memory_error = parse_stream_text(bad, tmp.path() / "bad.ndjson");
+  ASSERT_FALSE(file_error.ok());
+  ASSERT_FALSE(memory_error.ok());
+  EXPECT_EQ(memory_error.error().message(), file_error.error().message());
+  EXPECT_FALSE(parse_stream_text("", "empty.ndjson").ok());
+  EXPECT_FALSE(parse_take_json(R"({"schema": "other"})", "take.json").ok());
+  EXPECT_TRUE(parse_take_json(R"({"schema": "mocap-box.take/1"})", "take.json").ok());
+}
+
 TEST(TakeReader, FastPathLinesWithErrorsGiveTheSlowPathsErrors) {
   testing::TestTempDir tmp("take_fast_errors");
   const std::string good = skeletons_message(0, {0, 1});

@@ -398,7 +398,12 @@ Status apply_config_file(DaemonConfig& config, const std::string& path) {
   }
   std::stringstream ss;
   ss << in.rdbuf();
-  json j = json::parse(ss.str(), nullptr, /*allow_exceptions=*/false);
+  return apply_config_text(config, ss.str(), path);
+}
+
+Status apply_config_text(DaemonConfig& config, std::string_view json_text,
+                         const std::string& path) {
+  json j = json::parse(json_text, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded()) {
     return Error(ErrorCode::kParse, path + ": not valid JSON (docs/mocapd.md has an example)");
   }
@@ -513,7 +518,8 @@ std::string config_to_json(const DaemonConfig& config) {
         j[o.key] = std::stoll(v);
         break;
       case OptionType::kDouble:
-        j[o.key] = std::stod(v);
+        // show()'s "%g" text; strtod, not stod, which throws on a subnormal such as 1e-320.
+        j[o.key] = std::strtod(v.c_str(), nullptr);
         break;
       case OptionType::kBool:
         j[o.key] = v == "true";
@@ -523,7 +529,9 @@ std::string config_to_json(const DaemonConfig& config) {
         break;
     }
   }
-  return j.dump(2);
+  // A string from a flag or an environment variable need not be UTF-8: its bad bytes print
+  // as U+FFFD instead of throwing.
+  return j.dump(2, ' ', false, json::error_handler_t::replace);
 }
 
 std::string options_help(const DaemonConfig& defaults) {

@@ -116,6 +116,9 @@ std::string flag_name(const OptionSpec& o);  // --stream-port
 // Applies a JSON config file's object. Unknown keys and wrong types are errors naming the
 // file and the key.
 Status apply_config_file(DaemonConfig& config, const std::string& path);
+// The same for the file's text; `path` names it in the errors (apply_config_file reads the
+// file and calls this; tests/fuzz/fuzz_config_json.cpp feeds it arbitrary bytes).
+Status apply_config_text(DaemonConfig& config, std::string_view text, const std::string& path);
 // Applies MOCAPD_* variables from `env` (KEY=VALUE strings, e.g. environ).
 Status apply_environment(DaemonConfig& config, char** env);
 // Cross-field checks after all sources are applied.

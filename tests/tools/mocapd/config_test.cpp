@@ -128,6 +128,24 @@ TEST(DaemonConfig, BooleanFlagsAndPrintConfigRoundTrip) {
   EXPECT_EQ(config_to_json(*d), config_to_json(*c));
 }
 
+// Found by fuzz_config_json: --print-config threw (and mocapd aborted) for a flag value that
+// is not UTF-8, and for a subnormal number (std::stod's out_of_range).
+TEST(DaemonConfig, PrintConfigNeverThrows) {
+  auto bytes = load({"--node-name=\xff\xfe", "--replay=/rec\xc3"});
+  ASSERT_TRUE(bytes.ok()) << bytes.error().message();
+  std::string printed;
+  ASSERT_NO_THROW(printed = config_to_json(*bytes));
+  EXPECT_NE(printed.find("\"node_name\": \"\xef\xbf\xbd\xef\xbf\xbd\""), std::string::npos)
+      << printed;
+
+  DaemonConfig tiny;
+  ASSERT_TRUE(apply_config_text(tiny, R"({"sim_bump_after_s": 1e-320})", "tiny.json").ok());
+  ASSERT_NO_THROW(printed = config_to_json(tiny));
+  DaemonConfig again;
+  ASSERT_TRUE(apply_config_text(again, printed, "printed.json").ok());
+  EXPECT_EQ(config_to_json(again), printed);
+}
+
 TEST(DaemonConfig, EveryOptionIsDocumentedWithItsDefault) {
   std::ifstream in(std::string(MOCAP_SOURCE_DIR) + "/docs/mocapd.md");
   ASSERT_TRUE(in) << "docs/mocapd.md missing";
