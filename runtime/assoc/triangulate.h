@@ -47,7 +47,10 @@ inline void add_ray_normal_equations(const Ray& ray, double weight, Eigen::Matri
 
 // Robust triangulation. When the weighted least-squares point of all views (over rays,
 // weights = detection scores) reprojects within all_views_accept_error_px in every view, it
-// is the result. Otherwise consensus: every pair of views proposes a point (least squares over
+// is the result. When the views within max_reprojection_error_px of it are a clear-cut majority
+// (their own point keeps them within it and the others beyond it, and no kept view is an
+// outlier the point was pulled towards: triangulate.cpp clear_cut_inliers), their point is the
+// result. Otherwise consensus: every pair of views proposes a point (least squares over
 // rays); the proposal whose inlier views (reprojection error < max_reprojection_error_px) carry the
 // largest soft weight wins; the point is then re-solved on its inliers (weighted least squares
 // over rays, weights = detection scores), dropping the worst view while any exceeds the
