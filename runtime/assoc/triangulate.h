@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <span>
 
 #include "runtime/assoc/options.h"
@@ -17,12 +18,18 @@ struct Observation {
   double weight = 1;                             // detection score
 };
 
+// Observations one triangulate() call takes at most (a joint seen by more views is not
+// triangulated), and the bit set of observations or views it works with: one bit per view of
+// a rig of up to 64 cameras (at 32, a 64-view rig triangulated no joint seen in more than 32).
+inline constexpr int kMaxObservations = 64;
+using ViewSet = std::uint64_t;
+
 struct TriangulatedPoint {
   Eigen::Vector3d X_m = Eigen::Vector3d::Zero();
   bool valid = false;
   int views_used = 0;
   double max_reprojection_error_px = 0;
-  unsigned view_mask = 0;  // bit v set when view v was used (views < 32)
+  ViewSet view_mask = 0;  // bit v set when view v was used (views < kMaxObservations)
 };
 
 // Adds weight·(I − ddᵀ) and weight·(I − ddᵀ)·o of ray (o, d) to the normal equations A X = b

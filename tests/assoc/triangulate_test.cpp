@@ -240,5 +240,34 @@ TEST_F(TriangulateTest, ClearCutOutliersGiveTheConsensusResult) {
   EXPECT_GT(with_outliers, 20);
 }
 
+// A joint seen by more than 32 views (a 64-camera rig) is triangulated from all of them, with
+// a wrong view left out, and its view set names views above 31.
+TEST_F(TriangulateTest, MoreThan32ViewsAreTriangulated) {
+  std::vector<Camera> cams;
+  for (int v = 0; v < kMaxObservations; ++v) {
+    cams.push_back(ring_camera(2 * kPi / kMaxObservations * v, 3.0 + 0.5 * (v % 3),
+                               0.8 + 0.1 * (v % 7), Eigen::Vector3d(0, 0, 1)));
+  }
+  for (const int n : {33, 48, kMaxObservations}) {
+    std::vector<Observation> o;
+    for (int v = 0; v < n; ++v) {
+      const Camera& cam = cams[static_cast<std::size_t>(v)];
+      Observation ob;
+      ob.view = v;
+      ob.px = *cam.project(X_) + (v == n - 2 ? Eigen::Vector2d(90, -40) : Eigen::Vector2d(0, 0));
+      ob.ray = cam.backproject(ob.px);
+      o.push_back(ob);
+    }
+    const TriangulatedPoint p = triangulate(o, cams, opt_);
+    ASSERT_TRUE(p.valid) << n << " views";
+    EXPECT_EQ(p.views_used, n - 1);
+    const ViewSet all = n == 64 ? ~ViewSet{0} : (ViewSet{1} << n) - 1;
+    EXPECT_EQ(p.view_mask, all & ~(ViewSet{1} << (n - 2))) << n << " views";
+    EXPECT_LT((p.X_m - X_).norm(), 1e-9);
+  }
+  std::vector<Observation> too_many(static_cast<std::size_t>(kMaxObservations + 1), Observation{});
+  EXPECT_FALSE(triangulate(too_many, cams, opt_).valid);
+}
+
 }  // namespace
 }  // namespace mocap::assoc
