@@ -1105,6 +1105,37 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
                             exclusions, sc);
 }
 
+int exclude_settled_limbs(const FrameGraph& graph, const SkeletonTopology& topology,
+                          std::span<const Bundle> taken, std::span<LimbExclusions> exclusions) {
+  thread_local std::vector<std::vector<char>> held;  // [joint][k] in a taken bundle
+  held.resize(ix(graph.joint_count()));
+  for (int j = 0; j < graph.joint_count(); ++j) held[ix(j)].assign(ix(graph.candidate_count(j)), 0);
+  for (const Bundle& b : taken) {
+    const Limb& L = topology.limb(b.limb);
+    const auto edges = graph.limb_edges(b.limb);
+    for (int m : b.edges) {
+      held[ix(L.joint_a)][ix(edges[ix(m)].ka)] = 1;
+      held[ix(L.joint_b)][ix(edges[ix(m)].kb)] = 1;
+    }
+  }
+  int excluded = 0;
+  for (int l = 0; l < topology.limb_count() && ix(l) < exclusions.size(); ++l) {
+    const Limb& L = topology.limb(l);
+    const auto edges = graph.limb_edges(l);
+    std::vector<char>& dead = exclusions[ix(l)].edge_dead;
+    if (dead.size() != edges.size()) dead.assign(edges.size(), 0);
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      if (dead[e] || !held[ix(L.joint_a)][ix(edges[e].ka)] ||
+          !held[ix(L.joint_b)][ix(edges[e].kb)]) {
+        continue;
+      }
+      dead[e] = 1;
+      ++excluded;
+    }
+  }
+  return excluded;
+}
+
 void unneeded_candidates(const FrameGraph& graph, const SkeletonTopology& topology,
                          std::span<const LimbExclusions> exclusions,
                          std::vector<std::vector<char>>& unneeded) {

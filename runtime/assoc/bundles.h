@@ -83,6 +83,14 @@ void track_first_bundles(FrameGraph& graph, const SkeletonTopology& topology, in
                          double hierarchy_weight, const CliqueOptions& options,
                          std::vector<Bundle>& out, LimbExclusions& exclusions, ParsingStats& stats);
 
+// After track-first parsing of every limb type (bundles taken: `taken`, exclusions[limb]): the
+// 2D limbs whose both candidates are already in taken bundles (of any limb type) are left out
+// of the clique search as well (exclusions[limb].edge_dead). In assembling such a limb adds no
+// assignment: it joins the person holding both its ends, or joins two persons on different
+// tracks, which cannot merge. Returns how many were left out.
+int exclude_settled_limbs(const FrameGraph& graph, const SkeletonTopology& topology,
+                          std::span<const Bundle> taken, std::span<LimbExclusions> exclusions);
+
 // After track-first parsing of every limb type (exclusions[limb]): the candidates the clique
 // search never reads matching edges for, those in no live 2D limb of any limb type
 // (unneeded[joint][k] = 1); the argument FrameGraph::build_matching() takes.

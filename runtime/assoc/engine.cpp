@@ -145,6 +145,7 @@ void Engine::parse_bundles(bool track_first, FrameStats& st) {
       track_first_bundles(graph_, topology_, l, hierarchy_[ix(l)], options_.clique, bundles_,
                           exclusions_[ix(l)], st.parsing);
     }
+    exclude_settled_limbs(graph_, topology_, bundles_, exclusions_);
     st.track_first_ms = ms_since(t0);
     const auto tm = monotonic_ns();
     // The clique search reads matching edges only through the 2D limbs it still holds.

@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <span>
 
 #include "runtime/assoc/options.h"
@@ -17,12 +18,18 @@ struct Observation {
   double weight = 1;                             // detection score
 };
 
+// Observations one triangulate() call takes at most (a joint seen by more views is not
+// triangulated), and the bit set of observations or views it works with: one bit per view of
+// a rig of up to 64 cameras (at 32, a 64-view rig triangulated no joint seen in more than 32).
+inline constexpr int kMaxObservations = 64;
+using ViewSet = std::uint64_t;
+
 struct TriangulatedPoint {
   Eigen::Vector3d X_m = Eigen::Vector3d::Zero();
   bool valid = false;
   int views_used = 0;
   double max_reprojection_error_px = 0;
-  unsigned view_mask = 0;  // bit v set when view v was used (views < 32)
+  ViewSet view_mask = 0;  // bit v set when view v was used (views < kMaxObservations)
 };
 
 // Adds weight·(I − ddᵀ) and weight·(I − ddᵀ)·o of ray (o, d) to the normal equations A X = b
@@ -47,7 +54,10 @@ inline void add_ray_normal_equations(const Ray& ray, double weight, Eigen::Matri
 
 // Robust triangulation. When the weighted least-squares point of all views (over rays,
 // weights = detection scores) reprojects within all_views_accept_error_px in every view, it
-// is the result. Otherwise consensus: every pair of views proposes a point (least squares over
+// is the result. When the views within max_reprojection_error_px of it are a clear-cut majority
+// (their own point keeps them within it and the others beyond it, and no kept view is an
+// outlier the point was pulled towards: triangulate.cpp clear_cut_inliers), their point is the
+// result. Otherwise consensus: every pair of views proposes a point (least squares over
 // rays); the proposal whose inlier views (reprojection error < max_reprojection_error_px) carry the
 // largest soft weight wins; the point is then re-solved on its inliers (weighted least squares
 // over rays, weights = detection scores), dropping the worst view while any exceeds the

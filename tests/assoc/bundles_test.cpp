@@ -438,6 +438,39 @@ TEST_F(BundleTest, TrackFirstTakesWhatTheSearchWouldTake) {
   for (const auto& u : unneeded) EXPECT_EQ(u, std::vector<char>(2 * kViews, 1));
 }
 
+// After track-first parsing, a 2D limb whose both candidates are in taken bundles (of any limb
+// type) is left out of the clique search: here a stray limb joining person 0's joint b to person
+// 1's joint c in view 1, both held by bundles of other people's limbs. A 2D limb with an end in
+// no taken bundle stays, and one left out already is not counted again.
+TEST_F(BundleTest, LimbsWhoseCandidatesAreAllTakenAreLeftOutOfTheSearch) {
+  s_.set_affinity(1, 1, 0, 1, 1.0f);
+  ASSERT_TRUE(s_.build().ok());
+  const int stray = s_.edge_of(1, 1, 0, 1);
+  ASSERT_GE(stray, 0) << "the stray limb must be in the graph";
+  // Taken: person 0's limb 0 and person 1's limb 1, both in view 1.
+  const std::vector<Bundle> taken = {Bundle{0, -1, {s_.edge_of(0, 1, 0)}, 1.0},
+                                     Bundle{1, -1, {s_.edge_of(1, 1, 1)}, 1.0}};
+  std::vector<LimbExclusions> ex(2);
+  ex[0].edge_dead.assign(s_.graph_.limb_edges(0).size(), 0);
+  ex[0].edge_dead[static_cast<std::size_t>(s_.edge_of(0, 1, 0))] = 1;  // left out already
+  EXPECT_EQ(exclude_settled_limbs(s_.graph_, s_.topo_, taken, ex), 2);
+  ASSERT_EQ(ex[1].edge_dead.size(), s_.graph_.limb_edges(1).size());
+  const auto dead = [&](int limb, int e) {
+    return ex[static_cast<std::size_t>(limb)].edge_dead[static_cast<std::size_t>(e)];
+  };
+  EXPECT_EQ(dead(1, stray), 1);
+  EXPECT_EQ(dead(1, s_.edge_of(1, 1, 1)), 1);
+  EXPECT_EQ(dead(1, s_.edge_of(1, 1, 0)), 0) << "person 0's joint c in view 1 is in no bundle";
+  EXPECT_EQ(dead(0, s_.edge_of(0, 1, 1)), 0) << "person 1's joint a in view 1 is in no bundle";
+  for (int v = 0; v < kViews; ++v) {
+    if (v == 1) continue;
+    for (int p = 0; p < 2; ++p) {
+      EXPECT_EQ(dead(0, s_.edge_of(0, v, p)), 0);
+      EXPECT_EQ(dead(1, s_.edge_of(1, v, p)), 0);
+    }
+  }
+}
+
 // Person 0 has a second joint-b candidate 3 px from the first in view 2, with full affinity to
 // its joint a: two 2D limbs of track 0 in that view. View 2 stays out of track 0's bundle and
 // both of its 2D limbs are left to the clique search, which takes one of them.

@@ -191,5 +191,83 @@ TEST_F(TriangulateTest, ReprojectionErrorsAreCameraProjectsBitForBit) {
   EXPECT_GT(checked, 60);
 }
 
+// On a large rig, a joint whose all-views point misses the fast path because of a wrong view or
+// two (the views far from it a minority, the rest within the threshold of their own point) is
+// decided without the consensus search, with the search's result: the same views and point.
+// A wrong view that pulls the point so far that the right ones look like outliers, and one
+// that looks like an inlier at the all-views point (a small rig), are left to the search.
+TEST_F(TriangulateTest, ClearCutOutliersGiveTheConsensusResult) {
+  std::vector<Camera> cams;
+  for (int v = 0; v < 12; ++v) {
+    cams.push_back(ring_camera(kPi / 6 * v + 0.2, 3.0 + 0.25 * (v % 4), 0.8 + 0.15 * (v % 5),
+                               Eigen::Vector3d(0, 0, 1)));
+  }
+  TriangulationOptions search = opt_;
+  search.all_views_accept_error_px = 0;
+  int compared = 0;
+  int with_outliers = 0;
+  for (int trial = 0; trial < 60; ++trial) {
+    const Eigen::Vector3d X = X_ + Eigen::Vector3d(0.01 * (trial % 9), -0.015 * (trial % 5), 0);
+    const int n = 3 + trial % 10;  // 3..12 views
+    std::vector<Observation> o;
+    unsigned wrong = 0;
+    for (int v = 0; v < n; ++v) {
+      const Camera& cam = cams[static_cast<std::size_t>(v)];
+      // Noise up to ~10 px (the fast path misses some); views (trial + 3v) % 7 == 0 far off.
+      Eigen::Vector2d off(std::sin(trial * 1.7 + 3 * v) * 7, std::cos(trial * 0.9 + v) * 7);
+      if ((trial + 3 * v) % 7 == 0) {
+        off += Eigen::Vector2d(40 + 5 * (trial % 11), -30 + 7 * v);
+        wrong |= 1u << v;
+      }
+      Observation ob;
+      ob.view = v;
+      ob.px = *cam.project(X) + off;
+      ob.ray = cam.backproject(ob.px);
+      ob.weight = 0.6 + 0.03 * ((trial + v) % 9);
+      o.push_back(ob);
+    }
+    const TriangulatedPoint fast = triangulate(o, cams, opt_);
+    const TriangulatedPoint slow = triangulate(o, cams, search);
+    ASSERT_EQ(fast.valid, slow.valid) << "trial " << trial;
+    if (!slow.valid) continue;
+    EXPECT_EQ(fast.view_mask, slow.view_mask) << "trial " << trial;
+    EXPECT_LT((fast.X_m - slow.X_m).norm(), 1e-9) << "trial " << trial;
+    EXPECT_EQ(fast.views_used, slow.views_used) << "trial " << trial;
+    ++compared;
+    with_outliers += (wrong != 0 && (slow.view_mask & wrong) == 0) ? 1 : 0;
+  }
+  EXPECT_GT(compared, 50);
+  EXPECT_GT(with_outliers, 20);
+}
+
+// A joint seen by more than 32 views (a 64-camera rig) is triangulated from all of them, with
+// a wrong view left out, and its view set names views above 31.
+TEST_F(TriangulateTest, MoreThan32ViewsAreTriangulated) {
+  std::vector<Camera> cams;
+  for (int v = 0; v < kMaxObservations; ++v) {
+    cams.push_back(ring_camera(2 * kPi / kMaxObservations * v, 3.0 + 0.5 * (v % 3),
+                               0.8 + 0.1 * (v % 7), Eigen::Vector3d(0, 0, 1)));
+  }
+  for (const int n : {33, 48, kMaxObservations}) {
+    std::vector<Observation> o;
+    for (int v = 0; v < n; ++v) {
+      const Camera& cam = cams[static_cast<std::size_t>(v)];
+      Observation ob;
+      ob.view = v;
+      ob.px = *cam.project(X_) + (v == n - 2 ? Eigen::Vector2d(90, -40) : Eigen::Vector2d(0, 0));
+      ob.ray = cam.backproject(ob.px);
+      o.push_back(ob);
+    }
+    const TriangulatedPoint p = triangulate(o, cams, opt_);
+    ASSERT_TRUE(p.valid) << n << " views";
+    EXPECT_EQ(p.views_used, n - 1);
+    const ViewSet all = n == 64 ? ~ViewSet{0} : (ViewSet{1} << n) - 1;
+    EXPECT_EQ(p.view_mask, all & ~(ViewSet{1} << (n - 2))) << n << " views";
+    EXPECT_LT((p.X_m - X_).norm(), 1e-9);
+  }
+  std::vector<Observation> too_many(static_cast<std::size_t>(kMaxObservations + 1), Observation{});
+  EXPECT_FALSE(triangulate(too_many, cams, opt_).valid);
+}
+
 }  // namespace
 }  // namespace mocap::assoc
