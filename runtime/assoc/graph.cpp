@@ -50,7 +50,8 @@ inline __attribute__((always_inline)) double ray_pair_probability(double ax, dou
 // vectorise the loop.
 // On x86-64, GCC also builds an AVX2 version, picked at load time on CPUs that have it (no FMA:
 // the same operations, so the same values as the baseline SSE2 version).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+    !defined(__SANITIZE_THREAD__)  // TSan: ifunc resolvers run before its runtime is up
 #define MOCAP_PAIR_ROW_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define MOCAP_PAIR_ROW_CLONES

@@ -72,7 +72,8 @@ struct ObservationCameras {
 // the compiler vectorises (selects instead of branches; triangulate.cpp is compiled with
 // -fno-math-errno and -fno-trapping-math), so the same values bit for bit. On x86-64, GCC also
 // builds an AVX2 version (no FMA: the same operations).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+    !defined(__SANITIZE_THREAD__)  // TSan: ifunc resolvers run before its runtime is up
 #define MOCAP_REPROJECTION_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define MOCAP_REPROJECTION_CLONES

@@ -539,7 +539,8 @@ inline __attribute__((always_inline)) void observation_terms_of(ObservationLanes
   }
 }
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+    !defined(__SANITIZE_THREAD__)  // TSan: ifunc resolvers run before its runtime is up
 #define MOCAP_FIT_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define MOCAP_FIT_CLONES

@@ -18,6 +18,8 @@
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
+#include <ctime>
 #include <fstream>
 #include <string>
 #include <thread>
@@ -28,6 +30,7 @@
 #include "hal/libcamera/libcamera_camera.h"
 #include "hal/reconnecting_camera.h"
 #include "hal/v4l2/v4l2_camera.h"
+#include "runtime/core/clock.h"
 
 namespace mocap::hal {
 namespace {
@@ -250,6 +253,49 @@ bool vivid_disconnect(const std::string& node) {
   }
   ::close(fd);
   return pressed;
+}
+
+// An NTP step of the wall clock while a camera captures: 1 h back, then forward again. Capture
+// times are the driver's CLOCK_MONOTONIC stamps, and the stream's capture_unix_ns is that plus
+// one offset taken at start-up (realtime_offset_ns(), as mocapd does), so both keep rising
+// through both steps; only the offset a new start-up would take moves.
+TEST(HilV4l2, WallClockStepsLeaveCaptureTimesMonotonic) {
+  REQUIRE_GUEST();
+  V4l2CameraOptions o;
+  o.device = video_nodes().at(0);
+  o.request.format = PixelFormat::kYUYV;
+  o.request.width_px = 320;
+  o.request.height_px = 180;
+  o.request.frame_rate_hz = 30;
+  auto cam = V4l2Camera::open(o);
+  ASSERT_TRUE(cam.ok()) << cam.error().message();
+  ASSERT_TRUE((*cam)->start().ok());
+  const std::int64_t unix_offset_ns = realtime_offset_ns();  // mocapd's, taken once
+  constexpr std::int64_t kStep_s = 3600;
+  const auto step = [](std::int64_t by_s) {
+    timespec now{};
+    ::clock_gettime(CLOCK_REALTIME, &now);
+    now.tv_sec += by_s;
+    return ::clock_settime(CLOCK_REALTIME, &now) == 0;
+  };
+  std::vector<Frame> frames = capture(**cam, 10, false);
+  ASSERT_TRUE(step(-kStep_s)) << "clock_settime: " << std::strerror(errno);
+  const std::int64_t offset_after_back = realtime_offset_ns();
+  std::vector<Frame> more = capture(**cam, 10, false);
+  ASSERT_TRUE(step(kStep_s)) << "clock_settime: " << std::strerror(errno);
+  const std::int64_t offset_after_forward = realtime_offset_ns();
+  for (Frame& f : capture(**cam, 10, false)) more.push_back(std::move(f));
+  for (Frame& f : more) frames.push_back(std::move(f));
+  // The steps happened: a start-up now would take an offset 1 h apart, then the old one back.
+  EXPECT_NEAR(static_cast<double>(offset_after_back - unix_offset_ns) * 1e-9, -kStep_s, 5.0);
+  EXPECT_NEAR(static_cast<double>(offset_after_forward - unix_offset_ns) * 1e-9, 0, 5.0);
+  ASSERT_EQ(frames.size(), 30u);
+  for (std::size_t i = 1; i < frames.size(); ++i) {
+    const std::int64_t dt_ns = frames[i].timestamp_ns - frames[i - 1].timestamp_ns;
+    EXPECT_GT(dt_ns, 0) << "frame " << i;
+    EXPECT_LT(dt_ns, 1'000'000'000LL) << "frame " << i << ": a jump, not a frame period";
+    EXPECT_GT(frames[i].timestamp_ns + unix_offset_ns, frames[i - 1].timestamp_ns + unix_offset_ns);
+  }
 }
 
 // Two vivid cameras through the rig and the synchroniser. Camera 1 is disconnected
