@@ -755,26 +755,39 @@ std::int64_t device_lost_at_submit() {
 std::atomic<std::int64_t> g_submits{0};
 }  // namespace
 
+// A wait that gives up leaves the work in flight: the next frame must not reset the fence or
+// rewrite the buffers it is still reading (lavapipe crashed doing so after VK_TIMEOUT in the
+// emulated image). So the wait goes on in slices, saying so, and when it gives up the device
+// counts as lost: every later submission fails that way and the detector is opened again.
 Status Context::submit_and_wait(VkCommandBuffer cb) {
   if (const std::int64_t at = device_lost_at_submit(); at > 0 && ++g_submits == at) {
-    injected_lost_ = true;
+    lost_ = "submitting work (injected by MOCAP_FAULT_DEVICE_LOST_AT_SUBMIT)";
   }
-  if (injected_lost_) {
-    return vk_error(VK_ERROR_DEVICE_LOST,
-                    "submitting work (injected by MOCAP_FAULT_DEVICE_LOST_AT_SUBMIT)");
-  }
+  if (!lost_.empty()) return vk_error(VK_ERROR_DEVICE_LOST, lost_);
   VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
   si.commandBufferCount = 1;
   si.pCommandBuffers = &cb;
   vkResetFences(device_, 1, &fence_);
   if (VkResult r = vkQueueSubmit(queue_, 1, &si, fence_); r != VK_SUCCESS) {
+    if (r == VK_ERROR_DEVICE_LOST) lost_ = "submitting work";
     return vk_error(r, "submitting work");
   }
-  constexpr std::uint64_t kTimeout_ns = 60'000'000'000ull;
-  if (VkResult r = vkWaitForFences(device_, 1, &fence_, VK_TRUE, kTimeout_ns); r != VK_SUCCESS) {
-    return vk_error(r, "waiting for the GPU");
+  constexpr std::uint64_t kSlice_ns = 30'000'000'000ull;
+  constexpr int kSlices = 10;  // 5 minutes: a software device under emulation is that slow
+  for (int slice = 1;; ++slice) {
+    const VkResult r = vkWaitForFences(device_, 1, &fence_, VK_TRUE, kSlice_ns);
+    if (r == VK_SUCCESS) return Status::Ok();
+    if (r != VK_TIMEOUT) {
+      lost_ = "waiting for the GPU";
+      return vk_error(r, lost_);
+    }
+    if (slice == kSlices) {
+      lost_ = "waiting for the GPU, " + std::to_string(kSlices * 30) + " s without an answer";
+      return vk_error(VK_ERROR_DEVICE_LOST, lost_);
+    }
+    MOCAP_LOG(Gpu, Warn) << "the GPU has been busy with one submission for " << slice * 30
+                         << " s; waiting (it counts as lost after " << kSlices * 30 << " s)";
   }
-  return Status::Ok();
 }
 
 }  // namespace mocap::gpu

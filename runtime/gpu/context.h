@@ -192,7 +192,9 @@ class Context {
   std::uint32_t queue_family_ = 0;
   VkCommandPool pool_ = VK_NULL_HANDLE;
   VkFence fence_ = VK_NULL_HANDLE;
-  bool injected_lost_ = false;  // MOCAP_FAULT_DEVICE_LOST_AT_SUBMIT (context.cpp)
+  // Set when the device is lost, when a wait gave up with work still in flight, or by
+  // MOCAP_FAULT_DEVICE_LOST_AT_SUBMIT (context.cpp): every later submission fails as lost.
+  std::string lost_;
   VkPipelineCache pipeline_cache_ = VK_NULL_HANDLE;
   std::filesystem::path cache_path_;
 };

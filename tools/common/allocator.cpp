@@ -5,10 +5,14 @@
 namespace mocap {
 
 bool configure_allocator() {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  return true;  // the sanitizer's allocator stands in for glibc's: nothing to set
+#else
   // Setting either threshold explicitly also turns glibc's dynamic adjustment of both off.
   const bool mapped = ::mallopt(M_MMAP_THRESHOLD, static_cast<int>(kMappedBlockBytes)) == 1;
   const bool trimmed = ::mallopt(M_TRIM_THRESHOLD, static_cast<int>(kMappedBlockBytes)) == 1;
   return mapped && trimmed;
+#endif
 }
 
 HeapFigures heap_figures() {
