@@ -42,12 +42,11 @@ bool RecoveringDetector::reopen(const std::shared_ptr<Detector>& lost, const Err
   if (detector_ != lost) return true;  // already replaced
   MOCAP_LOG(Pipeline, Error) << "the CNN's device was lost (" << why.message()
                              << "): opening the detector again";
-  auto fresh = opener_(cpu_only_);
-  if (!fresh.ok() && !cpu_only_) {
+  auto fresh = opener_(stats_.on_cpu);
+  if (!fresh.ok() && !stats_.on_cpu) {
     MOCAP_LOG(Pipeline, Error) << "re-opening on the GPU failed (" << fresh.error().message()
                                << "): the CNN goes on on the CPU";
-    cpu_only_ = true;
-    stats_.on_cpu_since = 1;
+    stats_.on_cpu = true;
     fresh = opener_(true);
   }
   if (!fresh.ok() || *fresh == nullptr) {

@@ -21,7 +21,7 @@ namespace mocap::pipeline {
 struct DetectorRecoveryStats {
   std::uint64_t devices_lost = 0;    // kDeviceLost errors seen
   std::uint64_t reopened = 0;        // detectors opened again (GPU or CPU)
-  std::uint64_t on_cpu_since = 0;    // 1 when re-opening on the GPU failed and the CPU took over
+  bool on_cpu = false;               // re-opening on the GPU failed: the CPU took over for good
   std::uint64_t failed_reopens = 0;  // re-opening failed on both: the frame is an error
   std::string last_error;            // the last device loss or failed re-open
   std::string active;                // description() of the detector in use
@@ -51,7 +51,6 @@ class RecoveringDetector final : public Detector {
   Opener opener_;
   mutable std::mutex mu_;
   std::shared_ptr<Detector> detector_;
-  bool cpu_only_ = false;
   DetectorRecoveryStats stats_;
 };
 

@@ -899,7 +899,7 @@ std::string Daemon::health_json() const {
       j["gpu"]["devices_lost"] = r.devices_lost;
       j["gpu"]["reopened"] = r.reopened;
       j["gpu"]["last_device_error"] = r.last_error;
-      if (r.on_cpu_since > 0) j["gpu"]["backend"] = "cpu";
+      if (r.on_cpu) j["gpu"]["backend"] = "cpu";
     }
   }
   j["output"] = engine_ ? "skeletons" : "detections";
