@@ -1,15 +1,7 @@
-# ASan + UBSan for the test build (tools/test.sh --sanitize, CI).
-#
-# Optimisation in the sanitizer builds (CI time, measured on the 2-core machine, ccache off):
-# tools/test.sh builds them at -O1 (ASan's own advice), and the test sources themselves at -Og
-# (MOCAP_SANITIZER_TEST_OPT, tests/CMakeLists.txt): the tests are glue around the runtime, and
-# their compile time is code generation of gtest and instrumented inline code. Under ASan+UBSan
-# stream_server_test.cpp took 20.6 s at -O2, 12.5 at -O1, 7.2 at -Og; daemon_test.cpp 34.5 /
-# 22.3 / 15.0; the runtime's calib/compare.cpp 75.6 at -O2, 47.8 at -O1.
-set(MOCAP_SANITIZER_TEST_OPT "")
-if(MOCAP_SANITIZE OR MOCAP_TSAN)
-  set(MOCAP_SANITIZER_TEST_OPT -Og)
-endif()
+# ASan + UBSan for the test build (tools/test.sh --sanitize, CI). tools/test.sh builds the
+# sanitizer builds at -O1 (ASan's own advice; the test sources are -Og in every build:
+# MOCAP_TEST_OPT in tests/CMakeLists.txt). Measured under ASan+UBSan, ccache off: the
+# runtime's calib/compare.cpp 75.6 s at -O2, 47.8 at -O1.
 # Three UBSan checks are left out of this build, each one covered by ASan or the CPU and each
 # costly to compile: null (a null dereference faults, and ASan reports the SEGV with its stack),
 # object-size (out-of-bounds accesses are ASan's own red-zone checks) and alignment (x86-64

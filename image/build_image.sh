@@ -6,7 +6,10 @@
 #   --build DIR        CMake build folder whose install target goes into the image
 #                      (default: <repo>/build); it must already be built
 #   --out DIR          output folder (default: <build>/appliance), receives
-#                        mocap-box.img   raw ext4 filesystem image (sparse; label mocap-root)
+#                        mocap-box.img   raw ext4 root file system, mounted read-only (label
+#                                        mocap-root)
+#                        mocap-state.img raw ext4 state file system, mounted on /var (label
+#                                        mocap-state; sparse): calibration, takes, caches
 #                        vmlinuz         Debian's kernel, initrd.img its initramfs
 #                        manifest.txt    kernel, packages and versions, sizes, inputs
 #   --extra-tree DIR   copy DIR's tree into the rootfs after the project's install (repeatable;
@@ -26,7 +29,8 @@
 # udev, Mesa lavapipe...), docs/man/locales excluded, kernel modules xz-compressed;
 # (3) a copy of the base + the staged install + image/rootfs/ (hostname, DHCP on every
 # Ethernet port, the QEMU calibration import) + `systemctl enable mocapd`; (4) mkfs.ext4 -d
-# (no loop device, no mount). Needs root (chroot, device nodes, file ownership).
+# (no loop device, no mount) twice: the read-only root without /var, and /var, the only
+# writable file system (docs/hardening.md). Needs root (chroot, device nodes, file ownership).
 # A second run with unchanged inputs prints "up to date" and does nothing.
 set -euo pipefail
 
@@ -39,10 +43,11 @@ MIRROR=http://deb.debian.org/debian
 SECURITY_MIRROR=http://deb.debian.org/debian-security
 HOSTNAME_=mocap-box
 LABEL=mocap-root
+STATE_LABEL=mocap-state
 # Bump when the way the base rootfs is made changes (its cache key includes this).
 RECIPE_BASE=4
 # Bump when the per-image steps change (the up-to-date check includes this).
-RECIPE_IMAGE=3
+RECIPE_IMAGE=4
 
 # The appliance's fixed package set; the libraries of the installed binaries are added to it.
 BASE_PACKAGES=(
@@ -339,7 +344,7 @@ inputs=$(
         sum <"${BASH_SOURCE[0]}"
     } | sum
 )
-if ((!force)) && [[ -f $out/.inputs && "$(<"$out/.inputs")" == "$inputs" && -s $out/mocap-box.img && -s $out/vmlinuz && -s $out/initrd.img ]]; then
+if ((!force)) && [[ -f $out/.inputs && "$(<"$out/.inputs")" == "$inputs" && -s $out/mocap-box.img && -s $out/mocap-state.img && -s $out/vmlinuz && -s $out/initrd.img ]]; then
     safe_rm "$work"
     log "up to date: $out/mocap-box.img (inputs unchanged; --force rebuilds)"
     exit 0
@@ -355,8 +360,15 @@ cp -a "$stage/." "$rootfs/"
 cp -a --no-preserve=ownership "$HERE/rootfs/." "$rootfs/"
 echo "$HOSTNAME_" >"$rootfs/etc/hostname"
 printf '127.0.0.1\tlocalhost\n127.0.1.1\t%s\n::1\t\tlocalhost ip6-localhost ip6-loopback\n' "$HOSTNAME_" >"$rootfs/etc/hosts"
-printf 'LABEL=%s\t/\text4\tdefaults,noatime,x-systemd.growfs\t0\t1\n' "$LABEL" >"$rootfs/etc/fstab"
-ln -sf ../run/systemd/resolve/stub-resolv.conf "$rootfs/etc/resolv.conf"
+# Read-only root; /var (the state: calibration, takes, the Vulkan cache, systemd's and dpkg's
+# state) on a file system of its own, grown to its device at boot.
+{
+    printf 'LABEL=%s\t/\text4\tro,noatime\t0\t1\n' "$LABEL"
+    printf 'LABEL=%s\t/var\text4\tdefaults,noatime,nosuid,nodev,x-systemd.growfs\t0\t2\n' "$STATE_LABEL"
+} >"$rootfs/etc/fstab"
+# resolved without its stub listener (rootfs/etc/systemd/resolved.conf.d): the upstream servers
+# go straight into resolv.conf.
+ln -sf ../run/systemd/resolve/resolv.conf "$rootfs/etc/resolv.conf"
 # First boot generates the machine id (empty file = "uninitialized").
 : >"$rootfs/etc/machine-id"
 rm -f "$rootfs/var/lib/dbus/machine-id"
@@ -383,7 +395,7 @@ in_chroot "$rootfs" systemd-sysusers >"$work/sysusers.log" 2>&1 || {
 in_chroot "$rootfs" id mocap >/dev/null 2>&1 ||
     die "the rootfs has no user mocap after systemd-sysusers" "the install must put tools/mocapd/mocap-sysusers.conf in lib/sysusers.d"
 
-in_chroot "$rootfs" systemctl enable mocapd.service mocap-qemu-import.service systemd-networkd.service \
+in_chroot "$rootfs" systemctl enable mocapd.service mocap-qemu-import.service mocap-qemu-report.service systemd-networkd.service \
     systemd-resolved.service systemd-timesyncd.service >"$work/enable.log" 2>&1 || {
     cat "$work/enable.log" >&2
     die "systemctl enable failed in the rootfs (log above)" "check the unit files under $rootfs/usr/lib/systemd/system"
@@ -405,25 +417,37 @@ find "$rootfs/dev" -mindepth 1 -delete
 rm -rf "$rootfs/tmp/"* "$rootfs/var/tmp/"* "$rootfs/var/cache/apt/"*.bin "$rootfs/var/lib/apt/lists/"*
 log "rootfs assembled in $((SECONDS - t0)) s"
 
-# ---------------------------------------------------------------- 5. the file system image
+# ---------------------------------------------------------------- 5. the file system images
 t0=$SECONDS
-used_kib=$(du -s --block-size=1K "$rootfs" | cut -f1)
-inodes=$(find "$rootfs" | wc -l)
-# Content + 25% + 256 MiB free (logs, calibration, recordings stay small); x-systemd.growfs in
-# fstab grows it to the device when written to a bigger disk.
-size_mib=$(((used_kib * 5 / 4) / 1024 + 256))
-img=$out/mocap-box.img.new
-rm -f "$img"
-truncate -s "${size_mib}M" "$img"
-mkfs.ext4 -q -F -L "$LABEL" -N $((inodes * 2 + 16384)) -E root_owner=0:0 -d "$rootfs" "$img" >"$work/mkfs.log" 2>&1 || {
-    cat "$work/mkfs.log" >&2
-    die "mkfs.ext4 -d failed (log above)" "needs e2fsprogs >= 1.43 and free disk space in $out"
+# /var leaves the root for a file system of its own; the root keeps an empty mount point.
+mv "$rootfs/var" "$work/var"
+mkdir -m 0755 "$rootfs/var"
+# make_fs LABEL DIR FILE FREE_MIB: an ext4 image of DIR, content + 25 % + FREE_MIB.
+make_fs() {
+    local used inodes size
+    used=$(du -s --block-size=1K "$2" | cut -f1)
+    inodes=$(find "$2" | wc -l)
+    size=$(((used * 5 / 4) / 1024 + $4))
+    rm -f "$3"
+    truncate -s "${size}M" "$3"
+    mkfs.ext4 -q -F -L "$1" -N $((inodes * 2 + 16384)) -E root_owner=0:0 -d "$2" "$3" >"$work/mkfs.log" 2>&1 || {
+        cat "$work/mkfs.log" >&2
+        die "mkfs.ext4 -d of $1 failed (log above)" "needs e2fsprogs >= 1.43 and free disk space in $out"
+    }
+    echo "$size"
 }
+used_kib=$(du -s --block-size=1K "$rootfs" | cut -f1)
+# The root is never written: 32 MiB spare. The state gets 256 MiB free (calibration, takes, the
+# Vulkan cache; x-systemd.growfs grows it to its device when written to a bigger one).
+size_mib=$(make_fs "$LABEL" "$rootfs" "$out/mocap-box.img.new" 32)
+state_mib=$(make_fs "$STATE_LABEL" "$work/var" "$out/mocap-state.img.new" 256)
+img=$out/mocap-box.img.new
 cp "$rootfs/boot/vmlinuz-$abi" "$out/vmlinuz.new"
 cp "$rootfs/boot/initrd.img-$abi" "$out/initrd.img.new"
 mv "$out/vmlinuz.new" "$out/vmlinuz"
 mv "$out/initrd.img.new" "$out/initrd.img"
 mv "$img" "$out/mocap-box.img"
+mv "$out/mocap-state.img.new" "$out/mocap-state.img"
 log "mkfs.ext4 took $((SECONDS - t0)) s"
 
 {
@@ -432,7 +456,8 @@ log "mkfs.ext4 took $((SECONDS - t0)) s"
     echo "git=$(git -C "$ROOT" describe --always --dirty 2>/dev/null || echo '?')"
     echo "kernel=$abi"
     echo "root=locked$( ((serial_root)) && echo ', passwordless root on ttyS0 (--serial-root)')"
-    echo "image_mib=$size_mib (allocated $(du -m "$out/mocap-box.img" | cut -f1)) rootfs_used_mib=$((used_kib / 1024))"
+    echo "image_mib=$size_mib (allocated $(du -m "$out/mocap-box.img" | cut -f1)) rootfs_used_mib=$((used_kib / 1024)) read-only"
+    echo "state_mib=$state_mib (allocated $(du -m "$out/mocap-state.img" | cut -f1)) on /var"
     echo "vmlinuz_bytes=$(stat -c %s "$out/vmlinuz") initrd_bytes=$(stat -c %s "$out/initrd.img")"
     echo "base=$(basename "$base") $(sed -n 's/^created=/created /p' "$base/.mocap-base")"
     echo "# installed by cmake --install ($installed_by_cmake files) and --extra-tree:"
@@ -443,4 +468,4 @@ log "mkfs.ext4 took $((SECONDS - t0)) s"
 } >"$out/manifest.txt"
 echo "$inputs" >"$out/.inputs"
 safe_rm "$work"
-log "done in $((SECONDS - t_start)) s: $out/mocap-box.img (${size_mib} MiB, $(du -m "$out/mocap-box.img" | cut -f1) MiB allocated), vmlinuz, initrd.img ($abi)"
+log "done in $((SECONDS - t_start)) s: $out/mocap-box.img (${size_mib} MiB, $(du -m "$out/mocap-box.img" | cut -f1) MiB allocated, read-only), mocap-state.img (/var, ${state_mib} MiB), vmlinuz, initrd.img ($abi)"

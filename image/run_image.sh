@@ -2,7 +2,9 @@
 # run_image.sh - boot the mocap-box appliance image (image/build_image.sh) in QEMU (TCG).
 #
 # Usage: image/run_image.sh [options]
-#   --image DIR         folder with mocap-box.img, vmlinuz, initrd.img (default <repo>/build/appliance)
+#   --image DIR         folder with mocap-box.img (the read-only root, /dev/vda),
+#                       mocap-state.img (/var, /dev/vdb), vmlinuz, initrd.img
+#                       (default <repo>/build/appliance)
 #   --cameras N         N virtual vivid cameras (kernel command line: modules-load=vivid
 #                       vivid.n_devs=N vivid.node_types=0x1,...); default 0 (none)
 #   --calibration FILE  the guest finds FILE at /var/lib/mocap/calibration.json before mocapd
@@ -17,7 +19,7 @@
 #   --journal-console   journald also writes to the serial console (boot diagnostics)
 #   --mem MIB           guest memory (default 3072); --smp N: vCPUs (default 2)
 #   --timeout SEC       power the guest off after SEC seconds (default: none)
-# The disk is a throw-away snapshot (-drive snapshot=on): the image file is never modified.
+# The disks are throw-away snapshots (-drive snapshot=on): the image files are never modified.
 # SIGTERM/SIGINT to this script: ACPI power-off (clean systemd shutdown, up to 90 s), then kill.
 # Exit status: QEMU's (0 after a clean power-off), 124 after --timeout, 77 without QEMU.
 set -euo pipefail
@@ -77,7 +79,7 @@ if ! command -v qemu-system-x86_64 >/dev/null 2>&1; then
     echo "run_image.sh: qemu-system-x86_64 not found (apt-get install -y qemu-system-x86, or run tools/setup.sh)" >&2
     exit 77
 fi
-for f in mocap-box.img vmlinuz initrd.img; do
+for f in mocap-box.img mocap-state.img vmlinuz initrd.img; do
     [[ -s $image/$f ]] || bad "$image/$f not found (build the image: image/build_image.sh --build BUILD_DIR --out $image)"
 done
 if [[ -n $calibration ]]; then fw_files+=("calibration.json=$calibration"); fi
@@ -140,6 +142,7 @@ qemu=(
     -machine pc -accel "tcg,thread=multi" -cpu max -smp "$smp" -m "$mem"
     -kernel "$image/vmlinuz" -initrd "$image/initrd.img" -append "$cmdline"
     -drive "file=$image/mocap-box.img,format=raw,if=virtio,snapshot=on"
+    -drive "file=$image/mocap-state.img,format=raw,if=virtio,snapshot=on"
     -netdev "user,id=net0,hostfwd=tcp:127.0.0.1:$stream_port-:9870,hostfwd=tcp:127.0.0.1:$status_port-:9871"
     -device virtio-net-pci,netdev=net0
     -device virtio-rng-pci

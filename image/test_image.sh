@@ -70,7 +70,7 @@ for c in jq curl; do
 done
 
 # ---- the image: (re)built from the build folder unless MOCAP_IMAGE_BUILD=0.
-have_image() { [[ -s $image/mocap-box.img && -s $image/vmlinuz && -s $image/initrd.img ]]; }
+have_image() { [[ -s $image/mocap-box.img && -s $image/mocap-state.img && -s $image/vmlinuz && -s $image/initrd.img ]]; }
 if [[ ${MOCAP_IMAGE_BUILD:-1} == 0 ]]; then
     have_image || skip "no image in $image and MOCAP_IMAGE_BUILD=0 (build one: image/build_image.sh --build $build --out $image)"
     say "using the existing image $image (MOCAP_IMAGE_BUILD=0)"
@@ -190,6 +190,21 @@ jq -e 'type == "object"' <<<"$health" >/dev/null || fail "GET /health is not a J
 say "GET /health: $(jq -c '{status, problems, source: .source.kind, board: .source.board, calibration: .calibration.state, gpu: .gpu.device, output, frames_out: .pipeline.frames_out}' <<<"$health")"
 jq -e '.source.kind == "cameras" and .calibration.state == "ok" and .output == "skeletons"' <<<"$health" >/dev/null ||
     fail "GET /health: want source.kind cameras, calibration.state ok, output skeletons"
+# ---- the appliance's own report (mocap-qemu-report.service, once mocapd listens): the root
+# mounted read-only and refusing a write, /var on the state file system and writable, and no
+# listening socket but mocapd's, save the DHCP and NTP clients' own ports.
+report() { sed -e 's/\x1b\[[0-9;]*[A-Za-z]//g' -e 's/\r//g' "$serial" | grep -ao 'mocap-box-report: .*' | sed 's/^mocap-box-report: //'; }
+for _ in $(seq 120); do report | grep -qx done && break; sleep 1; done
+report | grep -qx done || fail "no mocap-box-report from the guest (mocap-qemu-report.service)"
+report | sed 's/^/    report: /'
+report | grep -Eq '^root [^ ]+ ext4 ro(,|$)' || fail "the root file system is not mounted read-only"
+report | grep -qx 'root_write refused' || fail "a write to / was not refused"
+report | grep -Eq '^var [^ ]+ ext4 rw(,|$).* label mocap-state$' || fail "/var is not the writable mocap-state file system"
+stray=$(report | grep '^listen ' | grep -v '"mocapd"' |
+    grep -Ev '^listen udp [^ ]+:(68|546) .*"systemd-network"|^listen udp [^ ]+ .*"systemd-timesyn"' || true)
+[[ -z $stray ]] || fail "listening sockets other than mocapd's: $stray"
+report | grep -q '^listen tcp [^ ]*:9870 .*"mocapd"' || fail "mocapd does not listen on 9870 (report above)"
+say "read-only root, /var on mocap-state, no listening service but mocapd"
 # Guest clock (kernel timestamps) of: systemd starting mocapd, mocapd listening.
 guest_t() { sed -e 's/\x1b\[[0-9;]*[A-Za-z]//g' "$serial" | grep -a -m1 "$1" | sed -n 's/^\[ *\([0-9.]*\)\].*/\1/p'; }
 mocapd_started=$(guest_t 'systemd\[1\]: Started mocapd.service')

@@ -6,7 +6,8 @@
 #     disconnected mid-stream and reconnected), the libcamera backend on vimc, the trigger
 #     master and monitor on gpio-sim lines, a GPIO line already requested;
 #   - the CLI: mocap cameras, capture, sync and trigger, checked on their last lines;
-#   - mocapd on the vivid cameras: 2D detections without calibration, skeletons with one.
+#   - mocapd on the vivid cameras: 2D detections without calibration, skeletons with one, and
+#     one camera unplugged and plugged back while it streams.
 # Exits with the number of failed checks (0 = pass).
 #
 #   guest.sh BUILD_DIR
@@ -158,6 +159,70 @@ if [[ $HEALTH == *'"state":"ok"'* && $HEALTH == *'320x180'* ]]; then
 else
   fail "mocapd /health: calibration ok, cameras at the calibrated 320x180"
 fi
+
+echo "== mocapd: camera 1 unplugged and plugged back under it (vivid's Disconnect)"
+# The camera path of a running daemon: vivid's Disconnect control makes camera 1 act like an
+# unplugged USB camera until mocapd closes it; mocapd's rig marks it lost, keeps streaming
+# from camera 0, re-opens camera 1 when it is back and takes it into the sets again.
+camera() {  # camera VIEW: that camera's object in a fresh /health (cameras in view order)
+  HEALTH=$(health 2>&1 || true)
+  grep -o '{[^{}]*"disconnects"[^{}]*}' <<<"$HEALTH" | sed -n "$(($1 + 1))p" || true
+}
+number() {  # number KEY JSON: the first KEY's value, 0 when absent
+  local v
+  v=$(grep -o "\"$1\":[0-9]*" <<<"$2" | head -n1 | cut -d: -f2) || true
+  echo "${v:-0}"
+}
+messages() { grep -c '"type":"skeletons"' /tmp/hil-unplug.ndjson 2>/dev/null || true; }
+at_least() { (($(messages) >= $1)); }
+camera1_gone() { [[ $(camera 1) == *'"disconnects":1'* ]]; }
+camera1_back() { local c; c=$(camera 1); [[ $c == *'"reconnects":1'* && $c == *'"state":"streaming"'* ]]; }
+XDG_CACHE_HOME=/tmp "$BUILD/bin/mocapd" --board-dir "$boards" --board hil --state-dir "$state" \
+  --gpu cpu --input-size-px 64 --status-log-interval-s 0 &
+dpid=$!
+"$MOCAP" stream --raw --messages 0 --timeout 150 >/tmp/hil-unplug.ndjson 2>&1 &
+spid=$!
+if wait_for 150 at_least 3; then
+  cam0_before=$(number frames "$(camera 0)")
+  n_before=$(messages)
+  if "$BUILD/tests/hil_vivid_disconnect" "$v1"; then pass "camera 1 ($v1) unplugged"; else fail "unplugging $v1"; fi
+  if wait_for 20 camera1_gone; then
+    pass "mocapd /health: camera 1 disconnected: $(camera 1 | cut -c1-300)"
+  else
+    fail "mocapd /health never counted camera 1's disconnect: $(camera 1 | cut -c1-300)"
+  fi
+  if wait_for 30 camera1_back; then
+    pass "camera 1 re-opened and streaming: $(camera 1 | cut -c1-300)"
+  else
+    fail "camera 1 never came back: $(camera 1 | cut -c1-300)"
+  fi
+  cam0_gap=$(number frames "$(camera 0)")
+  cam1_back=$(number frames "$(camera 1)")
+  n_back=$(messages)
+  sleep 3
+  cam1_later=$(number frames "$(camera 1)")
+  n_later=$(messages)
+  echo "    camera 0 frames $cam0_before -> $cam0_gap; stream messages $n_before -> $n_back -> $n_later; camera 1 frames after re-open $cam1_back -> $cam1_later"
+  if ((cam0_gap > cam0_before && n_back > n_before)); then
+    pass "camera 0 and the stream went on while camera 1 was away"
+  else
+    fail "camera 0 or the stream stopped while camera 1 was away"
+  fi
+  if ((cam1_later > cam1_back && n_later > n_back)); then
+    pass "camera 1 delivers again and the stream goes on"
+  else
+    fail "camera 1 does not deliver after re-opening, or the stream stopped"
+  fi
+  if kill -0 "$dpid" 2>/dev/null; then pass "the same mocapd process throughout"; else fail "mocapd died"; fi
+else
+  fail "mocapd streamed no skeletons before the unplug: $(tail -n2 /tmp/hil-unplug.ndjson)"
+fi
+kill -TERM "$dpid" 2>/dev/null || true
+drc=0
+wait "$dpid" || drc=$?
+kill "$spid" 2>/dev/null || true
+wait "$spid" 2>/dev/null || true
+if [[ $drc -eq 0 ]]; then pass "mocapd after the unplug: SIGTERM stops it, exit 0"; else fail "mocapd after the unplug: exit $drc"; fi
 
 echo "== HIL: $failures failure(s)"
 exit $((failures > 100 ? 100 : failures))

@@ -31,9 +31,12 @@
 #include "hal/reconnecting_camera.h"
 #include "hal/v4l2/v4l2_camera.h"
 #include "runtime/core/clock.h"
+#include "tests/hil/vivid.h"
 
 namespace mocap::hal {
 namespace {
+
+using mocap::hil::vivid_disconnect;
 
 std::string env(const char* name) {
   const char* v = std::getenv(name);
@@ -230,29 +233,6 @@ TEST(HilV4l2, BusyUnsupportedMissingAndPermissionErrorsNameTheDevice) {
   waitpid(pid, &status, 0);
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0) << "1: opened as nobody, 2: wrong message, 3: setuid failed";
-}
-
-// Presses vivid's "Disconnect" button control on `node`: the instance then behaves like an
-// unplugged USB camera (every ioctl fails with ENODEV, streaming stops) until its last file
-// handle is closed, when it comes back by itself.
-bool vivid_disconnect(const std::string& node) {
-  const int fd = ::open(node.c_str(), O_RDWR | O_CLOEXEC);
-  if (fd < 0) return false;
-  bool pressed = false;
-  v4l2_queryctrl q{};
-  q.id = V4L2_CTRL_FLAG_NEXT_CTRL;
-  while (::ioctl(fd, VIDIOC_QUERYCTRL, &q) == 0) {
-    if (std::string(reinterpret_cast<const char*>(q.name)) == "Disconnect") {
-      v4l2_control c{};
-      c.id = q.id;
-      c.value = 1;
-      pressed = ::ioctl(fd, VIDIOC_S_CTRL, &c) == 0;
-      break;
-    }
-    q.id |= V4L2_CTRL_FLAG_NEXT_CTRL;
-  }
-  ::close(fd);
-  return pressed;
 }
 
 // An NTP step of the wall clock while a camera captures: 1 h back, then forward again. Capture
