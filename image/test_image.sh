@@ -197,9 +197,9 @@ report() { sed -e 's/\x1b\[[0-9;]*[A-Za-z]//g' -e 's/\r//g' "$serial" | grep -ao
 for _ in $(seq 120); do report | grep -qx done && break; sleep 1; done
 report | grep -qx done || fail "no mocap-box-report from the guest (mocap-qemu-report.service)"
 report | sed 's/^/    report: /'
-report | grep -Eq '^root [^ ]+ ext4 ro(,|$)' || fail "the root file system is not mounted read-only"
+report | grep -Eq '^root [^ ]+ +ext4 +ro(,|$)' || fail "the root file system is not mounted read-only"
 report | grep -qx 'root_write refused' || fail "a write to / was not refused"
-report | grep -Eq '^var [^ ]+ ext4 rw(,|$).* label mocap-state$' || fail "/var is not the writable mocap-state file system"
+report | grep -Eq '^var [^ ]+ +ext4 +rw(,| ).* label mocap-state$' || fail "/var is not the writable mocap-state file system"
 stray=$(report | grep '^listen ' | grep -v '"mocapd"' |
     grep -Ev '^listen udp [^ ]+:(68|546) .*"systemd-network"|^listen udp [^ ]+ .*"systemd-timesyn"' || true)
 [[ -z $stray ]] || fail "listening sockets other than mocapd's: $stray"

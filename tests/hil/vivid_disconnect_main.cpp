@@ -10,8 +10,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (!mocap::hil::vivid_disconnect(argv[1])) {
-    std::fprintf(stderr, "hil_vivid_disconnect: %s: cannot open it, or it has no Disconnect "
-                 "control (not a vivid node)\n", argv[1]);
+    std::fprintf(stderr,
+                 "hil_vivid_disconnect: %s: cannot open it, or it has no Disconnect "
+                 "control (not a vivid node)\n",
+                 argv[1]);
     return 1;
   }
   return 0;
