@@ -124,7 +124,10 @@ int run_stream(Args args) {
       buf.erase(0, nl + 1);
       ++got;
       if (raw) {
+        // As they come: a line at a time into a pipe or a file too (stdout is block-buffered
+        // there), so a reader sees each message when it arrives, not at exit.
         std::printf("%s\n", line.c_str());
+        std::fflush(stdout);
         continue;
       }
       auto m = nlohmann::json::parse(line, nullptr, false);
