@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Runs the whole test suite (GoogleTest via CTest). Builds first if needed.
 #
-#   tools/test.sh              Release build in build/
-#   tools/test.sh --sanitize   ASan + UBSan build in build-asan/ (-O1, tests -Og; three UBSan
+#   tools/test.sh              Release build in build/ (GCC)
+#   tools/test.sh --sanitize   ASan + UBSan build in build-asan/ (clang, -O1, tests -Og; three UBSan
 #                              checks ASan covers are off: cmake/Sanitizers.cmake) of the test
 #                              executables it runs, and mocap, mocapd (some tests run them).
 #                              Left to the Release suite, to keep CI within its budget: the
@@ -12,7 +12,7 @@
 #                              longest self-calibration solves (3-4 min each under ASan; the
 #                              same solver runs under it in the other self-calibration cases,
 #                              the daemon's and the web page's recalibration).
-#   tools/test.sh --tsan       ThreadSanitizer build in build-tsan/ of the tests of threaded
+#   tools/test.sh --tsan       ThreadSanitizer build in build-tsan/ (clang) of the tests of threaded
 #                              code only (label "threads": pipeline, stream server, capture
 #                              rig, trigger, self-calibration worker, mocapd, fusion node),
 #                              those tests run under it; suppressions: tests/tsan.supp
@@ -41,18 +41,33 @@ bash "$ROOT/tools/setup.sh" --no-build
 LONG_SOLVES='SelfCalibrationTest\.(FiveViewsTwoPeopleFocalUnknown|LeftRightSwapsAndFalseCandidates)'
 LONG_SOLVES+='|CalibrateCliTest\.(SyntheticWritesCalibrationAndReport|ShelfWithinTargetsOfItsCalibration)'
 
+# The sanitizer builds use clang (Debian's clang 14, as the fuzz build does): it compiles this
+# code under ASan/TSan about 1.8 times faster than GCC 12 (measured on calib/epipolar.cpp at
+# -O1: ASan+UBSan 107.7 s with g++, 61.6 s with clang++; TSan 76.0 / 40.9 s), and it is a
+# second compiler's warnings on every file. A folder configured with another compiler is
+# configured afresh (CMake cannot change a build folder's compiler).
+SANITIZER_CC=(-DCMAKE_CXX_COMPILER=clang++ -DCMAKE_C_COMPILER=clang)
+fresh_if_not_clang() {
+  if [ -f "$1/CMakeCache.txt" ] && ! grep -q '^CMAKE_CXX_COMPILER:[A-Z]*=.*clang++' "$1/CMakeCache.txt"; then
+    echo "test.sh: $1 was configured with another compiler; configuring it afresh with clang++"
+    rm -rf "$1/CMakeCache.txt" "$1/CMakeFiles"
+  fi
+}
+
 if [ "$SANITIZE" -eq 1 ]; then
   B="$ROOT/build-asan"
+  fresh_if_not_clang "$B"
   cmake -S "$ROOT" -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMOCAP_SANITIZE=ON \
-    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g0 -DNDEBUG" >/dev/null
+    "${SANITIZER_CC[@]}" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g0 -DNDEBUG" >/dev/null
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
   # The labels left to the Release suite: MOCAP_RELEASE_ONLY_LABELS (tests/CMakeLists.txt).
   CTEST_ARGS=(-LE "$(<"$B/release_only_labels.txt")" -E "$LONG_SOLVES" "${CTEST_ARGS[@]}")
   BUILD_TARGET=(--target mocap_asan_tests)
 elif [ "$TSAN" -eq 1 ]; then
   B="$ROOT/build-tsan"
+  fresh_if_not_clang "$B"
   cmake -S "$ROOT" -B "$B" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMOCAP_TSAN=ON \
-    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" >/dev/null
+    "${SANITIZER_CC[@]}" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" >/dev/null
   export TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$ROOT/tests/tsan.supp"
   # Left out: the calibration CLI tests (they run build/bin/mocap, another process) and the two
   # longest self-calibration solves (4 min each under TSan; the same solver and Ceres threads

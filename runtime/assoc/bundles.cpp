@@ -855,8 +855,10 @@ bool make_picks(const FrameGraph& graph, const Limb& L, std::span<const LimbEdge
   for (int& e : sc.pick) {
     const bool live = e >= 0;
     const LimbEdge& x = edges[ix(live ? e : 0)];
-    const bool shared = (sc.owner_a[ix(x.ka)] < 0) | (sc.owner_b[ix(x.kb)] < 0);
-    e = live & shared ? -2 : e;
+    // Branch-free on purpose: the bitwise forms, spelled out as unsigned for clang.
+    const bool shared = (static_cast<unsigned>(sc.owner_a[ix(x.ka)] < 0) |
+                         static_cast<unsigned>(sc.owner_b[ix(x.kb)] < 0)) != 0U;
+    e = (live & shared) ? -2 : e;
     any_ambiguous |= e == -2;
   }
   return any_ambiguous;

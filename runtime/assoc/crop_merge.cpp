@@ -33,8 +33,8 @@ int nearest_unclaimed(const ViewDetections& view, const CropClaims& claims, int 
   double best_d2 = radius_px * radius_px;
   for (std::size_t i = 0; i < cands.size(); ++i) {
     if (claims[static_cast<std::size_t>(j)][i]) continue;
-    const double dx = cands[i].x_px - at.x_px;
-    const double dy = cands[i].y_px - at.y_px;
+    const double dx = static_cast<double>(cands[i].x_px - at.x_px);
+    const double dy = static_cast<double>(cands[i].y_px - at.y_px);
     const double d2 = dx * dx + dy * dy;
     if (d2 <= best_d2) {
       best_d2 = d2;

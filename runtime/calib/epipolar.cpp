@@ -87,7 +87,10 @@ int ransac_iterations(int inliers, std::size_t points, int sample, int cap) {
   if (all_good <= 0) return cap;
   // Samples for a 99.9 % chance that one was all inliers (at least 20).
   const double n = std::log(1e-3) / std::log1p(-all_good);
-  return std::clamp(static_cast<int>(std::ceil(n)), 20, cap);
+  // Bounded before the conversion: after a hypothesis with few inliers n is far beyond int
+  // (5 of 100 for the 8-point sample: 1.8e11), which used to wrap to INT_MIN on x86-64, clamp to
+  // 20 and end the search after 20 samples (found by clang's UBSan, float-cast-overflow).
+  return static_cast<int>(std::min(std::max(std::ceil(n), 20.0), static_cast<double>(cap)));
 }
 
 FundamentalFit ransac_fundamental(std::span<const Eigen::Vector2d> a,
@@ -163,7 +166,8 @@ Eigen::Vector3d triangulate_normalized(std::span<const Eigen::Matrix<double, 3, 
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es(AtA);
   const Eigen::Vector4d X = es.eigenvectors().col(0);
-  if (std::abs(X(3)) < 1e-12) return Eigen::Vector3d::Constant(NAN);
+  if (std::abs(X(3)) < 1e-12)
+    return Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   return X.head<3>() / X(3);
 }
 

@@ -161,7 +161,9 @@ std::vector<Person2D> parse_view_people(const ViewDetections& view,
       if (c < 0) continue;
       const JointCandidate& k =
           view.candidates[static_cast<std::size_t>(j)][static_cast<std::size_t>(c)];
-      p.joints[static_cast<std::size_t>(j)] = {k.x_px, k.y_px, std::clamp(k.score, 1e-3f, 1.f)};
+      p.joints[static_cast<std::size_t>(j)] = {
+          static_cast<double>(k.x_px), static_cast<double>(k.y_px),
+          static_cast<double>(std::clamp(k.score, 1e-3f, 1.f))};
     }
     if (p.detected_joints() >= options.min_person_joints) out.push_back(std::move(p));
   }

@@ -125,7 +125,8 @@ void QualityMeter::add_loo(const DetectionSet& detections, const PersonSkeleton&
       for (int v = 0; v < V; ++v) {
         if (v == out || used[ix(v)] == nullptr) continue;
         const Ray ray = cameras_[ix(v)].backproject({used[ix(v)]->x_px, used[ix(v)]->y_px});
-        assoc::add_ray_normal_equations(ray, std::max(1e-3, double{used[ix(v)]->score}), A, b);
+        assoc::add_ray_normal_equations(
+            ray, std::max(1e-3, static_cast<double>(used[ix(v)]->score)), A, b);
       }
       const Eigen::Vector3d X = A.ldlt().solve(b);
       const auto px = cameras_[ix(out)].project(X);

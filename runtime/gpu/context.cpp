@@ -1,6 +1,8 @@
 #include "runtime/gpu/context.h"
 
-#if defined(__SANITIZE_ADDRESS__)
+#include "runtime/core/sanitizers.h"
+
+#if MOCAP_ASAN
 #include <dlfcn.h>
 #include <link.h>
 #endif
@@ -384,7 +386,7 @@ namespace {
 // builds the loaded drivers and layers therefore stay mapped until exit (RTLD_NODELETE), so the
 // leak check stays about our own code; other builds are unchanged.
 void keep_vulkan_libraries_for_leak_checks() {
-#if defined(__SANITIZE_ADDRESS__)
+#if MOCAP_ASAN
   dl_iterate_phdr(
       [](dl_phdr_info* info, std::size_t, void*) -> int {
         const char* name = info->dlpi_name;

@@ -126,8 +126,9 @@ Result<std::vector<CropPose>> CropRefiner::run_chunk(std::span<const nn::FrameVi
     CropPose p;
     p.center_score = pose->center_score;
     for (const nn::SinglePoseJoint& j : pose->joints) {
-      p.joints.push_back({static_cast<float>(box.image_x(j.x_net_px)),
-                          static_cast<float>(box.image_y(j.y_net_px)), j.score});
+      p.joints.push_back({static_cast<float>(box.image_x(static_cast<double>(j.x_net_px))),
+                          static_cast<float>(box.image_y(static_cast<double>(j.y_net_px))),
+                          j.score});
     }
     out.push_back(std::move(p));
   }

@@ -9,7 +9,7 @@ namespace mocap::out {
 namespace {
 
 constexpr std::size_t kNoPrefix = std::numeric_limits<std::size_t>::max();
-constexpr std::size_t kMaxElementBytes =
+[[maybe_unused]] constexpr std::size_t kMaxElementBytes =
     static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max());
 
 // Big-endian stores, byte by byte: correct on any host byte order.

@@ -349,8 +349,8 @@ TEST_F(BundleTest, ScoreMatchesTheDocumentedFormula) {
   const FrameGraph& G = s_.graph_;
   const int ka0 = s_.k_of(0, 0, 0), ka1 = s_.k_of(0, 1, 0);
   const int kb0 = s_.k_of(1, 0, 0), kb1 = s_.k_of(1, 1, 0);
-  const double m_a = G.match(0, ka0, ka1);
-  const double m_b = G.match(1, kb0, kb1);
+  const double m_a = static_cast<double>(G.match(0, ka0, ka1));
+  const double m_b = static_cast<double>(G.match(1, kb0, kb1));
   ASSERT_GT(m_a, 0.99);
   ASSERT_GT(m_b, 0.3);
   ASSERT_LT(m_b, 0.95);
@@ -367,8 +367,10 @@ TEST_F(BundleTest, ScoreMatchesTheDocumentedFormula) {
 
   // With the track: E_track is the mean over the 2D limbs of the mean tracking probability of
   // their two endpoints.
-  const double t0 = 0.5 * (double{G.track(0, 0, ka0)} + double{G.track(1, 0, kb0)});
-  const double t1 = 0.5 * (double{G.track(0, 0, ka1)} + double{G.track(1, 0, kb1)});
+  const double t0 =
+      0.5 * (static_cast<double>(G.track(0, 0, ka0)) + static_cast<double>(G.track(1, 0, kb0)));
+  const double t1 =
+      0.5 * (static_cast<double>(G.track(0, 0, ka1)) + static_cast<double>(G.track(1, 0, kb1)));
   ASSERT_GT(t0, 0.5);
   ASSERT_LT(t0, 0.99);
   const double e_track = 0.5 * (t0 + t1);

@@ -263,6 +263,12 @@ TEST(EpipolarTest, EssentialAndPoseFromExactPoints) {
   EXPECT_GT(rp.t.dot(t), 1 - 1e-9);
   EXPECT_EQ(ransac_iterations(100, 100, 8, 300), 1);
   EXPECT_EQ(ransac_iterations(0, 100, 8, 300), 300);
+  EXPECT_EQ(ransac_iterations(70, 100, 8, 1000), 117);  // ceil(log(1e-3) / log(1 - 0.7^8))
+  EXPECT_EQ(ransac_iterations(95, 100, 8, 300), 20);    // the floor
+  // Few inliers: far more samples than an int holds, so the cap (it was 20: the double
+  // converted to int overflowed to INT_MIN and was clamped up to the floor).
+  EXPECT_EQ(ransac_iterations(5, 100, 8, 300), 300);
+  EXPECT_EQ(ransac_iterations(1, 1000, 6, 500), 500);
 }
 
 TEST(People2DTest, KeypointFileRoundTripAndBadInput) {

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -96,7 +97,7 @@ TEST(PoseFilter, BadOptionsNameTheField) {
   o.beta_per_m = -1;
   EXPECT_NE(o.validate().error().message().find("beta_per_m"), std::string::npos);
   o = on();
-  o.derivative_cutoff_hz = NAN;
+  o.derivative_cutoff_hz = std::numeric_limits<double>::quiet_NaN();
   EXPECT_NE(o.validate().error().message().find("derivative_cutoff_hz"), std::string::npos);
   o = on();
   o.max_gap_s = 0;

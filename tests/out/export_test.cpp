@@ -335,8 +335,9 @@ std::vector<Vector3d> gltf_positions(const tinygltf::Model& model, std::size_t f
                 model.buffers[0].data.data() + view.byteOffset + a.byteOffset +
                     f * ix(width) * sizeof(float),
                 k.size() * sizeof(float));
-    if (width == 4) r[ix(c.target_node)] = Quaterniond(k[3], k[0], k[1], k[2]).normalized();
-    if (width == 3) t[ix(c.target_node)] = Vector3d(k[0], k[1], k[2]);
+    const Eigen::VectorXd kd = Eigen::Map<const Eigen::VectorXf>(k.data(), width).cast<double>();
+    if (width == 4) r[ix(c.target_node)] = Quaterniond(kd[3], kd[0], kd[1], kd[2]).normalized();
+    if (width == 3) t[ix(c.target_node)] = Vector3d(kd[0], kd[1], kd[2]);
   }
   std::vector<Vector3d> world_p(model.nodes.size(), Vector3d::Zero());
   std::vector<Quaterniond> world_r(model.nodes.size(), Quaterniond::Identity());

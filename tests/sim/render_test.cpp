@@ -15,12 +15,6 @@
 #include "runtime/sim/scene.h"
 #include "runtime/skeleton/topology.h"
 
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define MOCAP_SIM_TEST_ASAN 1
-#endif
-#endif
-
 namespace mocap::sim {
 namespace {
 

@@ -2,10 +2,12 @@
 
 #include <malloc.h>
 
+#include "runtime/core/sanitizers.h"
+
 namespace mocap {
 
 bool configure_allocator() {
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#if MOCAP_ASAN || MOCAP_TSAN
   return true;  // the sanitizer's allocator stands in for glibc's: nothing to set
 #else
   // Setting either threshold explicitly also turns glibc's dynamic adjustment of both off.

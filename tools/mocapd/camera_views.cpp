@@ -49,9 +49,9 @@ json best_candidates(const ViewDetections& v) {
     if (best == cands.end()) {
       joints.push_back(nullptr);
     } else {
-      joints.push_back({std::round(double{best->x_px} * 10) / 10,
-                        std::round(double{best->y_px} * 10) / 10,
-                        std::round(double{best->score} * 1000) / 1000});
+      joints.push_back({std::round(static_cast<double>(best->x_px) * 10) / 10,
+                        std::round(static_cast<double>(best->y_px) * 10) / 10,
+                        std::round(static_cast<double>(best->score) * 1000) / 1000});
     }
   }
   return joints;
