@@ -6,6 +6,8 @@
 
 #include <Eigen/Geometry>
 
+#include "runtime/geometry/camera.h"
+
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -14,22 +16,59 @@ namespace mocap::calib {
 
 namespace {
 
+// Parameter blocks: rotation (3), translation (3), focal scale (1), principal point (2),
+// k1 k2 (2), point (3). p1, p2, k3 are constants of the camera.
 struct Reprojection {
-  Reprojection(const Eigen::Vector2d& px, double weight, double fx_px, double fy_px, double cx_px,
-               double cy_px)
-      : u(px.x()), v(px.y()), w(weight), fx(fx_px), fy(fy_px), cx(cx_px), cy(cy_px) {}
+  Reprojection(const Eigen::Vector2d& px, double weight, const BundleCamera& c)
+      : u(px.x()),
+        v(px.y()),
+        w(weight),
+        fx(c.fx),
+        fy(c.fy),
+        p1(c.dist[2]),
+        p2(c.dist[3]),
+        k3(c.dist[4]) {}
   template <typename T>
-  bool operator()(const T* aa, const T* t, const T* s, const T* X, T* r) const {
+  bool operator()(const T* aa, const T* t, const T* s, const T* pp, const T* k, const T* X,
+                  T* r) const {
     T Xc[3];
     ceres::AngleAxisRotatePoint(aa, X, Xc);
     Xc[0] += t[0], Xc[1] += t[1], Xc[2] += t[2];
     if (Xc[2] < T(1e-9)) Xc[2] = T(1e-9);
-    r[0] = T(w) * (s[0] * T(fx) * Xc[0] / Xc[2] + T(cx) - T(u));
-    r[1] = T(w) * (s[0] * T(fy) * Xc[1] / Xc[2] + T(cy) - T(v));
+    const T x = Xc[0] / Xc[2], y = Xc[1] / Xc[2];
+    const T r2 = x * x + y * y;
+    const T radial = T(1) + r2 * (k[0] + r2 * (k[1] + r2 * T(k3)));
+    const T xd = x * radial + T(2 * p1) * x * y + T(p2) * (r2 + T(2) * x * x);
+    const T yd = y * radial + T(p1) * (r2 + T(2) * y * y) + T(2 * p2) * x * y;
+    r[0] = T(w) * (s[0] * T(fx) * xd + pp[0] - T(u));
+    r[1] = T(w) * (s[0] * T(fy) * yd + pp[1] - T(v));
     return true;
   }
-  double u, v, w, fx, fy, cx, cy;
+  double u, v, w, fx, fy, p1, p2, k3;
 };
+
+// (value - prior) / sd x scale, per component.
+template <int N>
+struct Prior {
+  Prior(const double* prior, double sd, double scale) : w(scale / sd) {
+    for (int i = 0; i < N; ++i) p[i] = prior[i];
+  }
+  template <typename T>
+  bool operator()(const T* x, T* r) const {
+    for (int i = 0; i < N; ++i) r[i] = T(w) * (x[i] - T(p[i]));
+    return true;
+  }
+  double p[N];
+  double w;
+};
+
+template <int N>
+void add_prior(ceres::Problem& problem, double* block, double sd, double scale) {
+  if (sd <= 0) return;
+  problem.AddResidualBlock(
+      new ceres::AutoDiffCostFunction<Prior<N>, N, N>(new Prior<N>(block, sd, scale)), nullptr,
+      block);
+}
 
 struct BoneLength {
   explicit BoneLength(double weight) : w(weight) {}
@@ -95,6 +134,33 @@ int refine_rotation_robust(const std::vector<Eigen::Vector3d>& X,
   return in;
 }
 
+bool project_px(const BundleCamera& c, const Eigen::Vector3d& X, Eigen::Vector2d& px) {
+  const Eigen::Vector3d Xc = rotation_of(c) * X + c.t;
+  if (Xc.z() <= 1e-9) return false;
+  Eigen::Vector2d x = Xc.hnormalized();
+  if (c.has_distortion()) {
+    const Distortion d{c.dist[0], c.dist[1], c.dist[2], c.dist[3], c.dist[4]};
+    x = distort_normalized(d, x);
+  }
+  px = {c.focal_scale * c.fx * x.x() + c.cx(), c.focal_scale * c.fy * x.y() + c.cy()};
+  return true;
+}
+
+double project_error_px(const BundleCamera& c, const Eigen::Vector3d& X,
+                        const Eigen::Vector2d& px) {
+  Eigen::Vector2d q;
+  if (!project_px(c, X, q)) return std::numeric_limits<double>::infinity();
+  return (q - px).norm();
+}
+
+Eigen::Vector2d normalized_point(const BundleCamera& c, const Eigen::Vector2d& px) {
+  const Eigen::Vector2d xd((px.x() - c.cx()) / (c.fx * c.focal_scale),
+                           (px.y() - c.cy()) / (c.fy * c.focal_scale));
+  if (!c.has_distortion()) return xd;
+  return undistort_normalized(Distortion{c.dist[0], c.dist[1], c.dist[2], c.dist[3], c.dist[4]},
+                              xd);
+}
+
 Eigen::Matrix3d rotation_of(const BundleCamera& c) {
   const double angle = c.angle_axis.norm();
   if (angle < 1e-15) return Eigen::Matrix3d::Identity();
@@ -102,12 +168,8 @@ Eigen::Matrix3d rotation_of(const BundleCamera& c) {
 }
 
 double reprojection_px(const BundleProblem& p, const BundleObservation& o) {
-  const BundleCamera& c = p.cameras[static_cast<std::size_t>(o.camera)];
-  const Eigen::Vector3d Xc = rotation_of(c) * p.points[static_cast<std::size_t>(o.point)] + c.t;
-  if (Xc.z() <= 1e-9) return std::numeric_limits<double>::infinity();
-  const Eigen::Vector2d px(c.focal_scale * c.fx * Xc.x() / Xc.z() + c.cx,
-                           c.focal_scale * c.fy * Xc.y() / Xc.z() + c.cy);
-  return (px - o.px).norm();
+  return project_error_px(p.cameras[static_cast<std::size_t>(o.camera)],
+                          p.points[static_cast<std::size_t>(o.point)], o.px);
 }
 
 BundleSummary run_bundle(BundleProblem& p, const BundleOptions& o) {
@@ -119,10 +181,10 @@ BundleSummary run_bundle(BundleProblem& p, const BundleOptions& o) {
     const auto pi = static_cast<std::size_t>(ob.point);
     BundleCamera& c = p.cameras[static_cast<std::size_t>(ob.camera)];
     if (!ob.inlier || !c.registered || !p.point_valid[pi]) continue;
-    auto* cost = new ceres::AutoDiffCostFunction<Reprojection, 2, 3, 3, 1, 3>(
-        new Reprojection(ob.px, std::sqrt(ob.weight), c.fx, c.fy, c.cx, c.cy));
+    auto* cost = new ceres::AutoDiffCostFunction<Reprojection, 2, 3, 3, 1, 2, 2, 3>(
+        new Reprojection(ob.px, std::sqrt(ob.weight), c));
     problem.AddResidualBlock(cost, new ceres::HuberLoss(o.huber_px), c.angle_axis.data(),
-                             c.t.data(), &c.focal_scale, p.points[pi].data());
+                             c.t.data(), &c.focal_scale, c.principal, c.dist, p.points[pi].data());
     point_used[pi] = true;
   }
   if (o.bone_weight > 0) {
@@ -139,11 +201,29 @@ BundleSummary run_bundle(BundleProblem& p, const BundleOptions& o) {
   for (std::size_t i = 0; i < p.cameras.size(); ++i) {
     BundleCamera& c = p.cameras[i];
     if (!c.registered || !problem.HasParameterBlock(c.t.data())) continue;
-    if (!o.estimate_focal) {
+    const bool mine =
+        o.intrinsics.only_camera < 0 || o.intrinsics.only_camera == static_cast<int>(i);
+    const IntrinsicsRefinement in = mine ? o.intrinsics : IntrinsicsRefinement{};
+    if (!o.estimate_focal && !in.focal) {
       problem.SetParameterBlockConstant(&c.focal_scale);
     } else {
       problem.SetParameterLowerBound(&c.focal_scale, 0, 0.2);
       problem.SetParameterUpperBound(&c.focal_scale, 0, 5.0);
+      if (in.focal) add_prior<1>(problem, &c.focal_scale, in.focal_sd, in.prior_px);
+    }
+    if (!in.principal_point) {
+      problem.SetParameterBlockConstant(c.principal);
+    } else {
+      add_prior<2>(problem, c.principal, in.principal_sd_px, in.prior_px);
+    }
+    if (!in.radial) {
+      problem.SetParameterBlockConstant(c.dist);
+    } else {
+      add_prior<2>(problem, c.dist, in.radial_sd, in.prior_px);
+      for (int k = 0; k < 2; ++k) {
+        problem.SetParameterLowerBound(c.dist, k, -1.5);
+        problem.SetParameterUpperBound(c.dist, k, 1.5);
+      }
     }
     if (static_cast<int>(i) == o.fixed_camera) {
       problem.SetParameterBlockConstant(c.angle_axis.data());

@@ -15,9 +15,33 @@ namespace mocap::calib {
 struct BundleCamera {
   Eigen::Vector3d angle_axis = Eigen::Vector3d::Zero();  // world -> camera rotation
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
-  double fx = 1, fy = 1, cx = 0, cy = 0;  // pixels (ideal pinhole: keypoints are undistorted)
-  double focal_scale = 1;                 // fx, fy are multiplied by this (estimated or 1)
+  double fx = 1, fy = 1;         // pixels
+  double principal[2] = {0, 0};  // cx, cy (pixels)
+  double cx() const { return principal[0]; }
+  double cy() const { return principal[1]; }
+  double focal_scale = 1;  // fx, fy are multiplied by this (estimated or 1)
+  // Lens distortion (OpenCV: k1, k2, p1, p2, k3 on normalised coordinates) between the ideal
+  // pinhole and the observed pixels; k1 and k2 may be estimated, the rest is held.
+  double dist[5] = {0, 0, 0, 0, 0};
   bool registered = false;
+  bool has_distortion() const {
+    return dist[0] != 0 || dist[1] != 0 || dist[2] != 0 || dist[3] != 0 || dist[4] != 0;
+  }
+};
+
+// What the adjustment may change of the cameras' intrinsics, and the priors that hold them
+// near what was known (a calibration file) or assumed (image centre, no distortion).
+struct IntrinsicsRefinement {
+  bool focal = false;            // one scale of fx and fy per camera
+  bool principal_point = false;  // cx, cy
+  bool radial = false;           // k1, k2
+  // Prior standard deviations (0: no prior). The reprojection residuals are pixels; a prior's
+  // residual is (value - prior) / sd x prior_px, the pixel noise the priors are weighed against.
+  double focal_sd = 0;  // of the scale (0.05: 5 %)
+  double principal_sd_px = 0;
+  double radial_sd = 0;
+  double prior_px = 3;
+  int only_camera = -1;  // >= 0: only this camera's intrinsics move
 };
 
 struct BundleObservation {
@@ -35,7 +59,8 @@ struct BundleBone {
 
 struct BundleOptions {
   double huber_px = 3.0;
-  bool estimate_focal = false;
+  bool estimate_focal = false;  // the focal scale (without priors; see intrinsics)
+  IntrinsicsRefinement intrinsics;
   double bone_weight = 0;  // residual per bone: weight x (|a - b| / length - 1); 0 = off
   int max_iterations = 50;
   int fixed_camera = 0;  // held constant
@@ -59,7 +84,8 @@ struct BundleSummary {
   bool converged = false;
 };
 
-// Adjusts the registered cameras and the valid points seen by them (inlier observations only).
+// Adjusts the registered cameras and the valid points seen by them (inlier observations only);
+// the intrinsics as options.intrinsics allows (priors at the values they start from).
 BundleSummary run_bundle(BundleProblem& problem, const BundleOptions& options);
 
 // A camera's rotation refined from a guess, its centre held (a bumped camera turns), against
@@ -73,6 +99,13 @@ int refine_rotation_robust(const std::vector<Eigen::Vector3d>& X,
 
 // Reprojection (pixels) of an observation; +inf when the point is behind the camera.
 double reprojection_px(const BundleProblem& problem, const BundleObservation& o);
+// The same for a world point and an observed (distorted) pixel.
+double project_error_px(const BundleCamera& c, const Eigen::Vector3d& X, const Eigen::Vector2d& px);
+// The observed pixel of a world point; false when the point is behind the camera.
+bool project_px(const BundleCamera& c, const Eigen::Vector3d& X, Eigen::Vector2d& px);
+// An observed (distorted) pixel -> ideal normalised coordinates (K^-1, then the distortion
+// undone).
+Eigen::Vector2d normalized_point(const BundleCamera& c, const Eigen::Vector2d& px);
 Eigen::Matrix3d rotation_of(const BundleCamera& c);
 
 }  // namespace mocap::calib

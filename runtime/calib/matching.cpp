@@ -64,14 +64,17 @@ struct Scored {
 // The tracklet pairs F accepts, one-to-one at any time, strongest first.
 Scored accept_pairs(const std::vector<Tracklet>& a, const std::vector<Tracklet>& b,
                     const std::vector<std::pair<int, int>>& candidates, const Eigen::Matrix3d& F,
-                    const std::vector<int>& mirror, const MatchOptions& o) {
+                    const std::vector<int>& mirror, const MatchOptions& o,
+                    const CorrespondenceCheck& check = {}) {
   const double thr_sq = o.ransac.threshold_px * o.ransac.threshold_px;
   std::vector<TrackletMatch> ok;
   for (const auto& [i, j] : candidates) {
     const Correspondences c = tracklet_correspondences(a[static_cast<std::size_t>(i)],
                                                        b[static_cast<std::size_t>(j)], &F, mirror);
     int in = 0;
-    for (std::size_t k = 0; k < c.a.size(); ++k) in += sampson_sq(F, c.a[k], c.b[k]) < thr_sq;
+    for (std::size_t k = 0; k < c.a.size(); ++k) {
+      in += sampson_sq(F, c.a[k], c.b[k]) < thr_sq && (!check || check(c.a[k], c.b[k]));
+    }
     if (c.a.empty() || in < o.min_inlier_ratio * static_cast<double>(c.a.size())) continue;
     ok.push_back({i, j,
                   overlap_frames(a[static_cast<std::size_t>(i)], b[static_cast<std::size_t>(j)]),
@@ -210,8 +213,32 @@ ViewPairMatch match_view_pair(const std::vector<Tracklet>& a, const std::vector<
   return out;
 }
 
+ViewPairMatch match_under(const std::vector<Tracklet>& a, const std::vector<Tracklet>& b,
+                          int view_a, int view_b, const Eigen::Matrix3d& F,
+                          const std::vector<int>& mirror, const MatchOptions& options,
+                          const CorrespondenceCheck& in_front) {
+  ViewPairMatch out;
+  out.view_a = view_a;
+  out.view_b = view_b;
+  std::vector<std::pair<int, int>> all;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    for (std::size_t j = 0; j < b.size(); ++j) {
+      if (overlap_frames(a[i], b[j]) >= options.min_overlap_frames) {
+        all.emplace_back(static_cast<int>(i), static_cast<int>(j));
+      }
+    }
+  }
+  Scored s = accept_pairs(a, b, all, F, mirror, options, in_front);
+  if (s.inliers < options.min_pair_inliers) return out;
+  out.F = F;
+  out.inliers = s.inliers;
+  out.matches = std::move(s.matches);
+  return out;
+}
+
 std::vector<PersonGroup> group_people(const std::vector<std::vector<Tracklet>>& tracklets,
-                                      const std::vector<ViewPairMatch>& pairs) {
+                                      const std::vector<ViewPairMatch>& pairs,
+                                      const GroupCheck& consistent) {
   // Node id per (view, tracklet).
   std::vector<int> base(tracklets.size() + 1, 0);
   for (std::size_t v = 0; v < tracklets.size(); ++v) {
@@ -261,6 +288,12 @@ std::vector<PersonGroup> group_people(const std::vector<std::vector<Tracklet>>& 
       }
     }
     if (clash) continue;
+    if (consistent) {
+      PersonGroup merged{members[static_cast<std::size_t>(rx)]};
+      const auto& my = members[static_cast<std::size_t>(ry)];
+      merged.tracklets.insert(merged.tracklets.end(), my.begin(), my.end());
+      if (!consistent(merged)) continue;
+    }
     parent[static_cast<std::size_t>(ry)] = rx;
     auto& mx = members[static_cast<std::size_t>(rx)];
     auto& my = members[static_cast<std::size_t>(ry)];

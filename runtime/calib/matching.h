@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 
+#include <functional>
 #include <vector>
 
 #include "runtime/calib/epipolar.h"
@@ -62,6 +63,18 @@ ViewPairMatch match_view_pair(const std::vector<Tracklet>& a, const std::vector<
                               int view_a, int view_b, const std::vector<int>& mirror,
                               const MatchOptions& options);
 
+// The tracklet pairs a known F accepts (the cameras of a reconstruction): no RANSAC, every
+// tracklet pair seen together long enough is tested; `options.ransac.threshold_px` is the
+// Sampson threshold. Empty matches when fewer than min_pair_inliers fit.
+// `in_front`, when given, must also hold for a correspondence to count (with the cameras known:
+// the two rays meet in front of both cameras; the epipolar constraint alone also accepts a
+// person behind one of them).
+using CorrespondenceCheck = std::function<bool(const Eigen::Vector2d&, const Eigen::Vector2d&)>;
+ViewPairMatch match_under(const std::vector<Tracklet>& a, const std::vector<Tracklet>& b,
+                          int view_a, int view_b, const Eigen::Matrix3d& F,
+                          const std::vector<int>& mirror, const MatchOptions& options,
+                          const CorrespondenceCheck& in_front = {});
+
 // A person over a stretch of time: at most one tracklet per view at any frame.
 struct PersonGroup {
   std::vector<std::pair<int, int>> tracklets;  // (view, tracklet index)
@@ -69,7 +82,11 @@ struct PersonGroup {
 
 // Union of the matched tracklets, strongest match first (no two time-overlapping tracklets of
 // one view in a group). Groups seen by one view only are dropped.
+// `consistent`, when given, must accept a merged group before two are joined (with the
+// cameras known: the people triangulated from all the group's views reproject onto each).
+using GroupCheck = std::function<bool(const PersonGroup&)>;
 std::vector<PersonGroup> group_people(const std::vector<std::vector<Tracklet>>& tracklets,
-                                      const std::vector<ViewPairMatch>& pairs);
+                                      const std::vector<ViewPairMatch>& pairs,
+                                      const GroupCheck& consistent = {});
 
 }  // namespace mocap::calib

@@ -23,7 +23,8 @@ namespace mocap::calib {
 struct Keypoint2D {
   double x_px = 0;
   double y_px = 0;
-  double score = 0;  // 0: not detected
+  double score = 0;   // 0: not detected
+  double weight = 1;  // the self-calibration's weight of the sample (novelty; see input2d.h)
 };
 
 struct Person2D {

@@ -27,7 +27,7 @@ Pose34 pose_of(const BundleCamera& c) {
 }
 
 Eigen::Vector2d normalized(const BundleCamera& c, const Eigen::Vector2d& px) {
-  return {(px.x() - c.cx) / (c.fx * c.focal_scale), (px.y() - c.cy) / (c.fy * c.focal_scale)};
+  return normalized_point(c, px);
 }
 
 void set_pose(BundleCamera& c, const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
@@ -79,7 +79,7 @@ void build_observations(Reconstruction& rec, const std::vector<int>& mirror) {
         const Keypoint2D& k = pf.pose[v]->joints[src];
         if (k.score <= 0) continue;
         obs.push_back({pf.first_point + static_cast<int>(j), static_cast<int>(v),
-                       Eigen::Vector2d(k.x_px, k.y_px), k.score, true});
+                       Eigen::Vector2d(k.x_px, k.y_px), k.score * k.weight, true});
       }
     }
   }
@@ -572,27 +572,91 @@ std::size_t choose_start(const Reconstruction& rec,
   return start;
 }
 
-// Registers the views one at a time, the one whose tracklets fit the reconstructed people best
-// first (associated in 3D), each followed by an adjustment.
+// How every registered view fits after an adjustment.
+RegistrationStep step_of(const BundleProblem& p, int view, int inliers) {
+  RegistrationStep s;
+  s.view = view;
+  s.inliers = inliers;
+  std::vector<std::vector<double>> per(p.cameras.size());
+  std::vector<double> all;
+  for (const BundleObservation& ob : p.observations) {
+    const auto c = static_cast<std::size_t>(ob.camera);
+    if (!ob.inlier || !p.cameras[c].registered ||
+        !p.point_valid[static_cast<std::size_t>(ob.point)])
+      continue;
+    const double e = reprojection_px(p, ob);
+    per[c].push_back(e);
+    all.push_back(e);
+  }
+  for (std::size_t c = 0; c < per.size(); ++c) {
+    s.view_median_px.push_back(p.cameras[c].registered ? median(per[c]) : -1.0);
+  }
+  s.median_px = median(all);
+  return s;
+}
+
+// The unregistered view with the most epipolar inliers to the registered ones (-1: none linked).
+int strongest_link(const std::vector<ViewPairMatch>& pairs, const std::vector<bool>& registered) {
+  std::vector<long> link(registered.size(), 0);
+  for (const ViewPairMatch& m : pairs) {
+    if (!m.ok()) continue;
+    const auto a = static_cast<std::size_t>(m.view_a), b = static_cast<std::size_t>(m.view_b);
+    if (registered[a] && !registered[b]) link[b] += m.inliers;
+    if (registered[b] && !registered[a]) link[a] += m.inliers;
+  }
+  int best = -1;
+  for (std::size_t v = 0; v < link.size(); ++v) {
+    if (!registered[v] && link[v] > 0 &&
+        (best < 0 || link[v] > link[static_cast<std::size_t>(best)]))
+      best = static_cast<int>(v);
+  }
+  return best;
+}
+
+// Registers the views one at a time, each followed by an adjustment: in kBestFit order the view
+// whose tracklets fit the reconstructed people best (associated in 3D) first, in kStrongestLink
+// order the one most linked to the registered views by the epipolar matching (the best-fitting
+// view when that one cannot be registered).
 void register_views(Reconstruction& rec, const std::vector<std::vector<Tracklet>>& tracklets,
                     const std::vector<ViewPairMatch>& pairs, const std::vector<int>& mirror,
-                    const ReconstructOptions& o, const BundleOptions& bo) {
+                    const ReconstructOptions& o, const BundleOptions& bo, RegistrationOrder order) {
   const std::size_t views = rec.problem.cameras.size();
+  auto associate = [&](std::size_t v) {
+    return associate_view(
+        rec, static_cast<int>(v), tracklets[v],
+        pair_pose_hypotheses(rec, static_cast<int>(v), tracklets, pairs, mirror, o), o);
+  };
   for (;;) {
     ViewAssociation best;
     int best_view = -1;
-    for (std::size_t v = 0; v < views; ++v) {
+    if (order == RegistrationOrder::kStrongestLink) {
+      std::vector<bool> registered(views);
+      for (std::size_t v = 0; v < views; ++v) registered[v] = rec.problem.cameras[v].registered;
+      if (const int v = strongest_link(pairs, registered); v >= 0) {
+        best = associate(static_cast<std::size_t>(v));
+        best_view = best.inliers >= o.min_registration_points ? v : -1;
+      }
+    }
+    for (std::size_t v = 0; v < views && best_view < 0; ++v) {
       if (rec.problem.cameras[v].registered) continue;
-      ViewAssociation a = associate_view(
-          rec, static_cast<int>(v), tracklets[v],
-          pair_pose_hypotheses(rec, static_cast<int>(v), tracklets, pairs, mirror, o), o);
-      if (a.inliers > best.inliers) best = std::move(a), best_view = static_cast<int>(v);
+      ViewAssociation a = associate(v);
+      if (a.inliers > best.inliers) best = std::move(a);
+    }
+    if (best_view < 0) {
+      best = {};
+      for (std::size_t v = 0; v < views; ++v) {
+        if (rec.problem.cameras[v].registered) continue;
+        ViewAssociation a = associate(v);
+        if (a.inliers > best.inliers) best = std::move(a), best_view = static_cast<int>(v);
+      }
     }
     if (best_view < 0 || best.inliers < o.min_registration_points) return;
     apply_association(rec, best_view, tracklets[static_cast<std::size_t>(best_view)], best);
     build_observations(rec, mirror);
     clean_points(rec, o);
     run_bundle(rec.problem, bo);
+    rec.order.push_back(best_view);
+    rec.steps.push_back(step_of(rec.problem, best_view, best.inliers));
   }
 }
 
@@ -610,6 +674,7 @@ void refine(Reconstruction& rec, const std::vector<int>& mirror, const SkeletonT
     run_bundle(rec.problem, bo);
   }
   bo.estimate_focal = o.estimate_focal;
+  bo.intrinsics = o.intrinsics;
   bo.max_iterations = 50;
   run_bundle(rec.problem, bo);
   rec.dropped_observations = drop_outliers(rec.problem, o);
@@ -622,12 +687,39 @@ void refine(Reconstruction& rec, const std::vector<int>& mirror, const SkeletonT
 
 }  // namespace
 
+const char* registration_order_name(RegistrationOrder o) {
+  return o == RegistrationOrder::kBestFit ? "best-fit" : "strongest-link";
+}
+
+bool ranked_pair_views(const std::vector<ViewPairMatch>& pairs, int rank, int& view_a,
+                       int& view_b) {
+  const std::vector<const ViewPairMatch*> order = ranked_pairs(pairs);
+  if (rank < 0 || rank >= static_cast<int>(order.size())) return false;
+  view_a = order[static_cast<std::size_t>(rank)]->view_a;
+  view_b = order[static_cast<std::size_t>(rank)]->view_b;
+  return true;
+}
+
+std::vector<int> strongest_link_order(const std::vector<ViewPairMatch>& pairs, std::size_t views,
+                                      int start_a, int start_b) {
+  std::vector<bool> registered(views, false);
+  registered[static_cast<std::size_t>(start_a)] = registered[static_cast<std::size_t>(start_b)] =
+      true;
+  std::vector<int> out;
+  for (int v = strongest_link(pairs, registered); v >= 0; v = strongest_link(pairs, registered)) {
+    out.push_back(v);
+    registered[static_cast<std::size_t>(v)] = true;
+  }
+  return out;
+}
+
 Result<Reconstruction> reconstruct(const std::vector<std::vector<Tracklet>>& tracklets,
                                    const std::vector<ViewPairMatch>& pairs,
                                    const std::vector<PersonGroup>& groups,
                                    std::vector<BundleCamera> cameras,
                                    const std::vector<std::string>& view_names,
-                                   const SkeletonTopology& topology, const ReconstructOptions& o) {
+                                   const SkeletonTopology& topology, const ReconstructOptions& o,
+                                   const ReconstructPlan& plan) {
   Reconstruction rec = unregistered(tracklets, groups, std::move(cameras), topology);
   const std::vector<int> mirror = mirror_joints(topology);
   const std::vector<const ViewPairMatch*> order = ranked_pairs(pairs);
@@ -635,18 +727,28 @@ Result<Reconstruction> reconstruct(const std::vector<std::vector<Tracklet>>& tra
     return Error(ErrorCode::kInvalidArgument,
                  "no two views saw the same people long enough to relate them");
   }
-  const std::size_t start = choose_start(rec, tracklets, pairs, groups, topology, o, order.size());
+  if (plan.start_rank >= static_cast<int>(order.size())) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "no view pair of rank " + std::to_string(plan.start_rank) + " to start from");
+  }
+  const std::size_t start =
+      plan.start_rank >= 0 ? static_cast<std::size_t>(plan.start_rank)
+                           : choose_start(rec, tracklets, pairs, groups, topology, o, order.size());
   BundleOptions bo;
   bo.threads = o.threads;
   if (Status s = initialise(rec, tracklets, *order[start], mirror, o.pnp_threshold_px, bo);
       !s.ok()) {
     return s.error();
   }
+  rec.start_a = order[start]->view_a;
+  rec.start_b = order[start]->view_b;
+  rec.order = {rec.start_a, rec.start_b};
   clean_points(rec, o);
   bo.max_iterations = 30;
   run_bundle(rec.problem, bo);
+  rec.steps.push_back(step_of(rec.problem, -1, 0));
   bo.max_iterations = 8;
-  register_views(rec, tracklets, pairs, mirror, o, bo);
+  register_views(rec, tracklets, pairs, mirror, o, bo, plan.order);
   for (std::size_t v = 0; v < rec.problem.cameras.size(); ++v) {
     if (!rec.problem.cameras[v].registered) {
       return Error(ErrorCode::kInvalidArgument,
@@ -658,7 +760,171 @@ Result<Reconstruction> reconstruct(const std::vector<std::vector<Tracklet>>& tra
     }
   }
   refine(rec, mirror, topology, o, bo);
+  rec.steps.push_back(step_of(rec.problem, -2, 0));
   return rec;
+}
+
+namespace {
+
+// F (pixels of the ideal pinhole with the camera's K) between two adjusted cameras.
+Eigen::Matrix3d fundamental_of(const BundleCamera& a, const BundleCamera& b) {
+  const Eigen::Matrix3d R = rotation_of(b) * rotation_of(a).transpose();
+  const Eigen::Vector3d t = b.t - R * a.t;
+  Eigen::Matrix3d tx;
+  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  auto K_inv = [](const BundleCamera& c) {
+    Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+    K(0, 0) = c.fx * c.focal_scale, K(1, 1) = c.fy * c.focal_scale;
+    K(0, 2) = c.cx(), K(1, 2) = c.cy();
+    return Eigen::Matrix3d(K.inverse());
+  };
+  return K_inv(b).transpose() * tx * R * K_inv(a);
+}
+
+// The tracklets in ideal pixels of the adjusted camera (its lens undone).
+std::vector<Tracklet> ideal_tracklets(const std::vector<Tracklet>& in, const BundleCamera& c) {
+  std::vector<Tracklet> out = in;
+  if (!c.has_distortion()) return out;
+  for (Tracklet& t : out) {
+    for (Person2D& p : t.poses) {
+      for (Keypoint2D& k : p.joints) {
+        if (k.score <= 0) continue;
+        const Eigen::Vector2d x = normalized_point(c, {k.x_px, k.y_px});
+        k.x_px = c.fx * c.focal_scale * x.x() + c.cx();
+        k.y_px = c.fy * c.focal_scale * x.y() + c.cy();
+      }
+    }
+  }
+  return out;
+}
+
+// Whether the group's people, triangulated from all its views, reproject onto every view (at
+// most 20 frames where 3 or more of its views see it, spread over its time; fewer than 3
+// views: nothing to check beyond the pairs).
+bool group_consistent(const PersonGroup& g, const std::vector<std::vector<Tracklet>>& ideal,
+                      const std::vector<BundleCamera>& cams, double threshold_px) {
+  std::map<int, std::vector<std::pair<int, const Person2D*>>> by_frame;  // frame -> (view, pose)
+  for (const auto& [v, t] : g.tracklets) {
+    const Tracklet& tr = ideal[static_cast<std::size_t>(v)][static_cast<std::size_t>(t)];
+    for (std::size_t k = 0; k < tr.frames.size(); ++k)
+      by_frame[tr.frames[k]].emplace_back(v, &tr.poses[k]);
+  }
+  std::vector<const std::vector<std::pair<int, const Person2D*>>*> frames;
+  for (const auto& [f, seen] : by_frame) {
+    if (seen.size() >= 3) frames.push_back(&seen);
+  }
+  if (frames.empty()) return true;
+  const std::size_t step = std::max<std::size_t>(1, frames.size() / 20);
+  std::map<int, std::vector<double>> errors;  // view -> reprojection px
+  std::vector<Pose34> ps;
+  std::vector<Eigen::Vector2d> xs;
+  for (std::size_t i = 0; i < frames.size(); i += step) {
+    const auto& seen = *frames[i];
+    const std::size_t joints = seen.front().second->joints.size();
+    for (std::size_t j = 0; j < joints; ++j) {
+      ps.clear();
+      xs.clear();
+      for (const auto& [v, pose] : seen) {
+        const Keypoint2D& k = pose->joints[j];
+        if (k.score <= 0) continue;
+        const BundleCamera& c = cams[static_cast<std::size_t>(v)];
+        ps.push_back(pose_of(c));
+        xs.emplace_back((k.x_px - c.cx()) / (c.fx * c.focal_scale),
+                        (k.y_px - c.cy()) / (c.fy * c.focal_scale));
+      }
+      if (ps.size() < 3) continue;
+      const Eigen::Vector3d X = triangulate_normalized(ps, xs);
+      if (!X.allFinite()) continue;
+      std::size_t n = 0;
+      for (const auto& [v, pose] : seen) {
+        const Keypoint2D& k = pose->joints[j];
+        if (k.score <= 0) continue;
+        const BundleCamera& c = cams[static_cast<std::size_t>(v)];
+        const Eigen::Vector3d q = ps[n++] * X.homogeneous();
+        errors[v].push_back(
+            q.z() <= 0 ? 1e9
+                       : std::hypot(c.fx * c.focal_scale * q.x() / q.z() + c.cx() - k.x_px,
+                                    c.fy * c.focal_scale * q.y() / q.z() + c.cy() - k.y_px));
+      }
+    }
+  }
+  for (const auto& [v, e] : errors) {
+    if (median(e) > threshold_px) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void adjust_again(Reconstruction& rec, const SkeletonTopology& topology,
+                  const ReconstructOptions& o) {
+  const std::vector<int> mirror = mirror_joints(topology);
+  BundleOptions bo;
+  bo.threads = o.threads;
+  bo.fixed_camera = rec.start_a;
+  bo.scale_camera = rec.start_b;
+  for (BundleObservation& ob : rec.problem.observations) ob.inlier = true;
+  clean_points(rec, o);
+  bo.max_iterations = 20;
+  run_bundle(rec.problem, bo);
+  refine(rec, mirror, topology, o, bo);
+  rec.steps.push_back(step_of(rec.problem, -2, 0));
+}
+
+Result<Reconstruction> reassociate(const Reconstruction& rec,
+                                   const std::vector<std::vector<Tracklet>>& tracklets,
+                                   const SkeletonTopology& topology, const ReconstructOptions& o,
+                                   const MatchOptions& match) {
+  const std::size_t views = tracklets.size();
+  const std::vector<int> mirror = mirror_joints(topology);
+  std::vector<std::vector<Tracklet>> ideal;
+  for (std::size_t v = 0; v < views; ++v) {
+    ideal.push_back(ideal_tracklets(tracklets[v], rec.problem.cameras[v]));
+  }
+  std::vector<ViewPairMatch> pairs;
+  for (std::size_t a = 0; a < views; ++a) {
+    for (std::size_t b = a + 1; b < views; ++b) {
+      const BundleCamera& ca = rec.problem.cameras[a];
+      const BundleCamera& cb = rec.problem.cameras[b];
+      const Pose34 pa = pose_of(ca), pb = pose_of(cb);
+      auto in_front = [&](const Eigen::Vector2d& xa, const Eigen::Vector2d& xb) {
+        // ideal pixels -> normalised: K only (the lens is already undone).
+        const Eigen::Vector2d na((xa.x() - ca.cx()) / (ca.fx * ca.focal_scale),
+                                 (xa.y() - ca.cy()) / (ca.fy * ca.focal_scale));
+        const Eigen::Vector2d nb((xb.x() - cb.cx()) / (cb.fx * cb.focal_scale),
+                                 (xb.y() - cb.cy()) / (cb.fy * cb.focal_scale));
+        const Pose34 ps[2] = {pa, pb};
+        const Eigen::Vector2d xs[2] = {na, nb};
+        const Eigen::Vector3d X = triangulate_normalized(ps, xs);
+        return X.allFinite() && (pa * X.homogeneous()).z() > 0 && (pb * X.homogeneous()).z() > 0;
+      };
+      ViewPairMatch m = match_under(ideal[a], ideal[b], static_cast<int>(a), static_cast<int>(b),
+                                    fundamental_of(ca, cb), mirror, match, in_front);
+      if (m.ok()) pairs.push_back(std::move(m));
+    }
+  }
+  const std::vector<PersonGroup> groups = group_people(ideal, pairs, [&](const PersonGroup& g) {
+    return group_consistent(g, ideal, rec.problem.cameras, match.ransac.threshold_px);
+  });
+  if (groups.empty()) {
+    return Error(ErrorCode::kInvalidArgument, "no person matched again with the cameras found");
+  }
+  Reconstruction out = unregistered(tracklets, groups, rec.problem.cameras, topology);
+  for (BundleCamera& c : out.problem.cameras) c.registered = true;
+  out.start_a = rec.start_a;
+  out.start_b = rec.start_b;
+  out.order = rec.order;
+  out.steps = rec.steps;
+  BundleOptions bo;
+  bo.threads = o.threads;
+  bo.fixed_camera = rec.start_a;
+  bo.scale_camera = rec.start_b;
+  clean_points(out, o);
+  bo.max_iterations = 20;
+  run_bundle(out.problem, bo);
+  refine(out, mirror, topology, o, bo);
+  out.steps.push_back(step_of(out.problem, -3, 0));
+  return out;
 }
 
 }  // namespace mocap::calib

@@ -3,14 +3,19 @@
 #include <nlohmann/json.hpp>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 
+#include "runtime/calib/checks.h"
+#include "runtime/calib/compare.h"
+#include "runtime/calib/refusal.h"
 #include "runtime/calib/world_frame.h"
 #include "runtime/core/stats.h"
+#include "runtime/io/text_scan.h"
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::calib {
@@ -24,56 +29,7 @@ Error invalid(const std::string& what) {
 SelfCalibrationResult refuse(CalibrationQuality q, std::string why) {
   q.ok = false;
   q.refusal = std::move(why);
-  return {std::nullopt, std::move(q)};
-}
-
-// The view's people with undistorted (ideal pinhole) keypoints.
-std::vector<std::vector<Person2D>> ideal_people(const std::vector<std::vector<Person2D>>& in,
-                                                const CameraPrior& prior) {
-  std::vector<std::vector<Person2D>> out = in;
-  if (!prior.intrinsics || !prior.intrinsics->has_distortion()) return out;
-  for (auto& frame : out) {
-    for (Person2D& p : frame) {
-      for (Keypoint2D& k : p.joints) {
-        if (k.score <= 0) continue;
-        const Eigen::Vector2d u = prior.intrinsics->undistort_pixel({k.x_px, k.y_px});
-        k.x_px = u.x();
-        k.y_px = u.y();
-      }
-    }
-  }
-  return out;
-}
-
-// Keeps every stride-th frame of a tracklet.
-Tracklet thinned(const Tracklet& t, int stride) {
-  Tracklet out;
-  out.view = t.view;
-  for (std::size_t k = 0; k < t.frames.size(); ++k) {
-    if (t.frames[k] % stride != 0) continue;
-    out.frames.push_back(t.frames[k]);
-    out.poses.push_back(t.poses[k]);
-  }
-  return out;
-}
-
-Eigen::Vector2d centroid(const Person2D& p) {
-  Eigen::Vector2d c = Eigen::Vector2d::Zero();
-  int n = 0;
-  for (const Keypoint2D& k : p.joints) {
-    if (k.score > 0) c += Eigen::Vector2d(k.x_px, k.y_px), ++n;
-  }
-  return n > 0 ? Eigen::Vector2d(c / n) : c;
-}
-
-// Largest displacement of a tracked person's centroid in the view, over the image diagonal.
-double view_motion(const std::vector<Tracklet>& tracklets, const CameraPrior& prior) {
-  double most = 0;
-  for (const Tracklet& t : tracklets) {
-    const Eigen::Vector2d c0 = centroid(t.poses.front());
-    for (const Person2D& p : t.poses) most = std::max(most, (centroid(p) - c0).norm());
-  }
-  return most / std::hypot(prior.width_px, prior.height_px);
+  return {std::nullopt, std::move(q), {}};
 }
 
 // sqrt(smallest / largest eigenvalue) of the spread of all valid points.
@@ -93,59 +49,18 @@ double point_thickness(const BundleProblem& p) {
   return ev(2) > 0 ? std::sqrt(std::max(ev(0), 0.0) / ev(2)) : 0;
 }
 
-BundleCamera initial_camera(const CameraPrior& prior, double focal_px) {
-  BundleCamera c;
-  if (prior.intrinsics) {
-    c.fx = prior.intrinsics->fx();
-    c.fy = prior.intrinsics->fy();
-    c.cx = prior.intrinsics->cx();
-    c.cy = prior.intrinsics->cy();
-  } else {
-    c.fx = c.fy = focal_px;
-    c.cx = 0.5 * prior.width_px;
-    c.cy = 0.5 * prior.height_px;
-  }
-  return c;
-}
-
-// The common focal length (pixels) of the views without known intrinsics that registers the
-// others best: a log grid over [0.3, 4] x the longest image side, then a finer one around the
-// best.
-double sweep_focal(const std::vector<std::vector<Tracklet>>& tracklets,
-                   const std::vector<ViewPairMatch>& pairs, const std::vector<PersonGroup>& groups,
-                   const std::vector<CameraPrior>& priors, const SkeletonTopology& topology,
-                   const ReconstructOptions& o, double longest_px) {
-  auto score = [&](double f) {
-    std::vector<BundleCamera> cams;
-    for (const CameraPrior& p : priors) cams.push_back(initial_camera(p, f));
-    return registration_score(tracklets, pairs, groups, std::move(cams), topology, o);
-  };
-  constexpr int kCoarse = 15;
-  const double lo = 0.3 * longest_px, step = std::pow(4.0 / 0.3, 1.0 / (kCoarse - 1));
-  double best_f = lo, best = -1;
-  for (int i = 0; i < kCoarse; ++i) {
-    const double f = lo * std::pow(step, i);
-    const double sc = score(f);
-    if (sc > best) best = sc, best_f = f;
-  }
-  const double centre = best_f;
-  for (int i = -4; i <= 4; ++i) {
-    const double f = centre * std::pow(step, i / 5.0);
-    const double sc = score(f);
-    if (sc > best) best = sc, best_f = f;
-  }
-  return best_f;
-}
-
-Calibration to_calibration(const Reconstruction& rec, const std::vector<CameraPrior>& priors) {
+// The cameras of a reconstruction. The lens is the adjusted one when the adjustment fitted the
+// raw pixels, else the prior's (the keypoints were undistorted with it).
+Calibration to_calibration(const Reconstruction& rec, const std::vector<CameraPrior>& priors,
+                           bool lens_adjusted) {
   Calibration out;
   for (std::size_t v = 0; v < priors.size(); ++v) {
     const BundleCamera& c = rec.problem.cameras[v];
     Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
     K(0, 0) = c.fx * c.focal_scale;
     K(1, 1) = c.fy * c.focal_scale;
-    K(0, 2) = c.cx;
-    K(1, 2) = c.cy;
+    K(0, 2) = c.cx();
+    K(1, 2) = c.cy();
     Distortion dist;
     std::string name;
     if (priors[v].intrinsics) {
@@ -153,6 +68,7 @@ Calibration to_calibration(const Reconstruction& rec, const std::vector<CameraPr
       dist = priors[v].intrinsics->distortion();
       name = priors[v].intrinsics->name();
     }
+    if (lens_adjusted) dist = {c.dist[0], c.dist[1], c.dist[2], c.dist[3], c.dist[4]};
     out.cameras.emplace_back(K, dist, priors[v].width_px, priors[v].height_px, rotation_of(c), c.t,
                              name);
     out.view_ids.push_back(priors[v].view_id);
@@ -191,6 +107,25 @@ void fill_reprojection(const Reconstruction& rec, CalibrationQuality& q) {
   q.points = valid;
 }
 
+// The per-view figures of a hypothesis (also when it is refused: the report says what it saw).
+void fill_views(const Hypothesis& h, CalibrationQuality& q) {
+  const Reconstruction& rec = *h.rec;
+  q.left_right_swaps = rec.swaps;
+  fill_reprojection(rec, q);
+  for (std::size_t v = 0; v < q.views.size(); ++v) {
+    const BundleCamera& c = rec.problem.cameras[v];
+    q.views[v].focal_px = 0.5 * (c.fx + c.fy) * c.focal_scale;
+    q.views[v].cx_px = c.cx();
+    q.views[v].cy_px = c.cy();
+    q.views[v].k1 = c.dist[0];
+    q.views[v].k2 = c.dist[1];
+    q.views[v].loo_median_px = h.loo.view_median_px[v];
+  }
+  q.loo_mean_view_px = h.loo.mean_view_px;
+  q.match_threshold_fraction = h.diag.match_fraction;
+  q.people_groups = h.diag.people_groups;
+}
+
 }  // namespace
 
 Status SelfCalibrationOptions::validate() const {
@@ -203,11 +138,10 @@ Status SelfCalibrationOptions::validate() const {
   if (!(min_point_thickness >= 0 && min_point_thickness < 1)) {
     return invalid("min_point_thickness must be in [0, 1)");
   }
-  if (!(tight_match_fraction > 0 && tight_match_fraction <= loose_match_fraction &&
-        loose_match_fraction < 0.1)) {
-    return invalid("match fractions must satisfy 0 < tight <= loose < 0.1");
+  if (!(min_focal_determinacy >= 1 && min_focal_determinacy <= 10)) {
+    return invalid("min_focal_determinacy must be in [1, 10]");
   }
-  return {};
+  return hypotheses.validate();
 }
 
 namespace {
@@ -241,115 +175,46 @@ std::string input_refusal(const KeypointCollector& keypoints, const CalibrationQ
   return {};
 }
 
-// Each view's tracklets (undistorted keypoints), thinned to every stride-th frame; `motion` is
-// the largest movement of a person in any view over that view's diagonal.
-std::vector<std::vector<Tracklet>> view_tracklets(const KeypointCollector& keypoints,
-                                                  const std::vector<CameraPrior>& priors,
-                                                  int stride, double& motion) {
-  std::vector<std::vector<Tracklet>> out(priors.size());
-  motion = 0;
-  for (std::size_t v = 0; v < priors.size(); ++v) {
-    const auto people = ideal_people(keypoints.people(static_cast<int>(v)), priors[v]);
-    auto full = track_view_people(people, static_cast<int>(v), keypoints.options());
-    motion = std::max(motion, view_motion(full, priors[v]));
-    for (const Tracklet& t : full) {
-      Tracklet th = thinned(t, stride);
-      if (th.frames.size() >= 2) out[v].push_back(std::move(th));
-    }
-  }
-  return out;
-}
-
-// A view whose joints reproject much worse than the others' (twice the median of all, and over
-// 0.4 % of its diagonal): the reconstruction bent around a wrong match. Empty when none.
-std::string reconstruction_doubt(const Reconstruction& rec,
-                                 const std::vector<CameraPrior>& priors) {
-  std::vector<std::vector<double>> per_view;
-  std::vector<double> all;
-  reprojection_errors(rec, priors.size(), per_view, all);
-  const double overall = median(all);
-  for (std::size_t v = 0; v < priors.size(); ++v) {
-    const double m = median(per_view[v]);
-    const double limit = 0.004 * std::hypot(priors[v].width_px, priors[v].height_px);
-    if (m > 2 * overall && m > limit) {
-      char buf[200];
-      std::snprintf(buf, sizeof buf,
-                    "view %s fits the others badly (median reprojection %.1f px, all views %.1f "
-                    "px): people were matched wrongly; walk one at a time through the area for a "
-                    "while, then together",
-                    priors[v].view_id.c_str(), m, overall);
-      return buf;
-    }
-  }
-  return {};
-}
-
-// Matching, grouping, focal lengths and the reconstruction with one matching threshold
-// (a fraction of the two views' diagonals).
-Result<Reconstruction> solve(const std::vector<std::vector<Tracklet>>& tracklets,
-                             const std::vector<CameraPrior>& priors, const SkeletonTopology& topo,
-                             const SelfCalibrationOptions& options, double threshold_fraction,
-                             CalibrationQuality& q) {
-  const std::size_t views = priors.size();
-  const std::vector<int> mirror = mirror_joints(topo);
-  std::vector<ViewPairMatch> pairs;
-  for (std::size_t a = 0; a < views; ++a) {
-    for (std::size_t b = a + 1; b < views; ++b) {
-      MatchOptions mo = options.match;
-      mo.ransac.threshold_px =
-          std::max(mo.ransac.threshold_px,
-                   threshold_fraction * (std::hypot(priors[a].width_px, priors[a].height_px) +
-                                         std::hypot(priors[b].width_px, priors[b].height_px)));
-      ViewPairMatch m = match_view_pair(tracklets[a], tracklets[b], static_cast<int>(a),
-                                        static_cast<int>(b), mirror, mo);
-      if (m.ok()) pairs.push_back(std::move(m));
-    }
-  }
-  const std::vector<PersonGroup> groups = group_people(tracklets, pairs);
-  q.people_groups = static_cast<int>(groups.size());
-  if (groups.empty()) {
-    return Error(ErrorCode::kInvalidArgument,
-                 "no person was matched between two cameras: make sure the cameras' views "
-                 "overlap and walk where two or more cameras see you");
-  }
-  ReconstructOptions ro = options.reconstruct;
-  double diag = 0, longest = 0;
-  std::vector<std::string> names;
-  for (const CameraPrior& p : priors) {
-    ro.estimate_focal = ro.estimate_focal || !p.intrinsics;
-    diag = std::max(diag, std::hypot(p.width_px, p.height_px));
+// The adjustment's intrinsics refinement: with --refine-intrinsics focal, principal point and
+// k1, k2, held near the file's values (5 %, 2 % of the long side, 0.1) or, unknown, near the
+// image centre and no distortion (10 % of the long side, 0.5).
+IntrinsicsRefinement intrinsics_refinement(const std::vector<CameraPrior>& priors, bool refine) {
+  IntrinsicsRefinement r;
+  if (!refine) return r;
+  bool all_known = true;
+  for (const CameraPrior& p : priors) all_known = all_known && p.intrinsics.has_value();
+  r.focal = r.radial = true;
+  r.principal_point = all_known;
+  r.focal_sd = all_known ? 0.05 : 0;
+  double longest = 0;
+  for (const CameraPrior& p : priors)
     longest = std::max<double>(longest, std::max(p.width_px, p.height_px));
-    names.push_back(p.view_id);
-  }
-  // Pixel thresholds grow with the image (detector noise does).
-  ro.pnp_threshold_px = std::max(ro.pnp_threshold_px, 0.006 * diag);
-  ro.outlier_min_px = std::max(ro.outlier_min_px, 0.004 * diag);
-  const double focal =
-      ro.estimate_focal ? sweep_focal(tracklets, pairs, groups, priors, topo, ro, longest) : 0.0;
-  std::vector<BundleCamera> cams;
-  for (const CameraPrior& p : priors) cams.push_back(initial_camera(p, focal));
-  auto rec = reconstruct(tracklets, pairs, groups, std::move(cams), names, topo, ro);
-  if (!rec.ok()) return rec;
-  if (std::string doubt = reconstruction_doubt(*rec, priors); !doubt.empty()) {
-    return Error(ErrorCode::kInvalidArgument, doubt);
-  }
-  return rec;
+  r.principal_sd_px = 0.01 * longest;
+  r.radial_sd = all_known ? 0.1 : 0.5;
+  return r;
 }
 
-// Metric scale, floor, the report's figures and the calibration.
-Result<SelfCalibrationResult> finish(Reconstruction rec, const std::vector<CameraPrior>& priors,
-                                     const SkeletonTopology& topo,
-                                     const SelfCalibrationOptions& options, CalibrationQuality q) {
-  q.left_right_swaps = rec.swaps;
+// Metric scale, floor and the checks of a finished reconstruction; the calibration.
+Result<Calibration> finish(Reconstruction rec, const std::vector<CameraPrior>& priors,
+                           const SkeletonTopology& topo, const SelfCalibrationOptions& options,
+                           bool lens_adjusted, CalibrationQuality& q) {
   if (point_thickness(rec.problem) < options.min_point_thickness) {
-    return refuse(q,
-                  "all the joints seen lie nearly on one plane (people walked along one line "
-                  "or stood in a row): walk around the whole area, not back and forth");
+    return Error(ErrorCode::kInvalidArgument,
+                 "all the joints seen lie nearly on one plane (people walked along one line or "
+                 "stood in a row): walk around the whole area, not back and forth");
+  }
+  for (std::size_t v = 0; v < priors.size(); ++v) {
+    const double longest = std::max(priors[v].width_px, priors[v].height_px);
+    if (!priors[v].intrinsics &&
+        (q.views[v].focal_px < 0.3 * longest || q.views[v].focal_px > 4 * longest)) {
+      return Error(ErrorCode::kInvalidArgument,
+                   focal_out_of_range(priors[v].view_id, q.views[v].focal_px, q));
+    }
   }
   const double height =
       options.person_height_m > 0 ? options.person_height_m : kDefaultPersonHeight_m;
   auto world = find_world_frame(rec, topo, height, options.person_height_m > 0);
-  if (!world.ok()) return refuse(q, world.error().message());
+  if (!world.ok()) return world.error();
   apply_world_frame(*world, rec);
   q.scale_source = world->scale_source;
   q.walked_area_m2 = world->walked_area_m2;
@@ -359,25 +224,84 @@ Result<SelfCalibrationResult> finish(Reconstruction rec, const std::vector<Camer
   q.warnings.insert(q.warnings.end(), world->warnings.begin(), world->warnings.end());
   for (std::size_t v = 0; v < priors.size(); ++v) {
     const BundleCamera& c = rec.problem.cameras[v];
-    q.views[v].focal_px = 0.5 * (c.fx + c.fy) * c.focal_scale;
-    const double longest = std::max(priors[v].width_px, priors[v].height_px);
-    if (!priors[v].intrinsics &&
-        (q.views[v].focal_px < 0.3 * longest || q.views[v].focal_px > 4 * longest)) {
-      char buf[240];
-      std::snprintf(buf, sizeof buf,
-                    "the focal length of view %s came out at %.0f px, outside 0.3-4 x the image "
-                    "(the recording does not fix it): give the intrinsics (--keep-intrinsics "
-                    "with a calibration file) or record people walking over more of the area",
-                    priors[v].view_id.c_str(), q.views[v].focal_px);
-      return refuse(q, buf);
-    }
     if ((-(rotation_of(c).transpose() * c.t)).z() < 0) {
       q.warnings.push_back("camera " + priors[v].view_id + " is below the floor: check the result");
     }
   }
-  fill_reprojection(rec, q);
-  q.ok = true;
-  return SelfCalibrationResult{to_calibration(rec, priors), std::move(q)};
+  return to_calibration(rec, priors, lens_adjusted);
+}
+
+// Estimated focal lengths the clip did not fix: the fit must get clearly worse with them held
+// 15 % off. Empty when they are fixed (or none was estimated).
+std::string focal_check(const Hypothesis& h, const std::vector<CameraPrior>& priors,
+                        const SelfCalibrationOptions& options, CalibrationQuality& q) {
+  std::vector<bool> estimated;
+  bool any = false;
+  for (const CameraPrior& p : priors) {
+    estimated.push_back(!p.intrinsics.has_value());
+    any = any || estimated.back();
+  }
+  if (!any) return {};
+  q.focal_determinacy = focal_sensitivity(*h.rec, estimated);
+  if (q.focal_determinacy >= options.min_focal_determinacy) return {};
+  return unfixed_focal(q, options.min_focal_determinacy);
+}
+
+// How far the runner-up's cameras are from the chosen ones (largest rotation, degrees, after
+// the similarity of the centres); -1 when they cannot be compared.
+double rotation_between(const Hypothesis& a, const Hypothesis& b,
+                        const std::vector<CameraPrior>& priors, bool lens_adjusted) {
+  if (!a.rec || !b.rec || priors.size() < 3) return -1;
+  auto c = compare_calibrations(to_calibration(*a.rec, priors, lens_adjusted),
+                                to_calibration(*b.rec, priors, lens_adjusted));
+  return c.ok() ? c->max_rotation_deg : -1;
+}
+
+// The reference's cameras in place of the hypothesis's, on the same joints: the
+// leave-one-view-out fit is the same in any world frame. The joints are ideal pixels of the
+// prior's lens (or raw with the lens adjusted): the reference's lens is used the same way.
+void reference_fit(const Hypothesis& h, const Calibration& ref,
+                   const std::vector<CameraPrior>& priors, bool lens_adjusted,
+                   CalibrationQuality& q) {
+  BundleProblem p = h.rec->problem;
+  for (std::size_t v = 0; v < priors.size(); ++v) {
+    const auto i = ref.index_of(priors[v].view_id);
+    if (!i) return;
+    const Camera& c = ref.cameras[*i];
+    BundleCamera& b = p.cameras[v];
+    const Eigen::AngleAxisd aa(c.R());
+    b.angle_axis = aa.angle() * aa.axis();
+    b.t = c.t_m();
+    b.fx = c.fx(), b.fy = c.fy(), b.focal_scale = 1;
+    b.principal[0] = c.cx(), b.principal[1] = c.cy();
+    const Distortion& d = c.distortion();
+    const double none[5] = {0, 0, 0, 0, 0}, lens[5] = {d.k1, d.k2, d.p1, d.p2, d.k3};
+    std::copy_n(lens_adjusted ? lens : none, 5, b.dist);
+  }
+  const LooFit f = leave_one_view_out(p);
+  q.reference_loo_median_px = f.view_median_px;
+  q.reference_loo_mean_view_px = f.mean_view_px;
+}
+
+std::vector<UsedJoint> used_joints(const Reconstruction& rec) {
+  std::vector<UsedJoint> out;
+  const BundleProblem& p = rec.problem;
+  std::vector<const PersonFrame*> of_point(p.points.size(), nullptr);
+  for (std::size_t i = 0; i < rec.person_frames.size(); ++i) {
+    const PersonFrame& pf = rec.person_frames[i];
+    const std::size_t end = i + 1 < rec.person_frames.size()
+                                ? static_cast<std::size_t>(rec.person_frames[i + 1].first_point)
+                                : p.points.size();
+    for (std::size_t k = static_cast<std::size_t>(pf.first_point); k < end; ++k) of_point[k] = &pf;
+  }
+  for (const BundleObservation& o : p.observations) {
+    const PersonFrame* pf = of_point[static_cast<std::size_t>(o.point)];
+    if (pf == nullptr) continue;
+    out.push_back({pf->frame, pf->group, rec.point_joint[static_cast<std::size_t>(o.point)],
+                   o.camera, o.px.x(), o.px.y(), o.weight, o.inlier,
+                   pf->mirrored[static_cast<std::size_t>(o.camera)]});
+  }
+  return out;
 }
 
 }  // namespace
@@ -387,6 +311,7 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
                                              const SelfCalibrationOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   if (Status s = options.validate(); !s.ok()) return s.error();
+  if (Status s = options.input.validate(keypoints.topology()); !s.ok()) return s.error();
   if (Status s = keypoints.options().validate(); !s.ok()) return s.error();
   const std::size_t views = keypoints.view_ids().size();
   if (priors.size() != views) {
@@ -400,52 +325,103 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
   CalibrationQuality q;
   q.frames = keypoints.frame_count();
   for (std::size_t v = 0; v < views; ++v) {
-    q.views.push_back({priors[v].view_id, keypoints.frames_with_people(static_cast<int>(v)), 0, 0,
-                       0, 0, !priors[v].intrinsics.has_value()});
+    ViewQuality vq;
+    vq.view_id = priors[v].view_id;
+    vq.frames_with_people = keypoints.frames_with_people(static_cast<int>(v));
+    vq.focal_estimated = !priors[v].intrinsics.has_value();
+    q.views.push_back(vq);
   }
+  auto elapsed = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
   if (std::string why = input_refusal(keypoints, q, options); !why.empty()) return refuse(q, why);
   const int stride = std::max(1, q.frames / options.max_frames);
   q.frames_used = (q.frames + stride - 1) / stride;
-  double motion = 0;
-  const auto tracklets = view_tracklets(keypoints, priors, stride, motion);
-  if (motion < options.min_motion) {
+  const CalibrationInput input = prepare_input(keypoints, priors, options.input, stride);
+  q.diagnostics.views = input.views;
+  if (input.motion < options.min_motion) {
     return refuse(q, "nobody moved: people stood still (largest movement " +
-                         std::to_string(static_cast<int>(std::lround(motion * 100))) +
+                         std::to_string(static_cast<int>(std::lround(input.motion * 100))) +
                          " % of the image); walk around the whole area for a minute");
   }
-  // Tight matching first (sharp detections: another person's joints stay out); noisy ones
-  // (MoveNet on 1920-px frames) may need the loose threshold to match people at all.
-  Result<Reconstruction> rec = Error(ErrorCode::kInternal, "not solved");
-  for (double fraction : {options.tight_match_fraction, options.loose_match_fraction}) {
-    q.match_threshold_fraction = fraction;
-    rec = solve(tracklets, priors, keypoints.topology(), options, fraction, q);
-    if (rec.ok()) break;
+  HypothesisOptions ho = options.hypotheses;
+  ho.reconstruct.intrinsics = intrinsics_refinement(priors, options.refine_intrinsics);
+  const bool lens_adjusted = ho.reconstruct.intrinsics.radial;
+  std::vector<Hypothesis> hs =
+      run_hypotheses(input, priors, keypoints.topology(), ho, q.diagnostics);
+  const std::vector<std::size_t> ranked = ranked_hypotheses(hs);
+  for (std::size_t i : ranked) {
+    Hypothesis& h = hs[i];
+    if (!h.diag.failed.empty() || !h.rec) continue;
+    h.diag.verdict = h.accepted() ? "accepted" : "rejected: " + h.misfit;
   }
-  if (!rec.ok()) return refuse(q, rec.error().message());
-  auto result = finish(std::move(*rec), priors, keypoints.topology(), options, std::move(q));
-  if (result.ok()) {
-    result->quality.solve_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::string last_refusal;
+  for (std::size_t i : ranked) {
+    Hypothesis& h = hs[i];
+    if (!h.accepted()) break;
+    CalibrationQuality qh = q;
+    fill_views(h, qh);
+    if (std::string why = focal_check(h, priors, options, qh); !why.empty()) {
+      h.diag.verdict = "refused: " + why;
+      if (last_refusal.empty()) last_refusal = why;
+      continue;
+    }
+    auto cal = finish(*h.rec, priors, keypoints.topology(), options, lens_adjusted, qh);
+    if (!cal.ok()) {
+      h.diag.verdict = "refused: " + cal.error().message();
+      if (last_refusal.empty()) last_refusal = cal.error().message();
+      continue;
+    }
+    h.diag.verdict = "chosen";
+    if (options.reference) reference_fit(h, *options.reference, priors, lens_adjusted, qh);
+    qh.diagnostics.chosen = static_cast<int>(i);
+    for (std::size_t j : ranked) {
+      if (j == i || !hs[j].rec) continue;
+      qh.diagnostics.runner_up = static_cast<int>(j);
+      qh.runner_up_loo_mean_view_px = hs[j].loo.mean_view_px;
+      qh.runner_up_max_rotation_deg = rotation_between(h, hs[j], priors, lens_adjusted);
+      if (hs[j].diag.verdict == "accepted") hs[j].diag.verdict = "runner-up";
+      break;
+    }
+    for (const Hypothesis& x : hs) qh.diagnostics.hypotheses.push_back(x.diag);
+    qh.ok = true;
+    qh.solve_s = elapsed();
+    return SelfCalibrationResult{std::move(*cal), std::move(qh), used_joints(*h.rec)};
   }
-  return result;
+  // Nothing accepted: the report shows the best attempt, the refusal names the cause.
+  std::vector<UsedJoint> used;
+  if (!ranked.empty() && hs[ranked.front()].rec) {
+    fill_views(hs[ranked.front()], q);
+    used = used_joints(*hs[ranked.front()].rec);
+  }
+  for (const Hypothesis& x : hs) q.diagnostics.hypotheses.push_back(x.diag);
+  q.solve_s = elapsed();
+  const std::string why =
+      !last_refusal.empty() ? last_refusal : diagnose_refusal(hs, priors, input, q);
+  SelfCalibrationResult r = refuse(std::move(q), why);
+  r.used = std::move(used);
+  return r;
 }
 
 std::string format_quality(const CalibrationQuality& q) {
   std::string s;
-  char buf[256];
+  char buf[320];
   std::snprintf(buf, sizeof buf,
                 "frames %d (used %d), people groups %d, 3D joints %d, 2D joints %d, left/right "
                 "swaps fixed %d\n",
                 q.frames, q.frames_used, q.people_groups, q.points, q.observations,
                 q.left_right_swaps);
   s += buf;
-  s += "view   frames_with_people  joints_used  median_px  p90_px  focal_px\n";
-  for (const ViewQuality& v : q.views) {
-    std::snprintf(buf, sizeof buf, "%-6s %18d  %11d  %9.2f  %6.2f  %8.1f%s\n", v.view_id.c_str(),
-                  v.frames_with_people, v.observations, v.median_px, v.p90_px, v.focal_px,
-                  v.focal_estimated ? " (estimated)" : "");
+  s += "view   frames_with_people  tracklets  joints_used  median_px  p90_px  loo_px  focal_px\n";
+  for (std::size_t i = 0; i < q.views.size(); ++i) {
+    const ViewQuality& v = q.views[i];
+    const int tracklets = i < q.diagnostics.views.size() ? q.diagnostics.views[i].tracklets : 0;
+    std::snprintf(buf, sizeof buf, "%-6s %18d  %9d  %11d  %9.2f  %6.2f  %6.2f  %8.1f%s\n",
+                  v.view_id.c_str(), v.frames_with_people, tracklets, v.observations, v.median_px,
+                  v.p90_px, v.loo_median_px, v.focal_px, v.focal_estimated ? " (estimated)" : "");
     s += buf;
   }
+  s += format_hypotheses(q.diagnostics);
   if (q.ok) {
     std::snprintf(buf, sizeof buf,
                   "scale: %s; floor from %s; walked area %.1f m^2 (%.1f x %.1f m); matching "
@@ -454,6 +430,32 @@ std::string format_quality(const CalibrationQuality& q) {
                   q.floor_from_ankle_plane ? "the ankles' plane" : "the bodies' up direction",
                   q.walked_area_m2, q.walked_extent_m[0], q.walked_extent_m[1],
                   100 * q.match_threshold_fraction, q.solve_s);
+    s += buf;
+    if (q.focal_determinacy >= 0) {
+      std::snprintf(buf, sizeof buf,
+                    "focal lengths fixed by the clip: with them 15 %% off the fit is %.0f %% "
+                    "worse\n",
+                    100 * (q.focal_determinacy - 1));
+      s += buf;
+    }
+    if (q.runner_up_max_rotation_deg >= 0) {
+      std::snprintf(buf, sizeof buf,
+                    "runner-up: leave-one-view-out %.2f px (chosen %.2f px), its cameras up to "
+                    "%.2f deg from the chosen ones\n",
+                    q.runner_up_loo_mean_view_px, q.loo_mean_view_px, q.runner_up_max_rotation_deg);
+      s += buf;
+    }
+  }
+  if (q.reference_loo_mean_view_px >= 0) {
+    std::string per;
+    for (double m : q.reference_loo_median_px) {
+      std::snprintf(buf, sizeof buf, "%s%.1f", per.empty() ? "" : " ", m);
+      per += buf;
+    }
+    std::snprintf(buf, sizeof buf,
+                  "reference: predicts the same joints at [%s] px per view, mean %.2f (this "
+                  "calibration %.2f)\n",
+                  per.c_str(), q.reference_loo_mean_view_px, q.loo_mean_view_px);
     s += buf;
   }
   for (const std::string& w : q.warnings) s += "warning: " + w + "\n";
@@ -475,6 +477,14 @@ std::string quality_to_json(const CalibrationQuality& q) {
   j["match_threshold_fraction"] = q.match_threshold_fraction;
   j["reprojection_median_px"] = q.median_px;
   j["reprojection_p90_px"] = q.p90_px;
+  j["loo_mean_view_px"] = q.loo_mean_view_px;
+  j["focal_determinacy"] = q.focal_determinacy;
+  j["runner_up_loo_mean_view_px"] = q.runner_up_loo_mean_view_px;
+  j["runner_up_max_rotation_deg"] = q.runner_up_max_rotation_deg;
+  if (q.reference_loo_mean_view_px >= 0) {
+    j["reference_loo_median_px"] = q.reference_loo_median_px;
+    j["reference_loo_mean_view_px"] = q.reference_loo_mean_view_px;
+  }
   j["scale_source"] = q.scale_source;
   j["walked_area_m2"] = q.walked_area_m2;
   j["walked_extent_m"] = {q.walked_extent_m[0], q.walked_extent_m[1]};
@@ -487,11 +497,52 @@ std::string quality_to_json(const CalibrationQuality& q) {
                   {"observations", v.observations},
                   {"reprojection_median_px", v.median_px},
                   {"reprojection_p90_px", v.p90_px},
+                  {"loo_median_px", v.loo_median_px},
                   {"focal_px", v.focal_px},
-                  {"focal_estimated", v.focal_estimated}});
+                  {"focal_estimated", v.focal_estimated},
+                  {"principal_point_px", {v.cx_px, v.cy_px}},
+                  {"k1", v.k1},
+                  {"k2", v.k2}});
   }
   j["views"] = vs;
+  j["diagnostics"] = nlohmann::json::parse(diagnostics_summary_json(q.diagnostics));
   return j.dump(2);
+}
+
+Status write_debug_dir(const std::filesystem::path& dir, const KeypointCollector& keypoints,
+                       const std::vector<CameraPrior>& priors,
+                       const SelfCalibrationOptions& options, const SelfCalibrationResult& r) {
+  const CalibrationQuality& q = r.quality;
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    return Error(ErrorCode::kIo,
+                 dir.string() + ": cannot create the debug folder: " + ec.message());
+  }
+  nlohmann::json j = nlohmann::json::parse(quality_to_json(q));
+  j["diagnostics"] = nlohmann::json::parse(diagnostics_full_json(q.diagnostics));
+  if (Status s = io::write_text_file(dir / "report.json", j.dump(1) + "\n"); !s.ok()) return s;
+  std::string csv = "frame,person,joint,view,x_px,y_px,score,inlier,mirrored\n";
+  char line[200];
+  for (const UsedJoint& u : r.used) {
+    std::snprintf(line, sizeof line, "%d,%d,%s,%s,%.2f,%.2f,%.3f,%d,%d\n", u.frame, u.person,
+                  keypoints.topology().joint_name(u.joint).c_str(),
+                  priors[static_cast<std::size_t>(u.view)].view_id.c_str(), u.x_px, u.y_px, u.score,
+                  u.inlier ? 1 : 0, u.mirrored ? 1 : 0);
+    csv += line;
+  }
+  if (Status s = io::write_text_file(dir / "joints.csv", csv); !s.ok()) return s;
+  const int stride = std::max(1, keypoints.frame_count() / options.max_frames);
+  const CalibrationInput input = prepare_input(keypoints, priors, options.input, stride);
+  for (std::size_t v = 0; v < priors.size(); ++v) {
+    const auto path = dir / ("coverage_view" + priors[v].view_id + ".png");
+    if (Status s = write_coverage_png(path, priors[v].width_px, priors[v].height_px,
+                                      coverage_points(input, v));
+        !s.ok()) {
+      return s;
+    }
+  }
+  return {};
 }
 
 }  // namespace mocap::calib

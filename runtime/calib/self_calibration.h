@@ -7,10 +7,14 @@
 // saw nobody, nobody moved, people on a line) and reports the quality.
 #pragma once
 
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "runtime/calib/diagnostics.h"
+#include "runtime/calib/hypotheses.h"
+#include "runtime/calib/input2d.h"
 #include "runtime/calib/matching.h"
 #include "runtime/calib/people2d.h"
 #include "runtime/calib/reconstruct.h"
@@ -19,28 +23,23 @@
 
 namespace mocap::calib {
 
-// What is known of a camera before the self-calibration.
-struct CameraPrior {
-  std::string view_id;
-  int width_px = 0;
-  int height_px = 0;
-  // Known intrinsics (K and distortion kept; the pose is ignored); null: focal estimated,
-  // principal point at the image centre, square pixels, no distortion.
-  std::optional<Camera> intrinsics;
-};
-
 struct SelfCalibrationOptions {
-  MatchOptions match;
-  ReconstructOptions reconstruct;
+  InputOptions input;            // the joints used and their score floor
+  HypothesisOptions hypotheses;  // matching, reconstruction, starts, orders, the view-fit check
+  // Refine each camera's focal length, principal point and k1, k2 in the adjustment (priors:
+  // the calibration file's values when known, else the image centre and no distortion).
+  bool refine_intrinsics = false;
   int max_frames = 300;        // frames used (evenly spread over the recording), [10, 100000]
   int min_frames = 30;         // fewer frames with people in two views: refused, [2, 100000]
   double person_height_m = 0;  // a performer's height; 0: the prior (kDefaultPersonHeight_m)
   double min_motion = 0.05;    // of the image diagonal: less movement in every view = nobody moved
   double min_point_thickness = 0.02;  // 3rd / 1st principal spread of all joints: else planar
-  // Epipolar matching threshold (Sampson distance) as a fraction of the two views' diagonals:
-  // tight first, loose when the tight one cannot relate every view.
-  double tight_match_fraction = 0.002;
-  double loose_match_fraction = 0.006;
+  // Estimated focal lengths are kept only when holding them 15 % off makes the fit at least this
+  // much worse (ratio of the leave-one-view-out means), [1, 10].
+  double min_focal_determinacy = 1.1;
+  // A calibration of the same cameras to weigh the result against (`--reference`): its
+  // leave-one-view-out fit on the same associated joints goes into the report.
+  std::optional<Calibration> reference;
   Status validate() const;
 };
 
@@ -52,6 +51,9 @@ struct ViewQuality {
   double p90_px = 0;
   double focal_px = 0;
   bool focal_estimated = false;
+  double cx_px = 0, cy_px = 0;
+  double k1 = 0, k2 = 0;
+  double loo_median_px = -1;  // predicted from the other views (the chosen hypothesis)
 };
 
 struct CalibrationQuality {
@@ -73,11 +75,33 @@ struct CalibrationQuality {
   double walked_extent_m[2] = {0, 0};
   bool floor_from_ankle_plane = false;
   double solve_s = 0;
+  double loo_mean_view_px = 0;  // the chosen hypothesis's score
+  // With focal lengths estimated: how much worse the fit gets with them held 15 % off (ratio of
+  // the leave-one-view-out means; -1 when none was estimated). Near 1: not fixed by the clip.
+  double focal_determinacy = -1;
+  // The runner-up hypothesis: its score and how far its cameras are from the chosen ones
+  // (after the similarity of the centres; -1 when there was none).
+  double runner_up_loo_mean_view_px = -1;
+  double runner_up_max_rotation_deg = -1;
+  // The reference calibration's leave-one-view-out fit on the chosen hypothesis's joints
+  // (per view, and the mean of the views; empty without a reference).
+  std::vector<double> reference_loo_median_px;
+  double reference_loo_mean_view_px = -1;
+  SolveDiagnostics diagnostics;
+};
+
+// A 2D joint the chosen (or, refused, the best) hypothesis used, for --debug-dir.
+struct UsedJoint {
+  int frame = 0, person = 0, joint = 0, view = 0;  // person: the people group
+  double x_px = 0, y_px = 0, score = 0;
+  bool inlier = true;
+  bool mirrored = false;  // the view's pose taken left/right swapped
 };
 
 struct SelfCalibrationResult {
   std::optional<Calibration> calibration;  // absent when refused
   CalibrationQuality quality;
+  std::vector<UsedJoint> used;
 };
 
 // `priors` are the collector's views in order. An Error only for invalid arguments; a
@@ -86,8 +110,15 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
                                              const std::vector<CameraPrior>& priors,
                                              const SelfCalibrationOptions& options);
 
-// The report as text (one line per view, then the summary) and as JSON.
+// The report as text (one line per view, then the summary) and as JSON (with the short form of
+// the diagnostics).
 std::string format_quality(const CalibrationQuality& q);
 std::string quality_to_json(const CalibrationQuality& q);
+
+// --debug-dir: report.json (the whole diagnostics), joints.csv (every 2D joint the chosen or
+// best hypothesis used) and coverage_view<id>.png per view.
+Status write_debug_dir(const std::filesystem::path& dir, const KeypointCollector& keypoints,
+                       const std::vector<CameraPrior>& priors,
+                       const SelfCalibrationOptions& options, const SelfCalibrationResult& result);
 
 }  // namespace mocap::calib

@@ -337,6 +337,63 @@ Status save_ppm(const ImageRgb8& image, const std::filesystem::path& path) {
   return Status::Ok();
 }
 
+namespace {
+
+void png_append(png_structp png, png_bytep data, png_size_t length) {
+  auto* out = static_cast<std::vector<std::uint8_t>*>(png_get_io_ptr(png));
+  out->insert(out->end(), data, data + length);
+}
+
+void png_no_flush(png_structp) {}
+
+}  // namespace
+
+Result<std::vector<std::uint8_t>> encode_png(const ImageRgb8& image) {
+  if (image.width_px <= 0 || image.height_px <= 0 || image.width_px > kMaxImageSidePx ||
+      image.height_px > kMaxImageSidePx ||
+      image.rgb.size() != static_cast<std::size_t>(image.width_px) *
+                              static_cast<std::size_t>(image.height_px) * 3) {
+    return Error(ErrorCode::kInvalidArgument, "cannot encode an inconsistent image as PNG (" +
+                                                  std::to_string(image.width_px) + "x" +
+                                                  std::to_string(image.height_px) + " px)");
+  }
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  if (png == nullptr) return Error(ErrorCode::kInternal, "libpng: cannot create a writer");
+  png_infop info = png_create_info_struct(png);
+  std::vector<std::uint8_t> out;
+  std::vector<png_bytep> rows(static_cast<std::size_t>(image.height_px));
+  if (info == nullptr || setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, info != nullptr ? &info : nullptr);
+    return Error(ErrorCode::kInternal, "libpng: PNG encoding failed");
+  }
+  png_set_write_fn(png, &out, png_append, png_no_flush);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(image.width_px),
+               static_cast<png_uint_32>(image.height_px), 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  for (int y = 0; y < image.height_px; ++y) {
+    rows[static_cast<std::size_t>(y)] =
+        const_cast<png_bytep>(image.rgb.data() + image.pixel_offset(0, y));
+  }
+  png_set_rows(png, info, rows.data());
+  png_write_png(png, info, PNG_TRANSFORM_IDENTITY, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return out;
+}
+
+Status save_png(const ImageRgb8& image, const std::filesystem::path& path) {
+  auto bytes = encode_png(image);
+  if (!bytes.ok()) return bytes.error().with_context(path.string());
+  std::FILE* file = std::fopen(path.c_str(), "wb");
+  if (file == nullptr) {
+    return Error(ErrorCode::kIo, path.string() + ": cannot open for writing: " +
+                                     std::generic_category().message(errno));
+  }
+  bool ok = std::fwrite(bytes->data(), 1, bytes->size(), file) == bytes->size();
+  ok = (std::fclose(file) == 0) && ok;
+  if (!ok) return Error(ErrorCode::kIo, path.string() + ": write failed");
+  return Status::Ok();
+}
+
 Result<std::vector<std::uint8_t>> encode_jpeg(const ImageRgb8& image, int quality) {
   if (image.width_px <= 0 || image.height_px <= 0 || image.width_px > kMaxImageSidePx ||
       image.height_px > kMaxImageSidePx ||

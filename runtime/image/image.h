@@ -56,6 +56,12 @@ Result<ImageRgb8> decode_image(std::span<const std::uint8_t> bytes, std::string_
 // image is inconsistent or empty.
 Result<std::vector<std::uint8_t>> encode_jpeg(const ImageRgb8& image, int quality);
 
+// Encodes a PNG (8-bit RGB, libpng's default compression). kInvalidArgument when the image is
+// inconsistent or empty.
+Result<std::vector<std::uint8_t>> encode_png(const ImageRgb8& image);
+// encode_png into a file; kIo names the file when it cannot be written.
+Status save_png(const ImageRgb8& image, const std::filesystem::path& path);
+
 // Writes a binary PPM (P6), for debugging. kInvalidArgument when the image is inconsistent.
 Status save_ppm(const ImageRgb8& image, const std::filesystem::path& path);
 

@@ -36,6 +36,18 @@ Status RigOptions::validate() const {
   if (!in_range(focal_px, 0.0, 1e5) || focal_px <= 0.0) {
     return bad("focal_px", "is " + std::to_string(focal_px) + ", expected (0, 1e5] pixels");
   }
+  const Distortion& d = distortion;
+  for (double k : {d.k1, d.k2, d.p1, d.p2, d.k3}) {
+    if (!in_range(k, -1.0, 1.0)) return bad("distortion", "has a coefficient outside [-1, 1]");
+  }
+  // The radial factor must keep growing the distorted radius out to the image corner (else
+  // points beyond the fold would land inside the image).
+  const double corner = std::hypot(0.5 * width_px, 0.5 * height_px) / focal_px * 1.2;
+  for (int i = 1; i <= 100; ++i) {
+    const double r = corner * i / 100.0, r2 = r * r;
+    const double slope = 1 + 3 * d.k1 * r2 + 5 * d.k2 * r2 * r2 + 7 * d.k3 * r2 * r2 * r2;
+    if (slope <= 0) return bad("distortion", "folds back inside the image (too strong a barrel)");
+  }
   return Status::Ok();
 }
 
@@ -68,7 +80,7 @@ Result<Calibration> make_ring_rig(const RigOptions& options) {
     R.row(1) = y_axis.transpose();
     R.row(2) = z_axis.transpose();
     const Eigen::Vector3d t_m = -R * center_m;
-    calib.cameras.emplace_back(K, Distortion{}, options.width_px, options.height_px, R, t_m,
+    calib.cameras.emplace_back(K, options.distortion, options.width_px, options.height_px, R, t_m,
                                "sim" + std::to_string(i));
     calib.view_ids.push_back(std::to_string(i));
   }

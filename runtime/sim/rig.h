@@ -18,10 +18,13 @@ struct RigOptions {
   double height_m = 2.5;  // camera height above the floor
   int width_px = 1032;    // image size
   int height_px = 776;
-  double focal_px = 1000;  // fx = fy; principal point at the image centre; no distortion
+  double focal_px = 1000;  // fx = fy; principal point at the image centre
+  // The lens of every camera (OpenCV model): k1 = -0.3 is a wide-angle webcam's barrel.
+  Distortion distortion;
 
   // Ranges: views [2, 64], radius_m (0, 100], height_m [0.1, 50], width_px/height_px
-  // [16, 16384], focal_px (0, 1e5]. The error names the field.
+  // [16, 16384], focal_px (0, 1e5], distortion coefficients [-1, 1] and a lens that does not fold
+  // back inside the image. The error names the field.
   Status validate() const;
 };
 

@@ -5,6 +5,7 @@
 // Shelf's OpenPose detections, or the simulator's detections with its noise model), then the
 // solve. Prints the quality report; the last line is calibration_reprojection_px=X.XX.
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <string>
 #include <vector>
@@ -56,6 +57,7 @@ struct SourceArgs {
   int views = 5, people = 2, frames = -1;
   double seconds = 60;
   int seed = 1;
+  double k1 = 0, k2 = 0;  // --synthetic: the cameras' lens
 };
 
 // Keypoints and priors from the simulator.
@@ -64,6 +66,8 @@ Status collect_synthetic(const SourceArgs& a, bool keep_intrinsics, std::string 
                          std::vector<calib::CameraPrior>& priors) {
   sim::RigOptions rig;
   rig.views = a.views;
+  rig.distortion.k1 = a.k1;
+  rig.distortion.k2 = a.k2;
   sim::SceneOptions scene;
   scene.people = a.people;
   scene.seed = static_cast<std::uint64_t>(a.seed);
@@ -191,8 +195,9 @@ Status collect_saved(const SourceArgs& a, bool keep_intrinsics, const std::strin
 
 int run_people(Args args) {
   SourceArgs src;
-  std::string out, report, truth_out, keypoints_out, intrinsics;
-  bool keep_intrinsics = false;
+  std::string out, report, truth_out, keypoints_out, intrinsics, debug_dir, reference, joints;
+  double min_joint_score = calib::InputOptions{}.min_joint_score;
+  bool keep_intrinsics = false, refine_intrinsics = false;
   double height_m = 0;
   cli::ArgParser p("mocap calibrate people", kHelp);
   p.option("--out", &out, "FILE", "calibration JSON to write (required)");
@@ -211,12 +216,27 @@ int run_people(Args args) {
   p.option("--people", &src.people, "P", "--synthetic: people walking (default 2)");
   p.option("--seconds", &src.seconds, "S", "--synthetic: length at 25 fps (default 60)");
   p.option("--seed", &src.seed, "N", "--synthetic: scene seed (default 1)");
+  p.option("--k1", &src.k1, "K", "--synthetic: the cameras' radial distortion k1 (default 0)");
+  p.option("--k2", &src.k2, "K", "--synthetic: the cameras' radial distortion k2 (default 0)");
   p.option("--truth-out", &truth_out, "FILE", "--synthetic: write the true rig");
   p.flag("--keep-intrinsics", &keep_intrinsics,
          "keep the known intrinsics (--recording: DIR/calibration.json's K and distortion; "
          "--synthetic: the rig's)");
+  p.flag("--refine-intrinsics", &refine_intrinsics,
+         "refine each camera's focal length, principal point and lens distortion (k1, k2) "
+         "from the people (held near the file's values with --keep-intrinsics)");
   p.option("--height-m", &height_m, "H", "a performer's standing height, for the metric scale");
   p.option("--report", &report, "FILE", "write the quality report as JSON");
+  p.option("--joints", &joints, "A,B,...|all",
+           "the joints to calibrate from, by name (default all)");
+  p.option("--min-joint-score", &min_joint_score, "S",
+           "2D joints scored lower are not used (default 0.3)");
+  p.option("--reference", &reference, "FILE",
+           "a calibration of the same cameras to weigh the result against: its "
+           "leave-one-view-out fit on the same joints is reported");
+  p.option("--debug-dir", &debug_dir, "DIR",
+           "write what the solve saw and tried: report.json (views, view pairs, every "
+           "hypothesis with its registration steps) and coverage_view<N>.png per view");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   const int sources = (src.recording.empty() ? 0 : 1) + (src.shelf.empty() ? 0 : 1) +
                       (src.synthetic ? 1 : 0) + (src.keypoints.empty() ? 0 : 1);
@@ -228,6 +248,18 @@ int run_people(Args args) {
   if (out.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--out FILE is required"));
   calib::SelfCalibrationOptions opt;
   opt.person_height_m = height_m;
+  opt.refine_intrinsics = refine_intrinsics;
+  opt.input.min_joint_score = min_joint_score;
+  for (std::size_t at = 0; !joints.empty() && at <= joints.size();) {
+    const std::size_t comma = std::min(joints.find(',', at), joints.size());
+    if (comma > at) opt.input.joints.push_back(joints.substr(at, comma - at));
+    at = comma + 1;
+  }
+  if (!reference.empty()) {
+    auto ref = load_calibration(reference);
+    if (!ref.ok()) return fail(ref.error().with_context("--reference"));
+    opt.reference = std::move(*ref);
+  }
   if (Status s = opt.validate(); !s.ok()) return fail(s.error().with_context("--height-m"));
   std::unique_ptr<calib::KeypointCollector> keypoints;
   std::vector<calib::CameraPrior> priors;
@@ -246,6 +278,12 @@ int run_people(Args args) {
   if (!result.ok()) return fail(result.error());
   const calib::CalibrationQuality& q = result->quality;
   std::fputs(calib::format_quality(q).c_str(), stdout);
+  if (!debug_dir.empty()) {
+    if (Status s = calib::write_debug_dir(debug_dir, *keypoints, priors, opt, *result); !s.ok()) {
+      return fail(s.error());
+    }
+    std::printf("debug files written to %s\n", debug_dir.c_str());
+  }
   if (!report.empty()) {
     if (Status s = io::write_text_file(report, calib::quality_to_json(q) + "\n"); !s.ok()) {
       return fail(s.error());
