@@ -26,6 +26,16 @@ LooFit refit(const Reconstruction& rec, const IntrinsicsRefinement& intrinsics, 
   return leave_one_view_out(p);
 }
 
+LooFit refit_all(const Reconstruction& rec, const IntrinsicsRefinement& intrinsics,
+                 std::vector<BundleCamera>& cameras) {
+  BundleProblem p = rec.problem;
+  BundleOptions bo = gauge_of(rec);
+  bo.intrinsics = intrinsics;
+  run_bundle(p, bo);
+  cameras = p.cameras;
+  return leave_one_view_out(p);
+}
+
 double focal_sensitivity(const Reconstruction& rec, const std::vector<bool>& estimated,
                          double factor) {
   const double at = refit(rec, {}).mean_view_px;

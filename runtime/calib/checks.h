@@ -17,6 +17,9 @@ namespace mocap::calib {
 // and scored; `rec` is untouched. `camera` receives the adjusted camera `view` when >= 0.
 LooFit refit(const Reconstruction& rec, const IntrinsicsRefinement& intrinsics, int view = -1,
              BundleCamera* camera = nullptr);
+// The same, all the adjusted cameras returned.
+LooFit refit_all(const Reconstruction& rec, const IntrinsicsRefinement& intrinsics,
+                 std::vector<BundleCamera>& cameras);
 
 // How much worse the fit gets when the focal lengths of `estimated` views are held `factor`
 // off (both ways): the smaller ratio of the mean view LOO to the one at the estimate. Near 1: the

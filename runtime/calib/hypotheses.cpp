@@ -280,9 +280,10 @@ Status HypothesisOptions::validate() const {
                  "self-calibration: view_fit_factor must be in [1, 100] and view_fit_floor in "
                  "[0, 1)");
   }
-  if (!(min_intrinsics_gain >= 0 && min_intrinsics_gain < 1)) {
+  if (!(min_intrinsics_gain >= 0 && min_intrinsics_gain < 1) ||
+      !(min_lens_gain >= 0 && min_lens_gain < 1)) {
     return Error(ErrorCode::kInvalidArgument,
-                 "self-calibration: min_intrinsics_gain must be in [0, 1)");
+                 "self-calibration: min_intrinsics_gain and min_lens_gain must be in [0, 1)");
   }
   return {};
 }

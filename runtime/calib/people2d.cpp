@@ -170,6 +170,26 @@ std::vector<Person2D> parse_view_people(const ViewDetections& view,
   return out;
 }
 
+std::vector<PersonBox> person_boxes(const DetectionSet& set, const SkeletonTopology& topology,
+                                    const People2DOptions& options, double margin,
+                                    double min_side_px) {
+  std::vector<PersonBox> out;
+  for (const ViewDetections& view : set.views) {
+    for (const Person2D& p : parse_view_people(view, topology, options)) {
+      double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+      for (const Keypoint2D& k : p.joints) {
+        if (k.score <= 0) continue;
+        x0 = std::min(x0, k.x_px), x1 = std::max(x1, k.x_px);
+        y0 = std::min(y0, k.y_px), y1 = std::max(y1, k.y_px);
+      }
+      if (x1 < x0) continue;
+      const double side = std::max(min_side_px, (1 + 2 * margin) * std::max(x1 - x0, y1 - y0));
+      out.push_back({view.view_id, 0.5 * (x0 + x1), 0.5 * (y0 + y1), side});
+    }
+  }
+  return out;
+}
+
 const Person2D* Tracklet::at(int frame) const {
   auto it = std::lower_bound(frames.begin(), frames.end(), frame);
   if (it == frames.end() || *it != frame) return nullptr;

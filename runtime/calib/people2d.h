@@ -48,6 +48,16 @@ std::vector<Person2D> parse_view_people(const ViewDetections& view,
                                         const SkeletonTopology& topology,
                                         const People2DOptions& options);
 
+// A square around one 2D person of a view (its joints' bounding box, `margin` of its long side
+// added on every side, at least min_side_px): where a single-person model can refine it.
+struct PersonBox {
+  int view_id = -1;
+  double center_x_px = 0, center_y_px = 0, side_px = 0;
+};
+std::vector<PersonBox> person_boxes(const DetectionSet& set, const SkeletonTopology& topology,
+                                    const People2DOptions& options, double margin = 0.2,
+                                    double min_side_px = 64);
+
 // One person followed through a view's frames.
 struct Tracklet {
   int view = -1;                // index of the view (order of the collected views)

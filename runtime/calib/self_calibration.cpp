@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 #include "runtime/calib/checks.h"
 #include "runtime/calib/compare.h"
@@ -361,7 +362,11 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
     if (!h.accepted()) break;
     CalibrationQuality qh = q;
     fill_views(h, qh);
-    if (std::string why = focal_check(h, priors, options, qh); !why.empty()) {
+    std::string why = focal_check(h, priors, options, qh);
+    if (why.empty() && !options.refine_intrinsics) {
+      why = held_intrinsics_problem(h, priors, std::getenv("MOCAP_EXP_LGAIN") ? std::atof(std::getenv("MOCAP_EXP_LGAIN")) : options.hypotheses.min_lens_gain, std::getenv("MOCAP_EXP_GAIN") ? std::atof(std::getenv("MOCAP_EXP_GAIN")) : options.hypotheses.min_intrinsics_gain);
+    }
+    if (!why.empty()) {
       h.diag.verdict = "refused: " + why;
       if (last_refusal.empty()) last_refusal = why;
       continue;
@@ -397,7 +402,7 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
   for (const Hypothesis& x : hs) q.diagnostics.hypotheses.push_back(x.diag);
   q.solve_s = elapsed();
   const std::string why =
-      !last_refusal.empty() ? last_refusal : diagnose_refusal(hs, priors, input, q);
+      !last_refusal.empty() ? last_refusal : diagnose_refusal(hs, priors, input, q, options.refine_intrinsics);
   SelfCalibrationResult r = refuse(std::move(q), why);
   r.used = std::move(used);
   return r;

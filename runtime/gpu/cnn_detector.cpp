@@ -38,7 +38,7 @@ Status CnnOptions::validate() const {
   po.max_views = max_views;
   if (Status s = po.validate(); !s.ok()) return s;
   if (crop_model.empty()) return Status::Ok();
-  if (cameras.empty()) {
+  if (cameras.empty() && !crops_from_detections) {
     return Error(ErrorCode::kInvalidArgument,
                  "3D-guided crops need the cameras (a calibration) to project the tracked "
                  "skeletons with; run without crops when the views are not calibrated");
@@ -171,15 +171,18 @@ Status CnnDetector::refine_with_crops(const FrameSet& frames, DetectionSet& set)
     previous = previous_;
   }
   last_crops_ = CropStats{};
-  if (!latest) return Status::Ok();
+  if (!latest && !options_.crops_from_detections) return Status::Ok();
   std::vector<int> view_ids;
   std::vector<nn::FrameView> views;
   for (const Frame& f : frames.frames) {
     view_ids.push_back(f.view_id);
     views.push_back(nn::frame_view(f));
   }
-  auto plan = assoc::plan_crops(*latest, previous ? &*previous : nullptr, frames.timestamp_ns,
-                                options_.cameras, view_ids, options_.crop_plan);
+  auto plan = options_.crops_from_detections
+                  ? options_.crops_from_detections(set)
+                  : assoc::plan_crops(*latest, previous ? &*previous : nullptr,
+                                      frames.timestamp_ns, options_.cameras, view_ids,
+                                      options_.crop_plan);
   if (!plan.ok()) return plan.error();
   if (plan->empty()) return Status::Ok();
   std::vector<CropRequest> requests;

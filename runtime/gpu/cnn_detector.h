@@ -9,6 +9,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -50,6 +51,11 @@ struct CnnOptions {
   // 4-view frame cost 2.7x the bottom-up detector on lavapipe (docs/crops.md).
   bool crops_need_gpu = false;
   std::vector<Camera> cameras;
+  // 2D-guided crops instead (the self-calibration, which has no cameras yet): the crops planned
+  // from the frame's own bottom-up detections (a crop per person the planner finds in a view);
+  // no tracks are wanted then.
+  std::function<Result<std::vector<assoc::PlannedCrop>>(const DetectionSet&)>
+      crops_from_detections;
   assoc::CropPlanOptions crop_plan;
   assoc::CropMergeOptions crop_merge;
   Status validate() const;
@@ -69,7 +75,9 @@ class CnnDetector final : public pipeline::Detector {
   static Result<std::unique_ptr<CnnDetector>> open(const CnnOptions& options);
 
   Result<DetectionSet> detect(const FrameSet& frames) override;
-  bool wants_tracks() const override { return refiner_ != nullptr; }
+  bool wants_tracks() const override {
+    return refiner_ != nullptr && !options_.crops_from_detections;
+  }
   void observe_tracks(const SkeletonSet& skeletons) override;
   // e.g. "posenet 209x353 px (1.23 GMAC per view) on Vulkan on llvmpipe (LLVM 15.0.6, 256
   // bits) (CPU)".

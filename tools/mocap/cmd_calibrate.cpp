@@ -21,6 +21,7 @@
 #include "runtime/sim/simulator.h"
 #include "runtime/skeleton/topology.h"
 #include "tools/common/cli.h"
+#include "tools/common/crop_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
 #include "tools/mocap/commands.h"
@@ -53,6 +54,7 @@ constexpr const char* kHelp =
 
 struct SourceArgs {
   std::string recording, shelf, keypoints, model = "movenet";
+  CropArgs crops;
   bool synthetic = false;
   int views = 5, people = 2, frames = -1;
   double seconds = 60;
@@ -125,6 +127,20 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
   o.source.dir = a.recording;
   o.cnn.model = model_path_for(a.model);
   o.cnn.input_size_px = 0;  // the model's default (MoveNet 448, PoseNet 353)
+  if (Status s = a.crops.apply(o.cnn); !s.ok()) return s;
+  if (!o.cnn.crop_model.empty()) {
+    // 2D-guided crops: each person the bottom-up detector found, refined on its own box.
+    o.cnn.crops_from_detections =
+        [](const DetectionSet& set) -> Result<std::vector<assoc::PlannedCrop>> {
+      std::vector<assoc::PlannedCrop> plan;
+      for (const calib::PersonBox& b :
+           calib::person_boxes(set, *set.topology, calib::People2DOptions{})) {
+        plan.push_back({static_cast<int>(plan.size()), b.view_id, b.center_x_px, b.center_y_px,
+                        b.side_px});
+      }
+      return plan;
+    };
+  }
   auto parts = open_replay(o);
   if (!parts.ok()) return parts.error();
   const Calibration& cal = parts->source->calibration();
@@ -138,6 +154,9 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
   }
   std::printf("recording: %s, %d views, %s\n", a.recording.c_str(), parts->source->view_count(),
               parts->detector->description().c_str());
+  if (!parts->detector->crops_off_reason().empty()) {
+    std::printf("%s\n", parts->detector->crops_off_reason().c_str());
+  }
   out =
       std::make_unique<calib::KeypointCollector>(coco17_topology(), ids, calib::People2DOptions{});
   calib::KeypointCollector* collector = out.get();
@@ -204,6 +223,10 @@ int run_people(Args args) {
   p.option("--recording", &src.recording, "DIR", "recording folder (videos/, calibration.json)");
   p.option("--model", &src.model, "NAME|FILE", "pose CNN for --recording (default movenet)");
   p.option("--frames", &src.frames, "N", "--recording: the first N frames only (default all)");
+  p.option("--crops", &src.crops.crops, "auto|none|thunder|lightning|FILE",
+           "--recording: each person the bottom-up detector finds refined on its own box by a "
+           "single-person model (MoveNet Thunder or Lightning); auto (default): Thunder on a "
+           "hardware GPU, none on the CPU or a software device such as lavapipe");
   p.option("--shelf", &src.shelf, "DIR", "Shelf folder (calibration.json, detection/)");
   p.flag("--synthetic", &src.synthetic, "the simulator");
   p.option("--keypoints", &src.keypoints, "FILE",
