@@ -23,19 +23,6 @@ std::string format(const char* fmt, ...) {
   return buf;
 }
 
-// Other cameras whose people were matched with view v's (any matching threshold).
-int matched_partners(const SolveDiagnostics& d, const std::string& view) {
-  std::vector<std::string> partners;
-  for (const PairDiagnostics& p : d.pairs) {
-    if (p.matches == 0 || (p.view_a != view && p.view_b != view)) continue;
-    const std::string& other = p.view_a == view ? p.view_b : p.view_a;
-    if (std::find(partners.begin(), partners.end(), other) == partners.end()) {
-      partners.push_back(other);
-    }
-  }
-  return static_cast<int>(partners.size());
-}
-
 // What view v's own 2D says: only at the border, or only someone standing still.
 std::string view_cause(const ViewDiagnostics& v, const SolveDiagnostics& d) {
   if (v.border_fraction >= 0.5) {
@@ -45,14 +32,14 @@ std::string view_cause(const ViewDiagnostics& v, const SolveDiagnostics& d) {
         "%s towards the area people walk in",
         v.view_id.c_str(), 100 * v.border_fraction, v.view_id.c_str());
   }
-  const int partners = matched_partners(d, v.view_id);
-  if (v.motion < 0.03 && partners <= 1) {
+  if (v.motion < 0.03) {
+    (void)d;
     return format(
-        "view %s sees only people standing still (largest movement %.1f %% of the image) whom "
-        "%d other camera%s see%s: a bystander seen by too few cameras cannot place camera %s; "
-        "walk where camera %s and at least one other camera see you",
-        v.view_id.c_str(), 100 * v.motion, partners, partners == 1 ? "" : "s",
-        partners == 1 ? "s" : "", v.view_id.c_str(), v.view_id.c_str());
+        "view %s sees only people standing still (largest movement %.1f %% of the image): a "
+        "bystander seen by too few cameras cannot place camera %s (a standing pose matches "
+        "almost any other view's people); walk where camera %s and at least one other camera "
+        "see you",
+        v.view_id.c_str(), 100 * v.motion, v.view_id.c_str(), v.view_id.c_str());
   }
   return {};
 }
@@ -130,23 +117,30 @@ std::string diagnose_refusal(const std::vector<Hypothesis>& hs,
                              const std::vector<CameraPrior>& priors, const CalibrationInput& input,
                              const CalibrationQuality& q, bool refining) {
   const SolveDiagnostics& d = q.diagnostics;
+  // A view whose own 2D already says why (people only at its border, nobody moving in it).
+  for (const ViewDiagnostics& v : input.views) {
+    if (std::string why = view_cause(v, d); !why.empty()) return why;
+  }
   const Hypothesis* best = best_rejected(hs);
   if (best == nullptr) {
-    // No reconstruction at all: the failure named, with what the named view's 2D says.
+    // No reconstruction at all: a view that the failures name and whose own 2D says why, else
+    // the failure named most often.
+    std::vector<int> named(priors.size() + 1, 0);
     for (const Hypothesis& h : hs) {
-      if (h.diag.failed.empty()) continue;
-      const std::size_t v = failed_view(h.diag.failed, priors);
-      if (v < input.views.size()) {
-        if (std::string why = view_cause(input.views[v], d); !why.empty()) return why;
+      if (!h.diag.failed.empty()) ++named[failed_view(h.diag.failed, priors)];
+    }
+    const auto most = static_cast<std::size_t>(
+        std::max_element(named.begin(), named.end()) - named.begin());
+    for (const Hypothesis& h : hs) {
+      if (!h.diag.failed.empty() && failed_view(h.diag.failed, priors) == most) {
+        return h.diag.failed;
       }
-      return h.diag.failed;
     }
     return "no hypothesis could be tried";
   }
   const std::size_t v = best->loo.worst_view >= 0 ? static_cast<std::size_t>(best->loo.worst_view)
                                                   : view_index(priors, "");
   if (v < input.views.size()) {
-    if (std::string why = view_cause(input.views[v], d); !why.empty()) return why;
     if (std::string why = intrinsics_cause(*best, v, priors, refining); !why.empty()) return why;
   }
   return best->misfit +

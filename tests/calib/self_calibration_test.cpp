@@ -19,112 +19,15 @@
 #include "runtime/calib/epipolar.h"
 #include "runtime/sim/simulator.h"
 #include "runtime/skeleton/topology.h"
+#include "tests/calib/sim_keypoints.h"
 
 namespace mocap::calib {
 namespace {
 
-struct SimRun {
-  Calibration truth;
-  std::unique_ptr<KeypointCollector> keypoints;
-  std::vector<CameraPrior> priors;
-};
-
-// Options of a run: how many seconds, what to do to each frame's detections.
-struct SimSpec {
-  int views = 5;
-  int people = 2;
-  double seconds = 20;
-  bool keep_intrinsics = false;
-  double false_candidates_per_joint = 0.1;
-  double swap_rate = 0;  // (view, person, frame) poses rendered left/right swapped
-  int blind_view = -1;   // this view's detections are emptied
-  bool frozen = false;   // every frame shows frame 0 (nobody moves)
-};
-
-// Swaps each l_/r_ joint pair's candidates of one person in one view.
-void swap_person(sim::RenderedFrame& f, std::size_t view, int person,
-                 const std::vector<int>& mirror) {
-  ViewDetections& v = f.detections.views[view];
-  for (std::size_t j = 0; j < mirror.size(); ++j) {
-    const auto m = static_cast<std::size_t>(mirror[j]);
-    if (m <= j) continue;
-    int cj = -1, cm = -1;
-    for (std::size_t c = 0; c < f.truth_person[view][j].size(); ++c) {
-      if (f.truth_person[view][j][c] == person) cj = static_cast<int>(c);
-    }
-    for (std::size_t c = 0; c < f.truth_person[view][m].size(); ++c) {
-      if (f.truth_person[view][m][c] == person) cm = static_cast<int>(c);
-    }
-    if (cj < 0 || cm < 0) continue;
-    std::swap(v.candidates[j][static_cast<std::size_t>(cj)].x_px,
-              v.candidates[m][static_cast<std::size_t>(cm)].x_px);
-    std::swap(v.candidates[j][static_cast<std::size_t>(cj)].y_px,
-              v.candidates[m][static_cast<std::size_t>(cm)].y_px);
-  }
-}
-
-SimRun simulate(const SimSpec& spec) {
-  sim::RigOptions rig;
-  rig.views = spec.views;
-  sim::SceneOptions scene;
-  scene.people = spec.people;
-  scene.enter_leave = false;
-  sim::DetectionNoiseOptions noise;
-  noise.false_candidates_per_joint = spec.false_candidates_per_joint;
-  auto simulator = sim::Simulator::create(rig, scene, noise, body19_topology());
-  EXPECT_TRUE(simulator.ok());
-  SimRun run;
-  run.truth = simulator->rig();
-  std::vector<int> ids;
-  for (std::size_t v = 0; v < run.truth.size(); ++v) {
-    ids.push_back(static_cast<int>(v));
-    CameraPrior p{run.truth.view_ids[v], run.truth.cameras[v].width_px(),
-                  run.truth.cameras[v].height_px(), std::nullopt};
-    if (spec.keep_intrinsics) p.intrinsics = run.truth.cameras[v];
-    run.priors.push_back(p);
-  }
-  run.keypoints = std::make_unique<KeypointCollector>(body19_topology(), ids, People2DOptions{});
-  const std::vector<int> mirror = mirror_joints(body19_topology());
-  std::mt19937_64 rng(7);
-  std::uniform_real_distribution<double> u(0, 1);
-  auto first = simulator->next();
-  EXPECT_TRUE(first.ok());
-  const int frames = static_cast<int>(spec.seconds * scene.frame_rate_hz);
-  for (int f = 0; f < frames; ++f) {
-    sim::RenderedFrame r = spec.frozen || f == 0 ? *first : *simulator->next();
-    for (std::size_t v = 0; v < r.detections.views.size(); ++v) {
-      for (int person = 0; person < spec.people; ++person) {
-        if (spec.swap_rate > 0 && u(rng) < spec.swap_rate) swap_person(r, v, person, mirror);
-      }
-      if (static_cast<int>(v) == spec.blind_view) {
-        for (auto& c : r.detections.views[v].candidates) c.clear();
-        for (auto& a : r.detections.views[v].affinities) a = AffinityMatrix(0, 0);
-      }
-    }
-    run.keypoints->add(r.detections);
-  }
-  return run;
-}
-
-// Compares with the truth; also checks the floor: +z up and z = 0 on the floor after the
-// similarity (camera heights within 5 cm of the truth's).
-void expect_close_to_truth(const SimRun& run, const Calibration& got, double max_rotation_deg,
-                           double max_center_m, double max_focal_error) {
-  auto c = compare_calibrations(run.truth, got);
-  ASSERT_TRUE(c.ok()) << c.error().message();
-  EXPECT_LE(c->max_rotation_deg, max_rotation_deg);
-  EXPECT_LE(c->median_center_m, max_center_m);
-  for (const CameraComparison& cam : c->cameras) {
-    EXPECT_NEAR(cam.focal_ratio, 1.0, max_focal_error) << "view " << cam.view_id;
-  }
-  const double tilt_deg =
-      std::acos(std::clamp((c->rotation * Eigen::Vector3d::UnitZ()).z(), -1.0, 1.0)) * 180 / M_PI;
-  EXPECT_LT(tilt_deg, 1.0) << "the floor's normal is off";
-  for (std::size_t v = 0; v < got.size(); ++v) {
-    EXPECT_NEAR(got.cameras[v].center_m().z() * c->scale, run.truth.cameras[v].center_m().z(), 0.05)
-        << "camera " << v << " height above the floor";
-  }
-}
+using testing::expect_close_to_truth;
+using testing::simulate;
+using testing::SimRun;
+using testing::SimSpec;
 
 TEST(SelfCalibrationTest, FiveViewsTwoPeopleFocalUnknown) {
   const SimRun run = simulate({});
