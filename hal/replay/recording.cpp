@@ -18,7 +18,34 @@ std::string join(const std::vector<std::string>& v) {
 
 }  // namespace
 
-Result<Recording> open_recording(const fs::path& dir) {
+namespace {
+
+// A folder without calibration.json: its views are its videos, 0..N-1.
+Result<Recording> uncalibrated(const fs::path& dir, const fs::path& video_dir,
+                               const std::vector<std::string>& names) {
+  std::vector<std::string> expected;
+  for (std::size_t i = 0; i < names.size(); ++i) expected.push_back(std::to_string(i));
+  if (names != expected) {
+    return Error(ErrorCode::kInvalidArgument,
+                 video_dir.string() + ": videos for views {" + join(names) +
+                     "}: without calibration.json the videos must be 0.mp4 .. N-1.mp4");
+  }
+  if (names.size() < 2 || names.size() > static_cast<std::size_t>(kMaxRecordingViews)) {
+    return Error(ErrorCode::kInvalidArgument, dir.string() + ": a recording needs 2.." +
+                                                  std::to_string(kMaxRecordingViews) +
+                                                  " views, got " + std::to_string(names.size()));
+  }
+  Recording r;
+  r.dir = dir;
+  for (std::size_t v = 0; v < names.size(); ++v) {
+    r.videos.push_back(video_dir / (std::to_string(v) + ".mp4"));
+  }
+  return r;
+}
+
+}  // namespace
+
+Result<Recording> open_recording(const fs::path& dir, bool calibration_optional) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) {
     return Error(
@@ -26,7 +53,8 @@ Result<Recording> open_recording(const fs::path& dir) {
         dir.string() +
             ": no such recording folder (expected calibration.json and videos/<view>.mp4)");
   }
-  auto calib = load_calibration(dir / "calibration.json");
+  const bool without = calibration_optional && !fs::exists(dir / "calibration.json", ec);
+  auto calib = without ? Result<Calibration>(Calibration{}) : load_calibration(dir / "calibration.json");
   if (!calib.ok()) return calib.error();
   const fs::path video_dir = dir / "videos";
   if (!fs::is_directory(video_dir, ec)) {
@@ -48,6 +76,7 @@ Result<Recording> open_recording(const fs::path& dir) {
   }
   std::vector<std::string> video_names, expected;
   for (int v : video_views) video_names.push_back(std::to_string(v));
+  if (without) return uncalibrated(dir, video_dir, video_names);
   const std::vector<std::string>& calib_names = calib->view_ids;
   for (std::size_t i = 0; i < calib->size(); ++i) expected.push_back(std::to_string(i));
   if (calib_names != expected) {

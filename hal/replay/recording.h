@@ -17,14 +17,18 @@ inline constexpr int kMaxRecordingViews = 16;
 
 struct Recording {
   std::filesystem::path dir;
-  Calibration calibration;
+  Calibration calibration;  // empty (no cameras) when the folder has none and none was needed
   std::vector<std::filesystem::path> videos;  // [view]
+  bool calibrated() const { return !calibration.cameras.empty(); }
 };
 
 // Errors: missing folder or videos/ (kNotFound), calibration errors as load_calibration gives
 // them, video names other than <view id>.mp4, calibration view ids other than 0..N-1, videos
 // and calibrated views that do not correspond one to one, fewer than 2 or more than 16 views
-// (kInvalidArgument).
-Result<Recording> open_recording(const std::filesystem::path& dir);
+// (kInvalidArgument). With `calibration_optional`, a folder without calibration.json is read
+// from its videos alone (views 0..N-1 of videos/N.mp4; the calibration left empty): what the
+// self-calibration reads, which needs no poses.
+Result<Recording> open_recording(const std::filesystem::path& dir,
+                                 bool calibration_optional = false);
 
 }  // namespace mocap::hal

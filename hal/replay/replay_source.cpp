@@ -15,10 +15,11 @@ namespace mocap::hal {
 using pipeline::SourceStatus;
 
 Result<std::unique_ptr<ReplaySource>> ReplaySource::open(const ReplaySourceOptions& options) {
-  Result<Recording> rec = open_recording(options.dir);
+  Result<Recording> rec = open_recording(options.dir, options.calibration_optional);
   if (!rec.ok()) return rec.error();
   std::unique_ptr<ReplaySource> s(new ReplaySource());
   s->options_ = options;
+  s->calibrated_ = rec->calibrated();
   s->calibration_ = std::move(rec->calibration);
   s->videos_ = std::move(rec->videos);
   if (Status st = s->open_cameras(); !st.ok()) return st.error();
@@ -36,6 +37,16 @@ Status ReplaySource::open_cameras() {
     auto cam = ReplayCamera::open(o);
     if (!cam.ok()) return cam.error();
     const CameraMode& m = (*cam)->mode();
+    if (!calibrated_ && calibration_.cameras.size() == v) {
+      // Placeholder of the video's size: the views' ids and sizes are all that is known.
+      Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+      K(0, 0) = K(1, 1) = std::max(m.width_px, m.height_px);
+      K(0, 2) = 0.5 * m.width_px;
+      K(1, 2) = 0.5 * m.height_px;
+      calibration_.cameras.emplace_back(K, Distortion{}, m.width_px, m.height_px,
+                                        Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+      calibration_.view_ids.push_back(std::to_string(v));
+    }
     const Camera& c = calibration_.cameras[v];
     if (m.width_px != c.width_px() || m.height_px != c.height_px()) {
       return Error(ErrorCode::kInvalidArgument,

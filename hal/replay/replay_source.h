@@ -28,6 +28,9 @@ struct ReplaySourceOptions {
   // Deliver each set at its recorded time (downstream drops what it cannot keep up with, as
   // with cameras); false: as fast as the pipeline takes them.
   bool realtime = false;
+  // A folder without calibration.json is read from its videos alone (the self-calibration):
+  // calibration() then holds placeholder cameras of the videos' sizes, calibrated() false.
+  bool calibration_optional = false;
 };
 
 class ReplaySource final : public pipeline::FrameSource {
@@ -42,6 +45,9 @@ class ReplaySource final : public pipeline::FrameSource {
   std::string status_json() const override;
 
   const Calibration& calibration() const { return calibration_; }
+  // False when the folder had no calibration.json (calibration_optional): only the views' ids
+  // and image sizes in calibration() are real.
+  bool calibrated() const { return calibrated_; }
   int view_count() const { return static_cast<int>(videos_.size()); }
   // Frames per video as the containers announce them (the smallest; 0 when one does not say).
   std::int64_t frame_count() const { return frame_count_; }
@@ -58,6 +64,7 @@ class ReplaySource final : public pipeline::FrameSource {
 
   ReplaySourceOptions options_;
   Calibration calibration_;
+  bool calibrated_ = true;
   std::vector<std::filesystem::path> videos_;
   std::vector<std::unique_ptr<ReplayCamera>> cameras_;
   std::vector<std::string> view_descriptions_;

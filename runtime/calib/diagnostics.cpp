@@ -122,6 +122,7 @@ std::string diagnostics_full_json(const SolveDiagnostics& d) {
 
 std::string format_hypotheses(const SolveDiagnostics& d) {
   std::string s;
+  if (d.hypotheses.empty()) return s;
   int tried = 0, failed = 0;
   for (const HypothesisDiagnostics& h : d.hypotheses) {
     ++tried;

@@ -421,9 +421,11 @@ std::string format_quality(const CalibrationQuality& q) {
   for (std::size_t i = 0; i < q.views.size(); ++i) {
     const ViewQuality& v = q.views[i];
     const int tracklets = i < q.diagnostics.views.size() ? q.diagnostics.views[i].tracklets : 0;
-    std::snprintf(buf, sizeof buf, "%-6s %18d  %9d  %11d  %9.2f  %6.2f  %6.2f  %8.1f%s\n",
+    char loo[16] = "     -";
+    if (v.loo_median_px >= 0) std::snprintf(loo, sizeof loo, "%6.2f", v.loo_median_px);
+    std::snprintf(buf, sizeof buf, "%-6s %18d  %9d  %11d  %9.2f  %6.2f  %s  %8.1f%s\n",
                   v.view_id.c_str(), v.frames_with_people, tracklets, v.observations, v.median_px,
-                  v.p90_px, v.loo_median_px, v.focal_px, v.focal_estimated ? " (estimated)" : "");
+                  v.p90_px, loo, v.focal_px, v.focal_estimated ? " (estimated)" : "");
     s += buf;
   }
   s += format_hypotheses(q.diagnostics);

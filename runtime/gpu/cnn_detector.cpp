@@ -104,13 +104,15 @@ Status CnnDetector::open_crops(const nn::Model& detector_model) {
   const bool software = backend_.backend == PoseBackend::kCpu ||
                         (backend_.context && backend_.context->device_info().is_cpu());
   if (options_.crops_need_gpu && software) {
-    crops_off_reason_ = "3D-guided crops are off: the CNN runs on " + backend_.description +
+    crops_off_reason_ = std::string(options_.crops_from_detections ? "2D" : "3D") +
+                        "-guided crops are off: the CNN runs on " + backend_.description +
                         ", not a hardware GPU (ask for them explicitly to run them anyway)";
     return Status::Ok();
   }
   Result<nn::Model> model = nn::load_model(options_.crop_model);
   if (!model.ok() && options_.crops_need_gpu) {  // auto: the box runs without them
-    crops_off_reason_ = "3D-guided crops are off: " + model.error().message() +
+    crops_off_reason_ = std::string(options_.crops_from_detections ? "2D" : "3D") +
+                        "-guided crops are off: " + model.error().message() +
                         " (tools/setup.sh converts movenet-thunder.json)";
     return Status::Ok();
   }

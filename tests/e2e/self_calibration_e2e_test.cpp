@@ -6,6 +6,7 @@
 // the replay reprojects better with it, 9.7 px median against 12.9 px with the given one).
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <string>
 
 #include "runtime/geometry/calibration.h"
@@ -43,6 +44,94 @@ TEST(SelfCalibrationE2e, Pose2SimMultiFromTheVideosWithItsIntrinsics) {
   auto json = io::read_text_file(report);
   ASSERT_TRUE(json.ok());
   EXPECT_NE(json->find("\"ok\": true"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace mocap
+
+namespace mocap {
+namespace {
+
+// A recording folder of pose2sim_multi's videos (links), without or with a calibration.json.
+std::filesystem::path linked_recording(const testing::TestTempDir& dir,
+                                       const std::filesystem::path& data) {
+  const auto rec = dir.path() / "rec";
+  std::filesystem::create_directories(rec / "videos");
+  for (int v = 0; v < 4; ++v) {
+    const std::string name = std::to_string(v) + ".mp4";
+    std::filesystem::create_symlink(data / "videos" / name, rec / "videos" / name);
+  }
+  return rec;
+}
+
+TEST(SelfCalibrationRecordingTest, WithoutCalibrationJsonTheVideosGiveTheViews) {
+  MOCAP_REQUIRE_DATA(data, "pose2sim_multi");
+  testing::TestTempDir dir("selfcal_nocal");
+  const auto rec = linked_recording(dir, data);
+  const std::string out = (dir.path() / "self.json").string();
+  // 12 frames: the collection runs, the solve refuses for too few frames (exit 1).
+  auto r = testing::run_process({kBin, "calibrate", "people", "--recording", rec.string(),
+                                 "--frames", "12", "--out", out},
+                                dir.path(), "calibrate", 300000);
+  EXPECT_EQ(r.exit_code, 1) << r.how() << "\n" << r.out << r.err;
+  EXPECT_NE(r.out.find("has no calibration.json: views and image sizes from the videos: 0 "
+                       "1088x1920, 1 1088x1920, 2 1088x1920, 3 1088x1920"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("refused: too few frames"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(out));
+  // The intrinsics cannot be kept from a file that is not there: a usage error naming it.
+  auto k = testing::run_process({kBin, "calibrate", "people", "--recording", rec.string(),
+                                 "--frames", "12", "--keep-intrinsics", "--out", out},
+                                dir.path(), "calibrate", 300000);
+  EXPECT_NE(k.exit_code, 0);
+  EXPECT_NE(k.err.find("has no calibration.json to take the intrinsics from"), std::string::npos)
+      << k.err;
+}
+
+TEST(SelfCalibrationRecordingTest, VideoOfAnotherSizeThanItsCalibrationIsNamed) {
+  MOCAP_REQUIRE_DATA(data, "pose2sim_multi");
+  testing::TestTempDir dir("selfcal_size");
+  const auto rec = linked_recording(dir, data);
+  auto text = io::read_text_file(data / "calibration.json");
+  ASSERT_TRUE(text.ok());
+  // View 2's imgSize says 1080 x 1920 (the video is 1088 x 1920).
+  std::string j = *text;
+  const std::size_t at = j.find("\"2\"");
+  ASSERT_NE(at, std::string::npos);
+  const std::size_t size_at = j.find("1088", j.find("imgSize", at));
+  ASSERT_NE(size_at, std::string::npos);
+  j.replace(size_at, 4, "1080");
+  ASSERT_TRUE(io::write_text_file(rec / "calibration.json", j).ok());
+  auto r = testing::run_process({kBin, "calibrate", "people", "--recording", rec.string(),
+                                 "--frames", "12", "--out", (dir.path() / "o.json").string()},
+                                dir.path(), "calibrate", 300000);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("videos/2.mp4: frames are 1088x1920 but calibration.json view \"2\" has "
+                       "imgSize 1080x1920"),
+            std::string::npos)
+      << r.err;
+}
+
+TEST(SelfCalibrationRecordingTest, TruncatedVideoIsNamed) {
+  MOCAP_REQUIRE_DATA(data, "pose2sim_multi");
+  testing::TestTempDir dir("selfcal_trunc");
+  const auto rec = dir.path() / "rec";
+  std::filesystem::create_directories(rec / "videos");
+  for (int v = 0; v < 4; ++v) {
+    const std::string name = std::to_string(v) + ".mp4";
+    auto bytes = io::read_text_file(data / "videos" / name);
+    ASSERT_TRUE(bytes.ok());
+    // View 1 cut to 40 %: its index (at the end of these files) is gone.
+    const std::string kept = v == 1 ? bytes->substr(0, bytes->size() * 2 / 5) : *bytes;
+    ASSERT_TRUE(io::write_text_file(rec / "videos" / name, kept).ok());
+  }
+  auto r = testing::run_process({kBin, "calibrate", "people", "--recording", rec.string(),
+                                 "--frames", "12", "--out", (dir.path() / "o.json").string()},
+                                dir.path(), "calibrate", 300000);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("videos/1.mp4"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "o.json"));
 }
 
 }  // namespace

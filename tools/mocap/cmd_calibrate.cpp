@@ -42,9 +42,10 @@ constexpr const char* kHelp =
     "from the ankles (+z up, z = 0 on the floor, origin at the centre of the walked area, +x\n"
     "towards camera 0). Without known intrinsics the focal lengths are estimated (principal\n"
     "point at the image centre). One source:\n"
-    "  --recording DIR  a recording (DIR/videos/<view>.mp4) through the pose CNN; the poses in\n"
-    "                   DIR/calibration.json are never used, its intrinsics only with\n"
-    "                   --keep-intrinsics (its views and image sizes are read from it)\n"
+    "  --recording DIR  a recording (DIR/videos/<view>.mp4, views 0..N-1) through the pose CNN;\n"
+    "                   DIR/calibration.json is not needed: the views and image sizes come from\n"
+    "                   the videos; when it is there its poses are never used, its intrinsics\n"
+    "                   only with --keep-intrinsics (and its image sizes must match the videos)\n"
     "  --shelf DIR      the Shelf detections (Shelf intrinsics always kept)\n"
     "  --synthetic      the simulator (ring rig, walking people, detector noise model on);\n"
     "                   --truth-out writes the true rig for `mocap calib compare`\n"
@@ -125,6 +126,7 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
                          std::vector<calib::CameraPrior>& priors) {
   ReplayPartsOptions o;
   o.source.dir = a.recording;
+  o.source.calibration_optional = true;  // only intrinsics priors come from it
   o.cnn.model = model_path_for(a.model);
   o.cnn.input_size_px = 0;  // the model's default (MoveNet 448, PoseNet 353)
   if (Status s = a.crops.apply(o.cnn); !s.ok()) return s;
@@ -144,6 +146,13 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
   auto parts = open_replay(o);
   if (!parts.ok()) return parts.error();
   const Calibration& cal = parts->source->calibration();
+  const bool file = parts->source->calibrated();
+  if (keep_intrinsics && !file) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "--keep-intrinsics: " + a.recording +
+                     " has no calibration.json to take the intrinsics from (leave the flag out: "
+                     "the focal lengths are then estimated)");
+  }
   std::vector<int> ids;
   for (std::size_t v = 0; v < cal.size(); ++v) {
     ids.push_back(static_cast<int>(v));
@@ -151,6 +160,14 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
                          std::nullopt};
     if (keep_intrinsics) p.intrinsics = cal.cameras[v];
     priors.push_back(p);
+  }
+  if (!file) {
+    std::printf("%s has no calibration.json: views and image sizes from the videos", a.recording.c_str());
+    for (const calib::CameraPrior& p : priors) {
+      std::printf("%s %s %dx%d", p.view_id == priors.front().view_id ? ":" : ",", p.view_id.c_str(),
+                  p.width_px, p.height_px);
+    }
+    std::printf("\n");
   }
   std::printf("recording: %s, %d views, %s\n", a.recording.c_str(), parts->source->view_count(),
               parts->detector->description().c_str());
