@@ -1,8 +1,12 @@
-// The self-calibration of a running box (mocapd's zero-configuration flow, issue 23): every
+// The self-calibration of a running box (mocapd's zero-configuration flow, issues 23, 37): every
 // frame's 2D detections are collected while the box streams them; once enough frames are in,
 // the solve runs on a background thread with a copy of what was collected (the pipeline never
-// waits for it), and again after more frames when it refused. A success is handed out once
-// (take_result); progress says what is collected and what the user should do.
+// waits for it), and again after more frames when it refused. A success is handed out
+// (take_result); then, longer being better, the collection goes on while people move and the
+// solve runs again each time the frames have doubled (up to refine_until_frames): a result is
+// handed out while it still moves the cameras (more than the convergence limits from the one
+// before), and the calibrator is done once it no longer does. progress says what is collected,
+// how the refining goes and what the user should do.
 #pragma once
 
 #include <atomic>
@@ -22,18 +26,32 @@ struct BackgroundCalibratorOptions {
   People2DOptions people;
   int first_attempt_frames = 250;  // frames collected before the first solve, [30, 100000]
   int retry_frames = 250;          // more frames before the next solve after a refusal
-  int max_frames = 3000;           // the collection restarts beyond this (a fresh window)
+  int max_frames = 3000;           // before a first success, the collection restarts beyond this
+  // After a success: solved again at twice the frames, then twice again ..., up to this many
+  // frames (0: no refining, done at the first success).
+  int refine_until_frames = 3000;
+  // A refined result that moves no camera more than this (after the similarity of the
+  // centres) means the calibration has converged: done, nothing handed out.
+  double converged_rotation_deg = 0.05;
+  double converged_center_m = 0.005;
   Status validate() const;
 };
 
 struct CalibrationProgress {
-  std::string state = "collecting";  // "collecting", "solving", "done"
+  // "collecting", "solving" (before the first success), "refining" (collecting or solving
+  // after it), "done"
+  std::string state = "collecting";
   int frames = 0;
   std::vector<std::string> view_ids;
   std::vector<int> frames_with_people;  // per view
   int attempts = 0;
   std::string last_refusal;  // the latest solve's reason (empty before the first)
   std::string hint;          // what the user should do now
+  int refinements = 0;       // results handed out after the first
+  // How far the last refined result moved the cameras from the one before (-1: none yet).
+  double last_change_deg = -1;
+  double last_change_m = -1;
+  int next_solve_frames = 0;  // frames at which the next solve starts (0: none planned)
 };
 
 class BackgroundCalibrator {
@@ -48,8 +66,11 @@ class BackgroundCalibrator {
 
   // One frame's detections (cheap: the 2D people are parsed here); may start a solve.
   void add(const DetectionSet& set);
-  // The calibration, once, after a solve succeeded.
+  // The calibration, once per success that is handed out (the first, then each refinement
+  // that still moved the cameras).
   std::optional<SelfCalibrationResult> take_result();
+  // After a success, still collecting and solving again (mocapd keeps feeding it).
+  bool refining() const;
   CalibrationProgress progress() const;
   // Blocks until no solve is running (tests, shutdown).
   void wait();
@@ -67,6 +88,11 @@ class BackgroundCalibrator {
   int next_attempt_frames_ = 0;
   bool solving_ = false;
   bool done_ = false;
+  bool refining_ = false;
+  std::atomic<bool> cancel_{false};  // the destructor stops a running solve
+  int refinements_ = 0;
+  double last_change_deg_ = -1, last_change_m_ = -1;
+  std::optional<Calibration> last_;  // the latest calibration handed out
   int attempts_ = 0;
   std::string last_refusal_;
   std::optional<SelfCalibrationResult> result_;

@@ -1,6 +1,7 @@
 #include "runtime/calib/bundle.h"
 
 #include <ceres/ceres.h>
+#include <glog/logging.h>
 #include <ceres/rotation.h>
 #include <ceres/sphere_manifold.h>
 
@@ -11,6 +12,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <mutex>
 
 namespace mocap::calib {
 
@@ -172,7 +174,20 @@ double reprojection_px(const BundleProblem& p, const BundleObservation& o) {
                           p.points[static_cast<std::size_t>(o.point)], o.px);
 }
 
+namespace {
+
+// Ceres logs through glog: a singular reduced camera matrix (a camera that lost its points in a
+// hypothesis that goes astray) prints a warning per attempt, which LM then recovers from. The
+// self-calibration reports what went wrong itself; only errors go to stderr.
+void quiet_ceres() {
+  static std::once_flag once;
+  std::call_once(once, [] { FLAGS_minloglevel = google::GLOG_ERROR; });
+}
+
+}  // namespace
+
 BundleSummary run_bundle(BundleProblem& p, const BundleOptions& o) {
+  quiet_ceres();
   ceres::Problem::Options po;
   po.loss_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(po);

@@ -61,6 +61,7 @@ nlohmann::json hypothesis_json(const HypothesisDiagnostics& h, bool full) {
                       {"observations", h.observations},
                       {"people_groups", h.people_groups},
                       {"carried", h.carried},
+                      {"coverage", rounded(h.coverage)},
                       {"verdict", h.verdict}};
   if (!h.failed.empty()) j["failed"] = h.failed;
   if (!h.intrinsics.empty()) j["intrinsics"] = h.intrinsics;

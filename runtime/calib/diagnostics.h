@@ -61,6 +61,7 @@ struct HypothesisDiagnostics {
   double loo_mean_view_px = 0;        // the score: mean of the views' LOO medians
   double reprojection_px = 0;         // median reprojection, all views
   int observations = 0;               // 2D joints used
+  std::vector<double> coverage;       // [view] share of its 2D joints kept (carried ones)
   int people_groups = 0;              // people (over stretches of time) the matching found
   bool carried = false;  // carried on with every frame (else scored on the thinned ones only)
   std::string intrinsics;  // with --refine-intrinsics: refined or the file's kept, and why

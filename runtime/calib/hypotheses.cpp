@@ -117,7 +117,36 @@ StepDiagnostics step_diagnostics(const RegistrationStep& s, const std::vector<Ca
   return d;
 }
 
-void score(Hypothesis& h, const std::vector<CameraPrior>& priors, const HypothesisOptions& o) {
+// A view whose joints the calibration mostly leaves unexplained (empty: none).
+std::string coverage_misfit(const std::vector<double>& coverage,
+                            const std::vector<CameraPrior>& priors, double min_coverage) {
+  for (std::size_t v = 0; v < coverage.size(); ++v) {
+    if (coverage[v] >= min_coverage) continue;
+    char buf[300];
+    std::snprintf(buf, sizeof buf,
+                  "view %s: these cameras relate only %.0f %% of its people's joints to another "
+                  "view (%.0f %% needed: a geometry that fits some of the people and not the "
+                  "others)",
+                  priors[v].view_id.c_str(), 100 * coverage[v], 100 * min_coverage);
+    return buf;
+  }
+  return {};
+}
+
+// The matching of the coverage check: a fixed threshold (rematch_fraction of the widest
+// diagonal, twice, as the re-matching's; not scaled by threshold_scale), so that a perturbed
+// threshold does not decide what the cameras explain.
+MatchOptions coverage_match(const std::vector<CameraPrior>& priors, const HypothesisOptions& o) {
+  MatchOptions mo = o.match;
+  double widest = 0;
+  for (const CameraPrior& p : priors) widest = std::max(widest, diagonal(p));
+  mo.ransac.threshold_px = 2 * widest * o.coverage_fraction;
+  return mo;
+}
+
+void score(Hypothesis& h, const std::vector<CameraPrior>& priors, const HypothesisOptions& o,
+           const std::vector<std::vector<Tracklet>>* all_tracklets = nullptr,
+           const SkeletonTopology* topology = nullptr) {
   const Reconstruction& rec = *h.rec;
   h.diag.order.clear();
   for (int v : rec.order) h.diag.order.push_back(priors[static_cast<std::size_t>(v)].view_id);
@@ -132,6 +161,21 @@ void score(Hypothesis& h, const std::vector<CameraPrior>& priors, const Hypothes
     h.diag.observations += ob.inlier ? 1 : 0;
   }
   h.misfit = view_misfit(h.loo, priors, o);
+  h.misfit_view = h.misfit.empty() ? -1 : h.loo.worst_view;
+  h.misfit_coverage = false;
+  if (all_tracklets != nullptr && topology != nullptr) {
+    h.diag.coverage = explained_share(rec.problem.cameras, *all_tracklets, *topology,
+                                      coverage_match(priors, o));
+    if (h.misfit.empty()) {
+      h.misfit = coverage_misfit(h.diag.coverage, priors, o.min_view_coverage);
+      h.misfit_coverage = !h.misfit.empty();
+      if (h.misfit_coverage) {
+        h.misfit_view = static_cast<int>(
+            std::min_element(h.diag.coverage.begin(), h.diag.coverage.end()) -
+            h.diag.coverage.begin());
+      }
+    }
+  }
 }
 
 // One hypothesis carried to its adjusted result (on the thinned frames) and scored.
@@ -170,10 +214,13 @@ Hypothesis run_one(const std::vector<std::vector<Tracklet>>& tracklets,
 void carry_on(Hypothesis& h, const std::vector<std::vector<Tracklet>>& tracklets,
               const std::vector<CameraPrior>& priors, const SkeletonTopology& topology,
               const HypothesisOptions& o) {
+  // The threshold follows the detections' own noise as this hypothesis measured it (its
+  // leave-one-view-out median), not a setting: at least the tight matching fraction.
   MatchOptions mo = o.match;
   double widest = 0;
   for (const CameraPrior& p : priors) widest = std::max(widest, diagonal(p));
-  mo.ransac.threshold_px = std::max(mo.ransac.threshold_px, 2 * widest * o.rematch_fraction);
+  mo.ransac.threshold_px =
+      std::max(o.rematch_loo_factor * h.loo.median_px, 2 * widest * o.rematch_fraction);
   auto again = reassociate(*h.rec, tracklets, topology, o.reconstruct, mo);
   if (!again.ok()) {
     h.diag.failed = "matched again with its cameras: " + again.error().message();
@@ -182,7 +229,7 @@ void carry_on(Hypothesis& h, const std::vector<std::vector<Tracklet>>& tracklets
     return;
   }
   h.rec = std::move(*again);
-  score(h, priors, o);
+  score(h, priors, o, &tracklets, &topology);
 }
 
 // The file's intrinsics (and lens) back in place of the adjusted ones.
@@ -227,7 +274,7 @@ void carry_on_checked(Hypothesis& h, const std::vector<std::vector<Tracklet>>& t
   ReconstructOptions fixed = o.reconstruct;
   fixed.intrinsics = {};
   adjust_again(*h.rec, topology, fixed);
-  score(h, priors, o);
+  score(h, priors, o, &tracklets, &topology);
   std::snprintf(buf, sizeof buf,
                 "the file's kept: refining them improved the fit only from %.2f to %.2f px "
                 "(%.0f %% needed)",
@@ -266,19 +313,25 @@ Status HypothesisOptions::validate() const {
                    "self-calibration: matching thresholds must be in (0, 0.1) of the diagonals");
     }
   }
-  if (hypothesis_frames < 10 || carried < 1 || !(rematch_fraction > 0 && rematch_fraction < 0.1)) {
+  if (hypothesis_frames < 10 || carried < 1 || !(rematch_fraction > 0 && rematch_fraction < 0.1) ||
+      !(rematch_loo_factor > 0 && rematch_loo_factor <= 20)) {
     return Error(ErrorCode::kInvalidArgument,
-                 "self-calibration: hypothesis_frames must be >= 10, carried >= 1 and "
-                 "rematch_fraction in (0, 0.1)");
+                 "self-calibration: hypothesis_frames must be >= 10, carried >= 1, "
+                 "rematch_fraction in (0, 0.1) and rematch_loo_factor in (0, 20]");
+  }
+  if (!(threshold_scale >= 0.1 && threshold_scale <= 10)) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "self-calibration: threshold_scale must be in [0.1, 10]");
   }
   if (start_pairs < 1 || start_pairs > 28) {
     return Error(ErrorCode::kInvalidArgument, "self-calibration: start_pairs must be in [1, 28]");
   }
   if (!(view_fit_factor >= 1 && view_fit_factor <= 100) ||
-      !(view_fit_floor >= 0 && view_fit_floor < 1)) {
+      !(view_fit_floor >= 0 && view_fit_floor < 1) ||
+      !(min_view_coverage >= 0 && min_view_coverage <= 1)) {
     return Error(ErrorCode::kInvalidArgument,
-                 "self-calibration: view_fit_factor must be in [1, 100] and view_fit_floor in "
-                 "[0, 1)");
+                 "self-calibration: view_fit_factor must be in [1, 100], view_fit_floor in "
+                 "[0, 1) and min_view_coverage in [0, 1]");
   }
   if (!(min_intrinsics_gain >= 0 && min_intrinsics_gain < 1) ||
       !(min_lens_gain >= 0 && min_lens_gain < 1)) {
@@ -368,13 +421,17 @@ std::vector<Hypothesis> run_hypotheses(const CalibrationInput& input,
   ReconstructOptions ro = o.reconstruct;
   ro.estimate_focal = ro.estimate_focal || focal_unknown;
   // Pixel thresholds grow with the image (detector noise does).
-  ro.pnp_threshold_px = std::max(ro.pnp_threshold_px, 0.006 * diag_px);
-  ro.outlier_min_px = std::max(ro.outlier_min_px, 0.004 * diag_px);
+  const double k = o.threshold_scale;
+  ro.pnp_threshold_px = k * std::max(ro.pnp_threshold_px, 0.006 * diag_px);
+  ro.outlier_min_px = k * std::max(ro.outlier_min_px, 0.004 * diag_px);
   HypothesisOptions oo = o;
   oo.reconstruct = ro;
+  oo.match.ransac.threshold_px = k * o.match.ransac.threshold_px;
   std::vector<Hypothesis> out;
-  for (double fraction : o.match_fractions) {
-    const std::vector<ViewPairMatch> pairs = match_views(few, priors, mirror, o, fraction, diag);
+  for (double unscaled : o.match_fractions) {
+    if (o.cancelled()) break;
+    const double fraction = k * unscaled;
+    const std::vector<ViewPairMatch> pairs = match_views(few, priors, mirror, oo, fraction, diag);
     const std::vector<PersonGroup> groups = group_people(few.ideal, pairs);
     if (groups.empty()) {
       Hypothesis h;
@@ -392,7 +449,7 @@ std::vector<Hypothesis> run_hypotheses(const CalibrationInput& input,
     std::vector<BundleCamera> cams;
     for (const CameraPrior& p : priors) cams.push_back(initial_camera(p, focal, with_lens));
     const int starts = std::min<int>(o.start_pairs, static_cast<int>(pairs.size()));
-    for (int rank = 0; rank < starts; ++rank) {
+    for (int rank = 0; rank < starts && !o.cancelled(); ++rank) {
       Hypothesis best_fit = run_one(tracklets, pairs, groups, cams, priors, topology, oo, fraction,
                                     rank, RegistrationOrder::kBestFit);
       int a = -1, b = -1;
@@ -413,7 +470,7 @@ std::vector<Hypothesis> run_hypotheses(const CalibrationInput& input,
   int carried = 0;
   for (std::size_t i : ranked) {
     if (!out[i].rec) break;
-    if (carried < o.carried) {
+    if (carried < o.carried && !o.cancelled()) {
       out[i].diag.carried = true;
       if (o.rematch) {
         carry_on_checked(out[i], with_lens ? input.raw : input.ideal, priors, topology, oo);

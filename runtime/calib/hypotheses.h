@@ -7,6 +7,7 @@
 // one wins; the runner-up is reported.
 #pragma once
 
+#include <atomic>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,10 +31,16 @@ struct HypothesisOptions {
   // each a hypothesis.
   std::vector<double> match_fractions = {0.002, 0.006};
   int start_pairs = 3;  // the strongest pairs each tried as the start, [1, 28]
-  // Everyone matched again with each hypothesis's cameras (at this fraction of the diagonals)
-  // and the adjustment redone with them (reassociate).
+  // Every pixel threshold (matching, re-matching, registration, outliers) times this, [0.1, 10]:
+  // the stability sweep's perturbation.
+  double threshold_scale = 1;
+  // Everyone matched again with each carried hypothesis's cameras and the adjustment redone
+  // with them (reassociate). Its Sampson threshold follows the noise the hypothesis measured:
+  // rematch_loo_factor x its leave-one-view-out median, at least rematch_fraction of twice the
+  // widest diagonal (the tight matching's).
   bool rematch = true;
-  double rematch_fraction = 0.006;
+  double rematch_loo_factor = 2;
+  double rematch_fraction = 0.002;
   // The hypotheses are compared on at most this many frames; the best `carried` are then
   // carried on with every frame (and matched again).
   int hypothesis_frames = 100;
@@ -49,6 +56,16 @@ struct HypothesisOptions {
   // view_fit_factor x the median of the other views' and view_fit_floor of the diagonal.
   double view_fit_factor = 2.5;
   double view_fit_floor = 0.004;
+  // ... and when the cameras relate at least this share of each view's 2D joints to another
+  // view (its tracklets matched under the cameras' geometry at coverage_fraction of the
+  // diagonals, whatever threshold_scale says): a wrong geometry can fit a standing person and a
+  // bystander well and leave the others unexplained, [0, 1].
+  double min_view_coverage = 0.5;
+  double coverage_fraction = 0.006;
+  // Set from another thread to stop between hypotheses (a box shutting down): the solve then
+  // returns what it has, which self_calibrate reports as cancelled. Null: never.
+  const std::atomic<bool>* cancel = nullptr;
+  bool cancelled() const { return cancel != nullptr && cancel->load(); }
   Status validate() const;
 };
 
@@ -57,6 +74,8 @@ struct Hypothesis {
   std::optional<Reconstruction> rec;  // absent when it failed or was not carried on
   LooFit loo;
   std::string misfit;  // why a view does not fit like the others (empty: it fits)
+  int misfit_view = -1;        // the view it names
+  bool misfit_coverage = false;  // the view's joints mostly unexplained (else its LOO is off)
   bool accepted() const { return rec.has_value() && misfit.empty(); }
 };
 

@@ -270,6 +270,20 @@ void KeypointCollector::add(const DetectionSet& set) {
   ++frames_;
 }
 
+KeypointCollector KeypointCollector::select(const std::vector<int>& frames,
+                                            const std::vector<int>& order) const {
+  std::vector<int> ids;
+  for (int v : order) ids.push_back(view_ids_[static_cast<std::size_t>(v)]);
+  KeypointCollector out(*topology_, ids, options_);
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    const auto v = static_cast<std::size_t>(order[i]);
+    out.sizes_[i] = sizes_[v];
+    for (int f : frames) out.people_[i].push_back(people_[v][static_cast<std::size_t>(f)]);
+  }
+  out.frames_ = static_cast<int>(frames.size());
+  return out;
+}
+
 std::string KeypointCollector::to_json() const {
   nlohmann::json j;
   j["topology"] = topology_->name();

@@ -101,6 +101,10 @@ class KeypointCollector {
   int height_px(int v) const { return sizes_[static_cast<std::size_t>(v)].second; }
   const People2DOptions& options() const { return options_; }
 
+  // A copy with only `frames` (ascending indices, renumbered 0..) and the views in `order`
+  // (indices into view_ids()): the stability sweep's frame subsets and shuffled views.
+  KeypointCollector select(const std::vector<int>& frames, const std::vector<int>& order) const;
+
   // The collected people as JSON (to calibrate again without the CNN):
   //   {"topology": "coco17", "views": [0, 1], "sizes": [[w, h], ...],
   //    "people": [view][frame][person] = [x, y, score, x, y, score, ...] per joint}

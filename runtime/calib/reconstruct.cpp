@@ -871,21 +871,18 @@ void adjust_again(Reconstruction& rec, const SkeletonTopology& topology,
   rec.steps.push_back(step_of(rec.problem, -2, 0));
 }
 
-Result<Reconstruction> reassociate(const Reconstruction& rec,
-                                   const std::vector<std::vector<Tracklet>>& tracklets,
-                                   const SkeletonTopology& topology, const ReconstructOptions& o,
-                                   const MatchOptions& match) {
+std::vector<PersonGroup> people_under(const std::vector<BundleCamera>& cameras,
+                                      const std::vector<std::vector<Tracklet>>& tracklets,
+                                      const SkeletonTopology& topology, const MatchOptions& match) {
   const std::size_t views = tracklets.size();
   const std::vector<int> mirror = mirror_joints(topology);
   std::vector<std::vector<Tracklet>> ideal;
-  for (std::size_t v = 0; v < views; ++v) {
-    ideal.push_back(ideal_tracklets(tracklets[v], rec.problem.cameras[v]));
-  }
+  for (std::size_t v = 0; v < views; ++v) ideal.push_back(ideal_tracklets(tracklets[v], cameras[v]));
   std::vector<ViewPairMatch> pairs;
   for (std::size_t a = 0; a < views; ++a) {
     for (std::size_t b = a + 1; b < views; ++b) {
-      const BundleCamera& ca = rec.problem.cameras[a];
-      const BundleCamera& cb = rec.problem.cameras[b];
+      const BundleCamera& ca = cameras[a];
+      const BundleCamera& cb = cameras[b];
       const Pose34 pa = pose_of(ca), pb = pose_of(cb);
       auto in_front = [&](const Eigen::Vector2d& xa, const Eigen::Vector2d& xb) {
         // ideal pixels -> normalised: K only (the lens is already undone).
@@ -903,9 +900,45 @@ Result<Reconstruction> reassociate(const Reconstruction& rec,
       if (m.ok()) pairs.push_back(std::move(m));
     }
   }
-  const std::vector<PersonGroup> groups = group_people(ideal, pairs, [&](const PersonGroup& g) {
-    return group_consistent(g, ideal, rec.problem.cameras, match.ransac.threshold_px);
+  return group_people(ideal, pairs, [&](const PersonGroup& g) {
+    return group_consistent(g, ideal, cameras, match.ransac.threshold_px);
   });
+}
+
+std::vector<double> explained_share(const std::vector<BundleCamera>& cameras,
+                                    const std::vector<std::vector<Tracklet>>& tracklets,
+                                    const SkeletonTopology& topology, const MatchOptions& match) {
+  const std::vector<PersonGroup> groups = people_under(cameras, tracklets, topology, match);
+  std::vector<std::vector<bool>> in_group(tracklets.size());
+  for (std::size_t v = 0; v < tracklets.size(); ++v) in_group[v].assign(tracklets[v].size(), false);
+  for (const PersonGroup& g : groups) {
+    for (const auto& [v, t] : g.tracklets) {
+      in_group[static_cast<std::size_t>(v)][static_cast<std::size_t>(t)] = true;
+    }
+  }
+  std::vector<double> out;
+  for (std::size_t v = 0; v < tracklets.size(); ++v) {
+    double all = 0, kept = 0;
+    for (std::size_t t = 0; t < tracklets[v].size(); ++t) {
+      for (const Person2D& p : tracklets[v][t].poses) {
+        for (const Keypoint2D& k : p.joints) {
+          if (k.score <= 0) continue;
+          all += 1;
+          kept += in_group[v][t] ? 1 : 0;
+        }
+      }
+    }
+    out.push_back(all > 0 ? kept / all : 0);
+  }
+  return out;
+}
+
+Result<Reconstruction> reassociate(const Reconstruction& rec,
+                                   const std::vector<std::vector<Tracklet>>& tracklets,
+                                   const SkeletonTopology& topology, const ReconstructOptions& o,
+                                   const MatchOptions& match) {
+  const std::vector<PersonGroup> groups =
+      people_under(rec.problem.cameras, tracklets, topology, match);
   if (groups.empty()) {
     return Error(ErrorCode::kInvalidArgument, "no person matched again with the cameras found");
   }
@@ -922,7 +955,7 @@ Result<Reconstruction> reassociate(const Reconstruction& rec,
   clean_points(out, o);
   bo.max_iterations = 20;
   run_bundle(out.problem, bo);
-  refine(out, mirror, topology, o, bo);
+  refine(out, mirror_joints(topology), topology, o, bo);
   out.steps.push_back(step_of(out.problem, -3, 0));
   return out;
 }

@@ -27,7 +27,7 @@ struct ReconstructOptions {
   int min_registration_points = 30;  // a view needs this many points seen by others
   double outlier_factor = 4;         // observations beyond max(factor x median, min) are dropped
   double outlier_min_px = 8;
-  double bone_weight = 20;  // residual weight of a 1 (100 %) bone-length deviation
+  double bone_weight = 40;  // residual weight of a 1 (100 %) bone-length deviation
   bool estimate_focal = false;
   IntrinsicsRefinement intrinsics;  // what the final adjustment may refine (with its priors)
   int threads = 1;
@@ -97,6 +97,19 @@ Result<Reconstruction> reassociate(const Reconstruction& rec,
                                    const std::vector<std::vector<Tracklet>>& tracklets,
                                    const SkeletonTopology& topology,
                                    const ReconstructOptions& options, const MatchOptions& match);
+
+// The people (groups of tracklets) the cameras relate: every view pair's tracklets matched
+// under the cameras' F (in front of both), joined when the group's people triangulate
+// consistently in all its views. What reassociate starts from.
+std::vector<PersonGroup> people_under(const std::vector<BundleCamera>& cameras,
+                                      const std::vector<std::vector<Tracklet>>& tracklets,
+                                      const SkeletonTopology& topology, const MatchOptions& match);
+
+// Per view, the share of its 2D joints (in its tracklets) that people_under relates to another
+// view: what a calibration explains of what the cameras saw.
+std::vector<double> explained_share(const std::vector<BundleCamera>& cameras,
+                                    const std::vector<std::vector<Tracklet>>& tracklets,
+                                    const SkeletonTopology& topology, const MatchOptions& match);
 
 // The points and cameras adjusted again as the end of reconstruct does (outliers, left/right
 // swaps, the final adjustments with `options`' intrinsics freedom, the bone term), the people

@@ -60,7 +60,9 @@ std::string intrinsics_cause(const Hypothesis& h, std::size_t v,
     in.focal = in.principal_point = true;
     in.only_camera = view;
     const LooFit f = refit(*h.rec, in, view, &moved);
-    if (view_misfit(f, priors, fit).empty()) {
+    const double ratio = moved.focal_scale / h.rec->problem.cameras[v].focal_scale;
+    if (view_misfit(f, priors, fit).empty() && ratio > 0.6 && ratio < 1.6 &&
+        f.view_median_px[v] < 0.75 * h.loo.view_median_px[v]) {
       const BundleCamera& before = h.rec->problem.cameras[v];
       return format(
           "view %s's intrinsics do not fit the others: it fits with focal length %.0f px and "
@@ -76,7 +78,8 @@ std::string intrinsics_cause(const Hypothesis& h, std::size_t v,
     in.radial = true;
     in.only_camera = view;
     const LooFit f = refit(*h.rec, in, view, &moved);
-    if (view_misfit(f, priors, fit).empty()) {
+    if (view_misfit(f, priors, fit).empty() && std::abs(moved.dist[0]) < 1 &&
+        std::abs(moved.dist[1]) < 1 && f.view_median_px[v] < 0.75 * h.loo.view_median_px[v]) {
       return format(
           "view %s's lens distorts more than the calibration says: it fits with k1 %.2f, k2 %.2f "
           "(predicted from the others at %.1f px instead of %.1f): run with --refine-intrinsics, "
@@ -138,9 +141,9 @@ std::string diagnose_refusal(const std::vector<Hypothesis>& hs,
     }
     return "no hypothesis could be tried";
   }
-  const std::size_t v = best->loo.worst_view >= 0 ? static_cast<std::size_t>(best->loo.worst_view)
-                                                  : view_index(priors, "");
-  if (v < input.views.size()) {
+  const std::size_t v = best->misfit_view >= 0 ? static_cast<std::size_t>(best->misfit_view)
+                                              : view_index(priors, "");
+  if (v < input.views.size() && !best->misfit_coverage) {
     if (std::string why = intrinsics_cause(*best, v, priors, refining); !why.empty()) return why;
   }
   return best->misfit +

@@ -350,6 +350,7 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
   const bool lens_adjusted = ho.reconstruct.intrinsics.radial;
   std::vector<Hypothesis> hs =
       run_hypotheses(input, priors, keypoints.topology(), ho, q.diagnostics);
+  if (ho.cancelled()) return Error(ErrorCode::kInternal, "self-calibration: cancelled");
   const std::vector<std::size_t> ranked = ranked_hypotheses(hs);
   for (std::size_t i : ranked) {
     Hypothesis& h = hs[i];

@@ -24,6 +24,7 @@
 #include "tools/common/crop_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
+#include "tools/mocap/calibrate_sources.h"
 #include "tools/mocap/commands.h"
 
 namespace mocap::tools {
@@ -53,185 +54,9 @@ constexpr const char* kHelp =
     "scale source) or the reason it refused and what to do; --report writes it as JSON. The\n"
     "last line is calibration_reprojection_px=X.XX (median, all views).";
 
-struct SourceArgs {
-  std::string recording, shelf, keypoints, model = "movenet";
-  CropArgs crops;
-  bool synthetic = false;
-  int views = 5, people = 2, frames = -1;
-  double seconds = 60;
-  int seed = 1;
-  double k1 = 0, k2 = 0;  // --synthetic: the cameras' lens
-};
-
-// Keypoints and priors from the simulator.
-Status collect_synthetic(const SourceArgs& a, bool keep_intrinsics, std::string truth_out,
-                         std::unique_ptr<calib::KeypointCollector>& out,
-                         std::vector<calib::CameraPrior>& priors) {
-  sim::RigOptions rig;
-  rig.views = a.views;
-  rig.distortion.k1 = a.k1;
-  rig.distortion.k2 = a.k2;
-  sim::SceneOptions scene;
-  scene.people = a.people;
-  scene.seed = static_cast<std::uint64_t>(a.seed);
-  scene.enter_leave = false;
-  sim::DetectionNoiseOptions noise;
-  auto simulator = sim::Simulator::create(rig, scene, noise, body19_topology());
-  if (!simulator.ok()) return simulator.error();
-  const Calibration& truth = simulator->rig();
-  std::vector<int> ids;
-  for (std::size_t v = 0; v < truth.size(); ++v) {
-    ids.push_back(static_cast<int>(v));
-    calib::CameraPrior p{truth.view_ids[v], truth.cameras[v].width_px(),
-                         truth.cameras[v].height_px(), std::nullopt};
-    if (keep_intrinsics) p.intrinsics = truth.cameras[v];
-    priors.push_back(p);
-  }
-  out =
-      std::make_unique<calib::KeypointCollector>(body19_topology(), ids, calib::People2DOptions{});
-  const int frames = static_cast<int>(a.seconds * scene.frame_rate_hz);
-  for (int f = 0; f < frames; ++f) {
-    auto r = simulator->next();
-    if (!r.ok()) return r.error();
-    out->add(r->detections);
-  }
-  if (!truth_out.empty()) return save_calibration(truth, truth_out);
-  return {};
-}
-
-Status collect_shelf(const SourceArgs& a, std::unique_ptr<calib::KeypointCollector>& out,
-                     std::vector<calib::CameraPrior>& priors) {
-  const std::filesystem::path dir(a.shelf);
-  auto calib = load_calibration(dir / "calibration.json");
-  if (!calib.ok()) return calib.error();
-  std::vector<int> ids;
-  std::vector<std::pair<int, int>> sizes;
-  for (std::size_t v = 0; v < calib->size(); ++v) {
-    ids.push_back(static_cast<int>(v));
-    const Camera& c = calib->cameras[v];
-    sizes.emplace_back(c.width_px(), c.height_px());
-    priors.push_back({calib->view_ids[v], c.width_px(), c.height_px(), c});
-  }
-  auto sets = load_shelf_detections(dir / "detection", ids, sizes);
-  if (!sets.ok()) return sets.error();
-  out =
-      std::make_unique<calib::KeypointCollector>(body25_topology(), ids, calib::People2DOptions{});
-  for (const DetectionSet& s : *sets) out->add(s);
-  return {};
-}
-
-// The recording's videos through the pipeline without an engine: the detections only.
-Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
-                         std::unique_ptr<calib::KeypointCollector>& out,
-                         std::vector<calib::CameraPrior>& priors) {
-  ReplayPartsOptions o;
-  o.source.dir = a.recording;
-  o.source.calibration_optional = true;  // only intrinsics priors come from it
-  o.cnn.model = model_path_for(a.model);
-  o.cnn.input_size_px = 0;  // the model's default (MoveNet 448, PoseNet 353)
-  if (Status s = a.crops.apply(o.cnn); !s.ok()) return s;
-  if (!o.cnn.crop_model.empty()) {
-    // 2D-guided crops: each person the bottom-up detector found, refined on its own box.
-    o.cnn.crops_from_detections =
-        [](const DetectionSet& set) -> Result<std::vector<assoc::PlannedCrop>> {
-      std::vector<assoc::PlannedCrop> plan;
-      for (const calib::PersonBox& b :
-           calib::person_boxes(set, *set.topology, calib::People2DOptions{})) {
-        plan.push_back({static_cast<int>(plan.size()), b.view_id, b.center_x_px, b.center_y_px,
-                        b.side_px});
-      }
-      return plan;
-    };
-  }
-  auto parts = open_replay(o);
-  if (!parts.ok()) return parts.error();
-  const Calibration& cal = parts->source->calibration();
-  const bool file = parts->source->calibrated();
-  if (keep_intrinsics && !file) {
-    return Error(ErrorCode::kInvalidArgument,
-                 "--keep-intrinsics: " + a.recording +
-                     " has no calibration.json to take the intrinsics from (leave the flag out: "
-                     "the focal lengths are then estimated)");
-  }
-  std::vector<int> ids;
-  for (std::size_t v = 0; v < cal.size(); ++v) {
-    ids.push_back(static_cast<int>(v));
-    calib::CameraPrior p{cal.view_ids[v], cal.cameras[v].width_px(), cal.cameras[v].height_px(),
-                         std::nullopt};
-    if (keep_intrinsics) p.intrinsics = cal.cameras[v];
-    priors.push_back(p);
-  }
-  if (!file) {
-    std::printf("%s has no calibration.json: views and image sizes from the videos", a.recording.c_str());
-    for (const calib::CameraPrior& p : priors) {
-      std::printf("%s %s %dx%d", p.view_id == priors.front().view_id ? ":" : ",", p.view_id.c_str(),
-                  p.width_px, p.height_px);
-    }
-    std::printf("\n");
-  }
-  std::printf("recording: %s, %d views, %s\n", a.recording.c_str(), parts->source->view_count(),
-              parts->detector->description().c_str());
-  if (!parts->detector->crops_off_reason().empty()) {
-    std::printf("%s\n", parts->detector->crops_off_reason().c_str());
-  }
-  out =
-      std::make_unique<calib::KeypointCollector>(coco17_topology(), ids, calib::People2DOptions{});
-  calib::KeypointCollector* collector = out.get();
-  pipeline::CallbackSink sink("calibrate", [collector](const pipeline::PipelineFrame& f) {
-    collector->add(f.detections);
-    return Status{};
-  });
-  pipeline::PipelineParts pp = parts->pipeline_parts({&sink});
-  pp.engine = nullptr;  // uncalibrated: detections only
-  pipeline::PipelineOptions po;
-  po.drop_policy = pipeline::DropPolicy::kBlock;
-  po.max_frames = a.frames;
-  auto pipe = pipeline::Pipeline::create(std::move(pp), po);
-  if (!pipe.ok()) return pipe.error();
-  if (Status s = (*pipe)->start(); !s.ok()) return s;
-  (*pipe)->wait();
-  const pipeline::PipelineMetrics m = (*pipe)->metrics();
-  if (!m.error.empty()) return Error(ErrorCode::kInternal, m.error);
-  return {};
-}
-
-// Keypoints saved by --keypoints-out; the priors from the calibration file given (intrinsics
-// with --keep-intrinsics) or the image sizes alone.
-Status collect_saved(const SourceArgs& a, bool keep_intrinsics, const std::string& intrinsics,
-                     std::unique_ptr<calib::KeypointCollector>& out,
-                     std::vector<calib::CameraPrior>& priors) {
-  auto text = io::read_text_file(a.keypoints);
-  if (!text.ok()) return text.error();
-  auto c = calib::KeypointCollector::from_json(*text, a.keypoints, calib::People2DOptions{});
-  if (!c.ok()) return c.error();
-  out = std::make_unique<calib::KeypointCollector>(std::move(*c));
-  std::optional<Calibration> cal;
-  if (!intrinsics.empty()) {
-    auto loaded = load_calibration(intrinsics);
-    if (!loaded.ok()) return loaded.error();
-    cal = std::move(*loaded);
-  }
-  for (std::size_t v = 0; v < out->view_ids().size(); ++v) {
-    calib::CameraPrior p{std::to_string(out->view_ids()[v]), out->width_px(static_cast<int>(v)),
-                         out->height_px(static_cast<int>(v)), std::nullopt};
-    if (cal) {
-      const auto i = cal->index_of(p.view_id);
-      if (!i) return Error(ErrorCode::kInvalidArgument, intrinsics + ": no view " + p.view_id);
-      p.view_id = cal->view_ids[*i];
-      if (keep_intrinsics) p.intrinsics = cal->cameras[*i];
-    }
-    priors.push_back(p);
-  }
-  if (keep_intrinsics && !cal) {
-    return Error(ErrorCode::kInvalidArgument,
-                 "--keep-intrinsics with --keypoints needs --intrinsics FILE");
-  }
-  return {};
-}
-
 int run_people(Args args) {
   SourceArgs src;
-  std::string out, report, truth_out, keypoints_out, intrinsics, debug_dir, reference, joints;
+  std::string out, report, keypoints_out, debug_dir, reference, joints;
   double min_joint_score = calib::InputOptions{}.min_joint_score;
   bool keep_intrinsics = false, refine_intrinsics = false;
   double height_m = 0;
@@ -248,7 +73,7 @@ int run_people(Args args) {
   p.flag("--synthetic", &src.synthetic, "the simulator");
   p.option("--keypoints", &src.keypoints, "FILE",
            "2D people saved by --keypoints-out (calibrate again without the CNN)");
-  p.option("--intrinsics", &intrinsics, "FILE",
+  p.option("--intrinsics", &src.intrinsics, "FILE",
            "--keypoints: calibration file whose view ids (and with --keep-intrinsics, K and "
            "distortion) to use");
   p.option("--keypoints-out", &keypoints_out, "FILE", "save the collected 2D people as JSON");
@@ -258,7 +83,7 @@ int run_people(Args args) {
   p.option("--seed", &src.seed, "N", "--synthetic: scene seed (default 1)");
   p.option("--k1", &src.k1, "K", "--synthetic: the cameras' radial distortion k1 (default 0)");
   p.option("--k2", &src.k2, "K", "--synthetic: the cameras' radial distortion k2 (default 0)");
-  p.option("--truth-out", &truth_out, "FILE", "--synthetic: write the true rig");
+  p.option("--truth-out", &src.truth_out, "FILE", "--synthetic: write the true rig");
   p.flag("--keep-intrinsics", &keep_intrinsics,
          "keep the known intrinsics (--recording: DIR/calibration.json's K and distortion; "
          "--synthetic: the rig's)");
@@ -278,13 +103,7 @@ int run_people(Args args) {
            "write what the solve saw and tried: report.json (views, view pairs, every "
            "hypothesis with its registration steps) and coverage_view<N>.png per view");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  const int sources = (src.recording.empty() ? 0 : 1) + (src.shelf.empty() ? 0 : 1) +
-                      (src.synthetic ? 1 : 0) + (src.keypoints.empty() ? 0 : 1);
-  if (sources != 1) {
-    return fail(Error(ErrorCode::kInvalidArgument,
-                      "give exactly one of --recording DIR, --shelf DIR, --synthetic or "
-                      "--keypoints FILE"));
-  }
+  if (Status s = src.check(); !s.ok()) return fail(s.error());
   if (out.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--out FILE is required"));
   calib::SelfCalibrationOptions opt;
   opt.person_height_m = height_m;
@@ -303,11 +122,7 @@ int run_people(Args args) {
   if (Status s = opt.validate(); !s.ok()) return fail(s.error().with_context("--height-m"));
   std::unique_ptr<calib::KeypointCollector> keypoints;
   std::vector<calib::CameraPrior> priors;
-  Status collected =
-      src.synthetic        ? collect_synthetic(src, keep_intrinsics, truth_out, keypoints, priors)
-      : !src.shelf.empty() ? collect_shelf(src, keypoints, priors)
-      : !src.keypoints.empty() ? collect_saved(src, keep_intrinsics, intrinsics, keypoints, priors)
-                               : collect_recording(src, keep_intrinsics, keypoints, priors);
+  Status collected = collect_people(src, keep_intrinsics, keypoints, priors);
   if (!collected.ok()) return fail(collected.error());
   if (!keypoints_out.empty()) {
     if (Status s = io::write_text_file(keypoints_out, keypoints->to_json() + "\n"); !s.ok()) {
@@ -337,15 +152,17 @@ int run_people(Args args) {
 }
 
 constexpr const char* kUsage =
-    "usage: mocap calibrate people ...   (mocap calibrate people --help for details)\n"
+    "usage: mocap calibrate people|stability ...   (--help after either for details)\n"
     "\n"
     "subcommands:\n"
-    "  people   calibrate the cameras from the people walking in the room (no board)\n";
+    "  people     calibrate the cameras from the people walking in the room (no board)\n"
+    "  stability  the self-calibration run again with perturbed settings, against a reference\n";
 
 }  // namespace
 
 int run_calibrate(Args args) {
-  static constexpr cli::Subcommand kSubcommands[] = {{"people", run_people}};
+  static constexpr cli::Subcommand kSubcommands[] = {{"people", run_people},
+                                                      {"stability", run_calibrate_stability}};
   return cli::dispatch_subcommand("mocap calibrate", kUsage, kSubcommands, args);
 }
 

@@ -671,6 +671,14 @@ Status Daemon::start() {
             if (auto r = calibrator_->take_result()) adopt_self_calibration(*r);
             return Status{};
           }
+          // Calibrated, and the self-calibration still refining with more frames.
+          if (calibrator_ && !recalibrating_ && calibrator_->refining()) {
+            calibrator_->add(f.detections);
+            if (auto r = calibrator_->take_result()) {
+              adopt_self_calibration(*r);
+              return Status{};
+            }
+          }
           if (!monitor_) return Status{};
           monitor_->add(f.detections, f.result->skeletons);
           if (auto r = monitor_->take_resolved()) adopt_resolved_camera(*r);
@@ -809,6 +817,10 @@ nlohmann::json Daemon::calibration_json(std::vector<std::string>& problems) cons
                      {"frames_with_people", views},
                      {"attempts", cp.attempts},
                      {"last_refusal", cp.last_refusal},
+                     {"refinements", cp.refinements},
+                     {"last_change_deg", cp.last_change_deg},
+                     {"last_change_m", cp.last_change_m},
+                     {"next_solve_frames", cp.next_solve_frames},
                      {"what_to_do", cp.hint}};
   }
   if (monitor_) {
