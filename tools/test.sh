@@ -42,6 +42,7 @@ LONG_SOLVES='SelfCalibrationTest\.(FiveViewsTwoPeopleFocalUnknown|LeftRightSwaps
 LONG_SOLVES+='|CalibrateCliTest\.(SyntheticWritesCalibrationAndReport|ShelfWithinTargetsOfItsCalibration)'
 # The faults put in on purpose (issue 37: 10-40 s each in Release, two solves in some).
 LONG_SOLVES+='|SelfCalibrationRefusalTest\.|SelfCalibrationHypothesesTest\.'
+LONG_SOLVES+='|BackgroundCalibratorTest\.RefinesWithMoreFrames|CalibrateCliTest\.ShelfStabilityReduced'
 
 # The sanitizer builds use clang (Debian's clang 14, as the fuzz build does): it compiles this
 # code under ASan/TSan about 1.8 times faster than GCC 12 (measured on calib/epipolar.cpp at

@@ -54,7 +54,8 @@ Result<Recording> open_recording(const fs::path& dir, bool calibration_optional)
             ": no such recording folder (expected calibration.json and videos/<view>.mp4)");
   }
   const bool without = calibration_optional && !fs::exists(dir / "calibration.json", ec);
-  auto calib = without ? Result<Calibration>(Calibration{}) : load_calibration(dir / "calibration.json");
+  auto calib =
+      without ? Result<Calibration>(Calibration{}) : load_calibration(dir / "calibration.json");
   if (!calib.ok()) return calib.error();
   const fs::path video_dir = dir / "videos";
   if (!fs::is_directory(video_dir, ec)) {

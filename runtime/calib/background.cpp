@@ -26,8 +26,8 @@ Status BackgroundCalibratorOptions::validate() const {
                  "background calibration: first_attempt_frames must be in [30, 100000], "
                  "retry_frames >= 1 and max_frames >= first_attempt_frames");
   }
-  if (refine_until_frames < 0 || refine_until_frames > 1000000 ||
-      !(converged_rotation_deg >= 0) || !(converged_center_m >= 0)) {
+  if (refine_until_frames < 0 || refine_until_frames > 1000000 || !(converged_rotation_deg >= 0) ||
+      !(converged_center_m >= 0)) {
     return Error(ErrorCode::kInvalidArgument,
                  "background calibration: refine_until_frames must be in [0, 1000000] and the "
                  "convergence limits >= 0");
@@ -169,7 +169,7 @@ CalibrationProgress BackgroundCalibrator::progress() const {
   p.last_change_deg = last_change_deg_;
   p.last_change_m = last_change_m_;
   p.next_solve_frames = done_ ? 0 : next_attempt_frames_;
-  p.hint = done_      ? ""
+  p.hint = done_       ? ""
            : refining_ ? "calibrated; keep walking around the whole area: the calibration is "
                          "solved again with more frames while that still moves the cameras"
                        : hint_locked();

@@ -1,9 +1,9 @@
 #include "runtime/calib/bundle.h"
 
 #include <ceres/ceres.h>
-#include <glog/logging.h>
 #include <ceres/rotation.h>
 #include <ceres/sphere_manifold.h>
+#include <glog/logging.h>
 
 #include <Eigen/Geometry>
 

@@ -152,8 +152,8 @@ Status write_coverage_png(const std::filesystem::path& path, int width_px, int h
   image::ImageRgb8 img;
   img.width_px = std::max(1, static_cast<int>(std::lround(width_px * scale)));
   img.height_px = std::max(1, static_cast<int>(std::lround(height_px * scale)));
-  img.rgb.assign(static_cast<std::size_t>(img.width_px) * static_cast<std::size_t>(img.height_px) * 3,
-                 0);
+  img.rgb.assign(
+      static_cast<std::size_t>(img.width_px) * static_cast<std::size_t>(img.height_px) * 3, 0);
   constexpr int kGrid = ViewDiagnostics::kGrid;
   std::vector<int> cells(kGrid * kGrid, 0);
   for (const CoveragePoint& p : points) {
@@ -167,14 +167,16 @@ Status write_coverage_png(const std::filesystem::path& path, int width_px, int h
       const int gx = std::min(kGrid - 1, x * kGrid / img.width_px);
       const int gy = std::min(kGrid - 1, y * kGrid / img.height_px);
       const bool line = (x * kGrid) % img.width_px < kGrid || (y * kGrid) % img.height_px < kGrid;
-      const std::uint8_t v = line ? 90 : cells[static_cast<std::size_t>(gy * kGrid + gx)] >= 3 ? 40 : 12;
+      const std::uint8_t v = line                                                    ? 90
+                             : cells[static_cast<std::size_t>(gy * kGrid + gx)] >= 3 ? 40
+                                                                                     : 12;
       const std::size_t o = img.pixel_offset(x, y);
       img.rgb[o] = img.rgb[o + 1] = img.rgb[o + 2] = v;
     }
   }
-  static constexpr std::uint8_t kPalette[8][3] = {{255, 90, 90},  {90, 200, 255}, {255, 210, 60},
+  static constexpr std::uint8_t kPalette[8][3] = {{255, 90, 90},   {90, 200, 255},  {255, 210, 60},
                                                   {120, 255, 120}, {230, 120, 255}, {255, 150, 40},
-                                                  {60, 255, 220}, {255, 255, 255}};
+                                                  {60, 255, 220},  {255, 255, 255}};
   for (const CoveragePoint& p : points) {
     const int cx = static_cast<int>(p.x_px * scale), cy = static_cast<int>(p.y_px * scale);
     const std::uint8_t* c = p.tracklet < 0 ? kPalette[7] : kPalette[p.tracklet % 7];

@@ -23,21 +23,21 @@ struct ViewDiagnostics {
   double people_per_frame = 0;  // mean over the frames with people
   int tracklets = 0;            // after the shortest are dropped
   int longest_tracklet_frames = 0;
-  int keypoints = 0;            // 2D joints kept for the calibration (selected joints, score)
-  double motion = 0;            // largest movement of a tracked person / image diagonal
-  double border_fraction = 0;   // of the keypoints, those in the outer 10 % of the image
-  double coverage = 0;          // of the 8 x 8 grid cells, those holding 3 or more keypoints
+  int keypoints = 0;           // 2D joints kept for the calibration (selected joints, score)
+  double motion = 0;           // largest movement of a tracked person / image diagonal
+  double border_fraction = 0;  // of the keypoints, those in the outer 10 % of the image
+  double coverage = 0;         // of the 8 x 8 grid cells, those holding 3 or more keypoints
   static constexpr int kGrid = 8;
   std::vector<int> grid;  // [row * kGrid + col] keypoints per cell
 };
 
 struct PairDiagnostics {
   std::string view_a, view_b;
-  double threshold_px = 0;     // the Sampson inlier threshold
-  int tracklet_pairs = 0;      // tracklet pairs seen together long enough to be tried
-  int matches = 0;             // tracklet pairs accepted as one person
-  int inliers = 0;             // their epipolar-consistent joints
-  int correspondences = 0;     // their joints in all
+  double threshold_px = 0;        // the Sampson inlier threshold
+  int tracklet_pairs = 0;         // tracklet pairs seen together long enough to be tried
+  int matches = 0;                // tracklet pairs accepted as one person
+  int inliers = 0;                // their epipolar-consistent joints
+  int correspondences = 0;        // their joints in all
   double median_residual_px = 0;  // Sampson distance of the accepted pairs' joints
   double p90_residual_px = 0;
 };
@@ -54,8 +54,8 @@ struct HypothesisDiagnostics {
   double match_fraction = 0;  // the matching threshold (of the two diagonals)
   int start_rank = 0;         // the starting pair's rank by inliers
   std::string start_a, start_b;
-  std::string order_rule;           // "best-fit" / "strongest-link"
-  std::vector<std::string> order;   // the views, in registration order
+  std::string order_rule;          // "best-fit" / "strongest-link"
+  std::vector<std::string> order;  // the views, in registration order
   std::vector<StepDiagnostics> steps;
   std::vector<double> loo_median_px;  // [view] leave-one-view-out median; -1 none
   double loo_mean_view_px = 0;        // the score: mean of the views' LOO medians
@@ -63,17 +63,17 @@ struct HypothesisDiagnostics {
   int observations = 0;               // 2D joints used
   std::vector<double> coverage;       // [view] share of its 2D joints kept (carried ones)
   int people_groups = 0;              // people (over stretches of time) the matching found
-  bool carried = false;  // carried on with every frame (else scored on the thinned ones only)
+  bool carried = false;    // carried on with every frame (else scored on the thinned ones only)
   std::string intrinsics;  // with --refine-intrinsics: refined or the file's kept, and why
-  std::string failed;    // why it gave no reconstruction (empty when it gave one)
-  std::string verdict;   // "chosen", "runner-up", "rejected: ...", "not carried on"
+  std::string failed;      // why it gave no reconstruction (empty when it gave one)
+  std::string verdict;     // "chosen", "runner-up", "rejected: ...", "not carried on"
 };
 
 struct SolveDiagnostics {
   std::vector<ViewDiagnostics> views;
   std::vector<PairDiagnostics> pairs;  // every view pair at every matching threshold tried
   std::vector<HypothesisDiagnostics> hypotheses;
-  int chosen = -1;     // index into hypotheses
+  int chosen = -1;  // index into hypotheses
   int runner_up = -1;
 };
 

@@ -30,10 +30,10 @@ PairDiagnostics pair_diagnostics(const ViewPairMatch& m, const std::vector<Track
   std::vector<double> r;
   for (const TrackletMatch& tm : m.matches) {
     d.correspondences += tm.correspondences;
-    const Correspondences c = tracklet_correspondences(a[static_cast<std::size_t>(tm.a)],
-                                                       b[static_cast<std::size_t>(tm.b)], &m.F,
-                                                       mirror);
-    for (std::size_t i = 0; i < c.a.size(); ++i) r.push_back(std::sqrt(sampson_sq(m.F, c.a[i], c.b[i])));
+    const Correspondences c = tracklet_correspondences(
+        a[static_cast<std::size_t>(tm.a)], b[static_cast<std::size_t>(tm.b)], &m.F, mirror);
+    for (std::size_t i = 0; i < c.a.size(); ++i)
+      r.push_back(std::sqrt(sampson_sq(m.F, c.a[i], c.b[i])));
   }
   d.median_residual_px = median(r);
   d.p90_residual_px = percentile(r, 0.9);
@@ -62,8 +62,8 @@ std::vector<ViewPairMatch> match_views(const CalibrationInput& in,
   for (std::size_t a = 0; a < priors.size(); ++a) {
     for (std::size_t b = a + 1; b < priors.size(); ++b) {
       MatchOptions mo = o.match;
-      mo.ransac.threshold_px = std::max(mo.ransac.threshold_px,
-                                        fraction * (diagonal(priors[a]) + diagonal(priors[b])));
+      mo.ransac.threshold_px =
+          std::max(mo.ransac.threshold_px, fraction * (diagonal(priors[a]) + diagonal(priors[b])));
       ViewPairMatch m = match_view_pair(in.ideal[a], in.ideal[b], static_cast<int>(a),
                                         static_cast<int>(b), mirror, mo);
       diag.pairs.push_back(pair_diagnostics(
@@ -164,15 +164,15 @@ void score(Hypothesis& h, const std::vector<CameraPrior>& priors, const Hypothes
   h.misfit_view = h.misfit.empty() ? -1 : h.loo.worst_view;
   h.misfit_coverage = false;
   if (all_tracklets != nullptr && topology != nullptr) {
-    h.diag.coverage = explained_share(rec.problem.cameras, *all_tracklets, *topology,
-                                      coverage_match(priors, o));
+    h.diag.coverage =
+        explained_share(rec.problem.cameras, *all_tracklets, *topology, coverage_match(priors, o));
     if (h.misfit.empty()) {
       h.misfit = coverage_misfit(h.diag.coverage, priors, o.min_view_coverage);
       h.misfit_coverage = !h.misfit.empty();
       if (h.misfit_coverage) {
-        h.misfit_view = static_cast<int>(
-            std::min_element(h.diag.coverage.begin(), h.diag.coverage.end()) -
-            h.diag.coverage.begin());
+        h.misfit_view =
+            static_cast<int>(std::min_element(h.diag.coverage.begin(), h.diag.coverage.end()) -
+                             h.diag.coverage.begin());
       }
     }
   }
@@ -195,8 +195,8 @@ Hypothesis run_one(const std::vector<std::vector<Tracklet>>& tracklets,
   }
   std::vector<std::string> names;
   for (const CameraPrior& p : priors) names.push_back(p.view_id);
-  auto rec = reconstruct(tracklets, pairs, groups, cameras, names, topology, o.reconstruct,
-                         {rank, order});
+  auto rec =
+      reconstruct(tracklets, pairs, groups, cameras, names, topology, o.reconstruct, {rank, order});
   if (!rec.ok()) {
     h.diag.failed = rec.error().message();
     h.diag.verdict = "failed";
@@ -265,8 +265,7 @@ void carry_on_checked(Hypothesis& h, const std::vector<std::vector<Tracklet>>& t
   const double kept = refit(with_prior_intrinsics(*h.rec, priors, in.radial), {}).mean_view_px;
   char buf[200];
   if (refined <= (1 - o.min_intrinsics_gain) * kept) {
-    std::snprintf(buf, sizeof buf, "refined: the fit improved from %.2f to %.2f px", kept,
-                  refined);
+    std::snprintf(buf, sizeof buf, "refined: the fit improved from %.2f to %.2f px", kept, refined);
     h.diag.intrinsics = buf;
     return;
   }
@@ -283,8 +282,7 @@ void carry_on_checked(Hypothesis& h, const std::vector<std::vector<Tracklet>>& t
 }
 
 // Every stride-th frame of each tracklet (the hypotheses are compared on fewer frames).
-std::vector<std::vector<Tracklet>> every(const std::vector<std::vector<Tracklet>>& in,
-                                         int stride) {
+std::vector<std::vector<Tracklet>> every(const std::vector<std::vector<Tracklet>>& in, int stride) {
   if (stride <= 1) return in;
   std::vector<std::vector<Tracklet>> out(in.size());
   for (std::size_t v = 0; v < in.size(); ++v) {
@@ -398,8 +396,8 @@ std::vector<std::size_t> ranked_hypotheses(const std::vector<Hypothesis>& hs) {
 
 std::vector<Hypothesis> run_hypotheses(const CalibrationInput& input,
                                        const std::vector<CameraPrior>& priors,
-                                       const SkeletonTopology& topology,
-                                       const HypothesisOptions& o, SolveDiagnostics& diag) {
+                                       const SkeletonTopology& topology, const HypothesisOptions& o,
+                                       SolveDiagnostics& diag) {
   const std::vector<int> mirror = mirror_joints(topology);
   const bool with_lens = o.reconstruct.intrinsics.radial;
   int frames = 0;

@@ -73,8 +73,8 @@ struct Hypothesis {
   HypothesisDiagnostics diag;
   std::optional<Reconstruction> rec;  // absent when it failed or was not carried on
   LooFit loo;
-  std::string misfit;  // why a view does not fit like the others (empty: it fits)
-  int misfit_view = -1;        // the view it names
+  std::string misfit;            // why a view does not fit like the others (empty: it fits)
+  int misfit_view = -1;          // the view it names
   bool misfit_coverage = false;  // the view's joints mostly unexplained (else its LOO is off)
   bool accepted() const { return rec.has_value() && misfit.empty(); }
 };

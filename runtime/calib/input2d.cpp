@@ -108,8 +108,8 @@ void fill_view(const KeypointCollector& keypoints, std::size_t v, const CameraPr
   d.grid.assign(kGrid * kGrid, 0);
   int border = 0;
   for (const Tracklet& t : used) {
-    d.longest_tracklet_frames = std::max(d.longest_tracklet_frames,
-                                         t.last_frame() - t.first_frame() + 1);
+    d.longest_tracklet_frames =
+        std::max(d.longest_tracklet_frames, t.last_frame() - t.first_frame() + 1);
     for (const Person2D& p : t.poses) {
       for (const Keypoint2D& k : p.joints) {
         if (k.score <= 0) continue;
@@ -142,9 +142,8 @@ Status InputOptions::validate(const SkeletonTopology& topology) const {
   }
   for (const std::string& j : joints) {
     if (j != "all" && topology.find_joint(j) < 0) {
-      return Error(ErrorCode::kInvalidArgument,
-                   "self-calibration: the " + topology.name() + " skeleton has no joint '" + j +
-                       "'");
+      return Error(ErrorCode::kInvalidArgument, "self-calibration: the " + topology.name() +
+                                                    " skeleton has no joint '" + j + "'");
     }
   }
   return {};
@@ -167,8 +166,8 @@ CalibrationInput prepare_input(const KeypointCollector& keypoints,
   in.views.resize(priors.size());
   for (std::size_t v = 0; v < priors.size(); ++v) {
     // Tracked on every joint (the more, the surer the link), then only the selected kept.
-    const auto full = track_view_people(keypoints.people(static_cast<int>(v)),
-                                        static_cast<int>(v), keypoints.options());
+    const auto full = track_view_people(keypoints.people(static_cast<int>(v)), static_cast<int>(v),
+                                        keypoints.options());
     const double motion = view_motion(full, priors[v]);
     in.motion = std::max(in.motion, motion);
     const double radius_px =

@@ -34,7 +34,7 @@ const std::vector<std::string>& default_calibration_joints();
 struct InputOptions {
   // Joint names used ("all": every joint of the topology); empty: default_calibration_joints().
   std::vector<std::string> joints;
-  double min_joint_score = 0.3;     // 2D joints scored lower are not used, [0, 1)
+  double min_joint_score = 0.3;  // 2D joints scored lower are not used, [0, 1)
   // Novelty weights: a joint's frames within +-window that stayed within radius (of the image
   // diagonal) share one weight. 0 frames: off.
   int novelty_window_frames = 12;

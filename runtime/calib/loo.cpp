@@ -60,8 +60,8 @@ LooFit leave_one_view_out(const BundleProblem& p, int min_other_views) {
       bool front = true;
       for (const auto& P : ps) front = front && (P * X.homogeneous()).z() > 0;
       if (!front) continue;
-      const double e = project_error_px(p.cameras[static_cast<std::size_t>(left->camera)], X,
-                                        left->px);
+      const double e =
+          project_error_px(p.cameras[static_cast<std::size_t>(left->camera)], X, left->px);
       if (!std::isfinite(e)) continue;
       per[static_cast<std::size_t>(left->camera)].emplace_back(e, left->weight);
       all.emplace_back(e, left->weight);

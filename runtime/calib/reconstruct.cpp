@@ -877,7 +877,8 @@ std::vector<PersonGroup> people_under(const std::vector<BundleCamera>& cameras,
   const std::size_t views = tracklets.size();
   const std::vector<int> mirror = mirror_joints(topology);
   std::vector<std::vector<Tracklet>> ideal;
-  for (std::size_t v = 0; v < views; ++v) ideal.push_back(ideal_tracklets(tracklets[v], cameras[v]));
+  for (std::size_t v = 0; v < views; ++v)
+    ideal.push_back(ideal_tracklets(tracklets[v], cameras[v]));
   std::vector<ViewPairMatch> pairs;
   for (std::size_t a = 0; a < views; ++a) {
     for (std::size_t b = a + 1; b < views; ++b) {

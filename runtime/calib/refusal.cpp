@@ -1,8 +1,8 @@
 #include "runtime/calib/refusal.h"
 
 #include <algorithm>
-#include <cstdarg>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 
 #include "runtime/calib/checks.h"
@@ -132,8 +132,8 @@ std::string diagnose_refusal(const std::vector<Hypothesis>& hs,
     for (const Hypothesis& h : hs) {
       if (!h.diag.failed.empty()) ++named[failed_view(h.diag.failed, priors)];
     }
-    const auto most = static_cast<std::size_t>(
-        std::max_element(named.begin(), named.end()) - named.begin());
+    const auto most =
+        static_cast<std::size_t>(std::max_element(named.begin(), named.end()) - named.begin());
     for (const Hypothesis& h : hs) {
       if (!h.diag.failed.empty() && failed_view(h.diag.failed, priors) == most) {
         return h.diag.failed;
@@ -141,8 +141,8 @@ std::string diagnose_refusal(const std::vector<Hypothesis>& hs,
     }
     return "no hypothesis could be tried";
   }
-  const std::size_t v = best->misfit_view >= 0 ? static_cast<std::size_t>(best->misfit_view)
-                                              : view_index(priors, "");
+  const std::size_t v =
+      best->misfit_view >= 0 ? static_cast<std::size_t>(best->misfit_view) : view_index(priors, "");
   if (v < input.views.size() && !best->misfit_coverage) {
     if (std::string why = intrinsics_cause(*best, v, priors, refining); !why.empty()) return why;
   }

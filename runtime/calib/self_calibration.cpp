@@ -9,7 +9,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 
 #include "runtime/calib/checks.h"
 #include "runtime/calib/compare.h"
@@ -142,6 +141,11 @@ Status SelfCalibrationOptions::validate() const {
   if (!(min_focal_determinacy >= 1 && min_focal_determinacy <= 10)) {
     return invalid("min_focal_determinacy must be in [1, 10]");
   }
+  if (!(ambiguous_rotation_deg > 0 && ambiguous_rotation_deg <= 180) ||
+      !(ambiguous_fit_margin >= 0 && ambiguous_fit_margin <= 10)) {
+    return invalid(
+        "ambiguous_rotation_deg must be in (0, 180] and ambiguous_fit_margin in [0, 10]");
+  }
   return hypotheses.validate();
 }
 
@@ -246,6 +250,23 @@ std::string focal_check(const Hypothesis& h, const std::vector<CameraPrior>& pri
   q.focal_determinacy = focal_sensitivity(*h.rec, estimated);
   if (q.focal_determinacy >= options.min_focal_determinacy) return {};
   return unfixed_focal(q, options.min_focal_determinacy);
+}
+
+// Two results far apart that fit nearly as well: the clip does not decide between them.
+std::string ambiguity(const Hypothesis& chosen, const Hypothesis& runner_up, double apart_deg,
+                      const SelfCalibrationOptions& o) {
+  if (apart_deg <= o.ambiguous_rotation_deg ||
+      runner_up.loo.mean_view_px > (1 + o.ambiguous_fit_margin) * chosen.loo.mean_view_px) {
+    return {};
+  }
+  char buf[480];
+  std::snprintf(buf, sizeof buf,
+                "two calibrations %.1f deg apart fit these people nearly as well (predicted from "
+                "the other views at %.1f and %.1f px): the clip does not decide between them; "
+                "record people walking around the whole area for longer (a minute), where "
+                "three or more cameras see them",
+                apart_deg, chosen.loo.mean_view_px, runner_up.loo.mean_view_px);
+  return buf;
 }
 
 // How far the runner-up's cameras are from the chosen ones (largest rotation, degrees, after
@@ -363,9 +384,28 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
     if (!h.accepted()) break;
     CalibrationQuality qh = q;
     fill_views(h, qh);
+    // The runner-up: the best other hypothesis carried to a result.
+    int ru = -1;
+    for (std::size_t j : ranked) {
+      if (j != i && hs[j].rec) {
+        ru = static_cast<int>(j);
+        break;
+      }
+    }
+    const double ru_deg =
+        ru >= 0 ? rotation_between(h, hs[static_cast<std::size_t>(ru)], priors, lens_adjusted) : -1;
+    if (ru >= 0) {
+      if (std::string why = ambiguity(h, hs[static_cast<std::size_t>(ru)], ru_deg, options);
+          !why.empty()) {
+        h.diag.verdict = "refused: " + why;
+        last_refusal = why;
+        break;  // the runner-up is as ambiguous with this one
+      }
+    }
     std::string why = focal_check(h, priors, options, qh);
     if (why.empty() && !options.refine_intrinsics) {
-      why = held_intrinsics_problem(h, priors, std::getenv("MOCAP_EXP_LGAIN") ? std::atof(std::getenv("MOCAP_EXP_LGAIN")) : options.hypotheses.min_lens_gain, std::getenv("MOCAP_EXP_GAIN") ? std::atof(std::getenv("MOCAP_EXP_GAIN")) : options.hypotheses.min_intrinsics_gain);
+      why = held_intrinsics_problem(h, priors, options.hypotheses.min_lens_gain,
+                                    options.hypotheses.min_intrinsics_gain);
     }
     if (!why.empty()) {
       h.diag.verdict = "refused: " + why;
@@ -381,13 +421,12 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
     h.diag.verdict = "chosen";
     if (options.reference) reference_fit(h, *options.reference, priors, lens_adjusted, qh);
     qh.diagnostics.chosen = static_cast<int>(i);
-    for (std::size_t j : ranked) {
-      if (j == i || !hs[j].rec) continue;
-      qh.diagnostics.runner_up = static_cast<int>(j);
-      qh.runner_up_loo_mean_view_px = hs[j].loo.mean_view_px;
-      qh.runner_up_max_rotation_deg = rotation_between(h, hs[j], priors, lens_adjusted);
-      if (hs[j].diag.verdict == "accepted") hs[j].diag.verdict = "runner-up";
-      break;
+    if (ru >= 0) {
+      Hypothesis& r = hs[static_cast<std::size_t>(ru)];
+      qh.diagnostics.runner_up = ru;
+      qh.runner_up_loo_mean_view_px = r.loo.mean_view_px;
+      qh.runner_up_max_rotation_deg = ru_deg;
+      if (r.diag.verdict == "accepted") r.diag.verdict = "runner-up";
     }
     for (const Hypothesis& x : hs) qh.diagnostics.hypotheses.push_back(x.diag);
     qh.ok = true;
@@ -402,8 +441,9 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
   }
   for (const Hypothesis& x : hs) q.diagnostics.hypotheses.push_back(x.diag);
   q.solve_s = elapsed();
-  const std::string why =
-      !last_refusal.empty() ? last_refusal : diagnose_refusal(hs, priors, input, q, options.refine_intrinsics);
+  const std::string why = !last_refusal.empty()
+                              ? last_refusal
+                              : diagnose_refusal(hs, priors, input, q, options.refine_intrinsics);
   SelfCalibrationResult r = refuse(std::move(q), why);
   r.used = std::move(used);
   return r;

@@ -37,6 +37,11 @@ struct SelfCalibrationOptions {
   // Estimated focal lengths are kept only when holding them 15 % off makes the fit at least this
   // much worse (ratio of the leave-one-view-out means), [1, 10].
   double min_focal_determinacy = 1.1;
+  // A result is refused as ambiguous when the runner-up hypothesis is more than this many
+  // degrees away (largest camera rotation, after the similarity of the centres) and fits within
+  // ambiguous_fit_margin of it (its leave-one-view-out mean at most 1 + margin times the chosen's).
+  double ambiguous_rotation_deg = 1.0;
+  double ambiguous_fit_margin = 0.25;
   // A calibration of the same cameras to weigh the result against (`--reference`): its
   // leave-one-view-out fit on the same associated joints goes into the report.
   std::optional<Calibration> reference;

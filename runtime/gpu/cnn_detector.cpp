@@ -182,9 +182,8 @@ Status CnnDetector::refine_with_crops(const FrameSet& frames, DetectionSet& set)
   }
   auto plan = options_.crops_from_detections
                   ? options_.crops_from_detections(set)
-                  : assoc::plan_crops(*latest, previous ? &*previous : nullptr,
-                                      frames.timestamp_ns, options_.cameras, view_ids,
-                                      options_.crop_plan);
+                  : assoc::plan_crops(*latest, previous ? &*previous : nullptr, frames.timestamp_ns,
+                                      options_.cameras, view_ids, options_.crop_plan);
   if (!plan.ok()) return plan.error();
   if (plan->empty()) return Status::Ok();
   std::vector<CropRequest> requests;

@@ -54,8 +54,7 @@ struct CnnOptions {
   // 2D-guided crops instead (the self-calibration, which has no cameras yet): the crops planned
   // from the frame's own bottom-up detections (a crop per person the planner finds in a view);
   // no tracks are wanted then.
-  std::function<Result<std::vector<assoc::PlannedCrop>>(const DetectionSet&)>
-      crops_from_detections;
+  std::function<Result<std::vector<assoc::PlannedCrop>>(const DetectionSet&)> crops_from_detections;
   assoc::CropPlanOptions crop_plan;
   assoc::CropMergeOptions crop_merge;
   Status validate() const;

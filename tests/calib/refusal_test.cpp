@@ -12,12 +12,12 @@
 namespace mocap::calib {
 namespace {
 
-using testing::expect_close_to_truth;
 using testing::append_people;
+using testing::expect_close_to_truth;
 using testing::keep_people;
-using testing::simulate;
 using testing::SimRun;
 using testing::SimSpec;
+using testing::simulate;
 
 SelfCalibrationResult solve(const SimRun& run, bool refine = false) {
   SelfCalibrationOptions o;

@@ -25,9 +25,9 @@ namespace mocap::calib {
 namespace {
 
 using testing::expect_close_to_truth;
-using testing::simulate;
 using testing::SimRun;
 using testing::SimSpec;
+using testing::simulate;
 
 TEST(SelfCalibrationTest, FiveViewsTwoPeopleFocalUnknown) {
   const SimRun run = simulate({});

@@ -39,7 +39,7 @@ struct SimSpec {
   bool frozen = false;   // every frame shows frame 0 (nobody moves)
   double k1 = 0;         // the cameras' lens
   std::map<int, double> prior_focal_factor = {};  // view -> the file's focal = truth x factor
-  int turned_view = -1;                      // this camera turned about its vertical axis
+  int turned_view = -1;                           // this camera turned about its vertical axis
   double turn_deg = 0;
   int late_view = -1;  // this view shows what the others showed late_frames before
   int late_frames = 0;
@@ -101,7 +101,8 @@ inline void append_people(sim::RenderedFrame& f, std::size_t view, const sim::Re
     const Limb& limb = topo.limb(l);
     const AffinityMatrix& old = to.affinities[static_cast<std::size_t>(l)];
     const AffinityMatrix& more = add.affinities[static_cast<std::size_t>(l)];
-    const auto a = static_cast<std::size_t>(limb.joint_a), b = static_cast<std::size_t>(limb.joint_b);
+    const auto a = static_cast<std::size_t>(limb.joint_a),
+               b = static_cast<std::size_t>(limb.joint_b);
     AffinityMatrix m(static_cast<int>(to.candidates[a].size()),
                      static_cast<int>(to.candidates[b].size()));
     for (int r = 0; r < old.rows; ++r) {

@@ -1,9 +1,11 @@
-// Self-calibration on real video (issue 23): `mocap calibrate people --recording` on
-// pose2sim_multi (4 views, 1.7 s, two performers and a bystander; MoveNet on lavapipe, ~2 min)
-// with the recording's intrinsics kept. Floors at the measured result, which misses the
-// issue's 2 deg / 10 cm against the given calibration (itself 5-10 px off, README): measured
-// max rotation 5.63 deg, median centre 0.19 m, reprojection 2.62 px (docs/self-calibration.md:
-// the replay reprojects better with it, 9.7 px median against 12.9 px with the given one).
+// Self-calibration on real video (issues 23, 37): `mocap calibrate people --recording` on
+// pose2sim_multi (4 views, 1.7 s, two performers and a bystander; MoveNet on lavapipe, ~1 min)
+// with the recording's intrinsics kept, against its calibration (itself 5-10 px off, README;
+// Pose2Sim's own calibration of the same cameras is 2.05 deg from it). Floors at the measured
+// result (3.08 deg, 0.106 m; docs/self-calibration.md: the issue's 2 deg / 10 cm are not met and
+// why). Then, on the same 2D people (--keypoints, no CNN): the focal lengths unknown are refused
+// naming the short clip, --refine-intrinsics is no worse, and a reduced stability sweep (3
+// perturbed runs) stays within twice the target or refuses.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -20,30 +22,81 @@ namespace {
 
 const std::string kBin = std::string(MOCAP_BIN_DIR) + "/mocap";
 
+double compare_max_rotation(const std::filesystem::path& reference, const std::string& file,
+                            const testing::TestTempDir& dir, double* center_m = nullptr) {
+  auto c = testing::run_process({kBin, "calib", "compare", reference.string(), file}, dir.path(),
+                                "compare", 60000);
+  EXPECT_EQ(c.exit_code, 0) << c.out << c.err;
+  if (center_m != nullptr) *center_m = testing::last_value(c.out, "median_center_m");
+  return testing::last_value(c.out, "max_rotation_deg");
+}
+
 TEST(SelfCalibrationE2e, Pose2SimMultiFromTheVideosWithItsIntrinsics) {
   MOCAP_REQUIRE_DATA(data, "pose2sim_multi");
   testing::TestTempDir dir("selfcal_e2e");
   const std::string out = (dir.path() / "self.json").string();
   const std::string report = (dir.path() / "report.json").string();
-  auto r = testing::run_process({kBin, "calibrate", "people", "--recording", data.string(),
-                                 "--keep-intrinsics", "--out", out, "--report", report},
-                                dir.path(), "calibrate", 900000);
+  const std::string keypoints = (dir.path() / "people.json").string();
+  const auto debug = dir.path() / "debug";
+  auto r = testing::run_process(
+      {kBin, "calibrate", "people", "--recording", data.string(), "--keep-intrinsics", "--out", out,
+       "--report", report, "--keypoints-out", keypoints, "--debug-dir", debug.string()},
+      dir.path(), "calibrate", 900000);
   ASSERT_EQ(r.exit_code, 0) << r.how() << "\n" << r.out << r.err;
   const double reprojection = testing::last_value(r.out, "calibration_reprojection_px");
   EXPECT_GT(reprojection, 0);
   EXPECT_LT(reprojection, 6.0) << r.out;
+  EXPECT_NE(r.out.find("chosen: matching"), std::string::npos) << r.out;
   auto cal = load_calibration(out);
   ASSERT_TRUE(cal.ok()) << cal.error().message();
   EXPECT_EQ(cal->size(), 4u);
-  auto c =
-      testing::run_process({kBin, "calib", "compare", (data / "calibration.json").string(), out},
-                           dir.path(), "compare", 60000);
-  ASSERT_EQ(c.exit_code, 0) << c.out << c.err;
-  EXPECT_LE(testing::last_value(c.out, "max_rotation_deg"), 7.0) << c.out;
-  EXPECT_LE(testing::last_value(c.out, "median_center_m"), 0.25) << c.out;
+  double center_m = 0;
+  const double kept = compare_max_rotation(data / "calibration.json", out, dir, &center_m);
+  EXPECT_LE(kept, 3.5);
+  EXPECT_LE(center_m, 0.13);
   auto json = io::read_text_file(report);
   ASSERT_TRUE(json.ok());
   EXPECT_NE(json->find("\"ok\": true"), std::string::npos);
+  EXPECT_NE(json->find("\"hypotheses\""), std::string::npos);
+  // What the debug folder holds: the whole report, the joints used, a coverage PNG per view.
+  auto full = io::read_text_file(debug / "report.json");
+  ASSERT_TRUE(full.ok());
+  EXPECT_NE(full->find("\"steps\""), std::string::npos);
+  auto joints = io::read_text_file(debug / "joints.csv");
+  ASSERT_TRUE(joints.ok());
+  EXPECT_EQ(joints->rfind("frame,person,joint,view,x_px,y_px,score,inlier,mirrored\n", 0), 0u);
+  EXPECT_GT(std::count(joints->begin(), joints->end(), '\n'), 5000);
+  for (int v = 0; v < 4; ++v) {
+    auto png = io::read_text_file(debug / ("coverage_view" + std::to_string(v) + ".png"));
+    ASSERT_TRUE(png.ok()) << "view " << v;
+    EXPECT_EQ(png->substr(1, 3), "PNG");
+  }
+  const std::string intrinsics = (data / "calibration.json").string();
+  // The focal lengths unknown: 1.7 s of people barely moving does not fix them.
+  auto unknown =
+      testing::run_process({kBin, "calibrate", "people", "--keypoints", keypoints, "--intrinsics",
+                            intrinsics, "--out", (dir.path() / "f.json").string()},
+                           dir.path(), "calibrate", 300000);
+  EXPECT_EQ(unknown.exit_code, 1) << unknown.out << unknown.err;
+  EXPECT_NE(unknown.out.find("does not fix the focal lengths"), std::string::npos) << unknown.out;
+  EXPECT_NE(unknown.out.find("too little motion"), std::string::npos) << unknown.out;
+  // --refine-intrinsics: no worse than keeping them.
+  const std::string refined = (dir.path() / "refined.json").string();
+  auto ref = testing::run_process(
+      {kBin, "calibrate", "people", "--keypoints", keypoints, "--intrinsics", intrinsics,
+       "--keep-intrinsics", "--refine-intrinsics", "--out", refined},
+      dir.path(), "calibrate", 300000);
+  ASSERT_EQ(ref.exit_code, 0) << ref.out << ref.err;
+  EXPECT_LE(compare_max_rotation(data / "calibration.json", refined, dir), kept + 0.3);
+  // A reduced stability sweep: every run within twice the target (4 deg, 0.2 m) or refused.
+  auto sweep = testing::run_process(
+      {kBin, "calibrate", "stability", "--keypoints", keypoints, "--intrinsics", intrinsics,
+       "--keep-intrinsics", "--reference", intrinsics, "--runs", "3"},
+      dir.path(), "stability", 600000);
+  ASSERT_EQ(sweep.exit_code, 0) << sweep.out << sweep.err;
+  const double accepted = testing::last_value(sweep.out, "accepted");
+  EXPECT_EQ(testing::last_value(sweep.out, "within_2x"), accepted) << sweep.out;
+  EXPECT_EQ(testing::last_value(sweep.out, "over_10deg"), 0) << sweep.out;
 }
 
 }  // namespace
@@ -70,9 +123,9 @@ TEST(SelfCalibrationRecordingTest, WithoutCalibrationJsonTheVideosGiveTheViews) 
   const auto rec = linked_recording(dir, data);
   const std::string out = (dir.path() / "self.json").string();
   // 12 frames: the collection runs, the solve refuses for too few frames (exit 1).
-  auto r = testing::run_process({kBin, "calibrate", "people", "--recording", rec.string(),
-                                 "--frames", "12", "--out", out},
-                                dir.path(), "calibrate", 300000);
+  auto r = testing::run_process(
+      {kBin, "calibrate", "people", "--recording", rec.string(), "--frames", "12", "--out", out},
+      dir.path(), "calibrate", 300000);
   EXPECT_EQ(r.exit_code, 1) << r.how() << "\n" << r.out << r.err;
   EXPECT_NE(r.out.find("has no calibration.json: views and image sizes from the videos: 0 "
                        "1088x1920, 1 1088x1920, 2 1088x1920, 3 1088x1920"),

@@ -91,8 +91,8 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
       std::vector<assoc::PlannedCrop> plan;
       for (const calib::PersonBox& b :
            calib::person_boxes(set, *set.topology, calib::People2DOptions{})) {
-        plan.push_back({static_cast<int>(plan.size()), b.view_id, b.center_x_px, b.center_y_px,
-                        b.side_px});
+        plan.push_back(
+            {static_cast<int>(plan.size()), b.view_id, b.center_x_px, b.center_y_px, b.side_px});
       }
       return plan;
     };
@@ -116,7 +116,8 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
     priors.push_back(p);
   }
   if (!file) {
-    std::printf("%s has no calibration.json: views and image sizes from the videos", a.recording.c_str());
+    std::printf("%s has no calibration.json: views and image sizes from the videos",
+                a.recording.c_str());
     for (const calib::CameraPrior& p : priors) {
       std::printf("%s %s %dx%d", p.view_id == priors.front().view_id ? ":" : ",", p.view_id.c_str(),
                   p.width_px, p.height_px);

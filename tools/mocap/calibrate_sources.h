@@ -21,7 +21,7 @@ struct SourceArgs {
   int views = 5, people = 2, frames = -1;
   double seconds = 60;
   int seed = 1;
-  double k1 = 0, k2 = 0;  // --synthetic: the cameras' lens
+  double k1 = 0, k2 = 0;   // --synthetic: the cameras' lens
   std::string intrinsics;  // --keypoints: the calibration file with the view ids (and K)
   std::string truth_out;   // --synthetic: where to write the true rig
   // Exactly one source given; the error says which flags.

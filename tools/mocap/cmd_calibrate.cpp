@@ -162,7 +162,7 @@ constexpr const char* kUsage =
 
 int run_calibrate(Args args) {
   static constexpr cli::Subcommand kSubcommands[] = {{"people", run_people},
-                                                      {"stability", run_calibrate_stability}};
+                                                     {"stability", run_calibrate_stability}};
   return cli::dispatch_subcommand("mocap calibrate", kUsage, kSubcommands, args);
 }
 

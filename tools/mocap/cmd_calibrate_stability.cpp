@@ -7,8 +7,8 @@
 // (or refused), none worse than 10 degrees. The last line is
 // stability_runs=N accepted=A refused=R within_2x=W worst_rotation_deg=X over_10deg=Z.
 #include <algorithm>
-#include <filesystem>
 #include <cstdio>
+#include <filesystem>
 #include <numeric>
 #include <random>
 #include <string>
@@ -19,8 +19,8 @@
 #include "runtime/core/stats.h"
 #include "runtime/eval/shelf_pcp.h"
 #include "runtime/eval/shelf_sequence.h"
-#include "runtime/io/shelf_gt.h"
 #include "runtime/geometry/calibration.h"
+#include "runtime/io/shelf_gt.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/calibrate_sources.h"
 #include "tools/mocap/commands.h"
@@ -100,7 +100,8 @@ int run_calibrate_stability(Args args) {
   std::string debug_dir;
   double target_rotation_deg = 2, target_center_m = 0.10;
   cli::ArgParser p("mocap calibrate stability", kHelp);
-  p.option("--keypoints", &src.keypoints, "FILE", "2D people saved by calibrate people --keypoints-out");
+  p.option("--keypoints", &src.keypoints, "FILE",
+           "2D people saved by calibrate people --keypoints-out");
   p.option("--intrinsics", &src.intrinsics, "FILE",
            "--keypoints: calibration file whose view ids (and with --keep-intrinsics, K and "
            "distortion) to use");
@@ -128,8 +129,9 @@ int run_calibrate_stability(Args args) {
   };
   if (Status s = src.check(); !s.ok()) return usage(s.error().message());
   if (!src.recording.empty()) {
-    return usage("--recording: save its 2D people once with calibrate people --keypoints-out, "
-                 "then sweep them with --keypoints");
+    return usage(
+        "--recording: save its 2D people once with calibrate people --keypoints-out, "
+        "then sweep them with --keypoints");
   }
   if (reference.empty()) return usage("--reference FILE is required");
   if (runs < 1 || runs > 1000) return usage("--runs must be in [1, 1000]");
@@ -185,8 +187,8 @@ int run_calibrate_stability(Args args) {
     }
     worst = std::max(worst, c->max_rotation_deg);
     over10 += c->max_rotation_deg > 10 ? 1 : 0;
-    const bool ok2 = c->max_rotation_deg <= 2 * target_rotation_deg &&
-                     c->median_center_m <= 2 * target_center_m;
+    const bool ok2 =
+        c->max_rotation_deg <= 2 * target_rotation_deg && c->median_center_m <= 2 * target_center_m;
     within += ok2 ? 1 : 0;
     const auto& d = res->quality.diagnostics;
     double coverage = 1;
@@ -203,20 +205,23 @@ int run_calibrate_stability(Args args) {
       std::snprintf(b, sizeof b, ", strict PCP %.2f", score);
       pcp = b;
     }
-    std::printf("max_rotation %.2f deg, median_centre %.3f m%s (loo %.1f px, coverage >= %.2f, "
-                "%.1f s%s)\n",
-                c->max_rotation_deg, c->median_center_m, ok2 ? "" : "  OVER 2x TARGET",
-                res->quality.loo_mean_view_px, coverage, res->quality.solve_s, pcp.c_str());
+    std::printf(
+        "max_rotation %.2f deg, median_centre %.3f m%s (loo %.1f px, coverage >= %.2f, "
+        "%.1f s%s)\n",
+        c->max_rotation_deg, c->median_center_m, ok2 ? "" : "  OVER 2x TARGET",
+        res->quality.loo_mean_view_px, coverage, res->quality.solve_s, pcp.c_str());
     std::fflush(stdout);
   }
   if (!pcps.empty()) {
-    std::printf("Shelf strict PCP with the accepted calibrations: median %.2f, min %.2f, max %.2f\n",
-                median(pcps), *std::min_element(pcps.begin(), pcps.end()),
-                *std::max_element(pcps.begin(), pcps.end()));
+    std::printf(
+        "Shelf strict PCP with the accepted calibrations: median %.2f, min %.2f, max %.2f\n",
+        median(pcps), *std::min_element(pcps.begin(), pcps.end()),
+        *std::max_element(pcps.begin(), pcps.end()));
   }
-  std::printf("stability_runs=%d accepted=%d refused=%d within_2x=%d worst_rotation_deg=%.2f "
-              "over_10deg=%d\n",
-              only > 0 ? 1 : runs, accepted, refused, within, worst, over10);
+  std::printf(
+      "stability_runs=%d accepted=%d refused=%d within_2x=%d worst_rotation_deg=%.2f "
+      "over_10deg=%d\n",
+      only > 0 ? 1 : runs, accepted, refused, within, worst, over10);
   return 0;
 }
 

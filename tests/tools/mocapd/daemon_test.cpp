@@ -158,6 +158,9 @@ TEST(DaemonSimulator, CalibratesItselfFromThePeopleThenStreamsSkeletons) {
   EXPECT_EQ(h["calibration"]["views"], 4);
   EXPECT_TRUE(h["calibration"]["self_calibration"]["ok"].get<bool>());
   EXPECT_LT(h["calibration"]["self_calibration"]["reprojection_median_px"].get<double>(), 3.0);
+  // Longer is better: still collecting, to solve again with twice the frames.
+  EXPECT_EQ(h["calibration"]["progress"]["state"], "refining") << h.dump();
+  EXPECT_GE(h["calibration"]["progress"]["next_solve_frames"].get<int>(), 600);
   const fs::path file = fs::path(c.state_dir) / "calibration.json";
   EXPECT_EQ(h["calibration"]["file"], file.string());
   auto cal = load_calibration(file);
