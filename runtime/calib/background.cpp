@@ -168,6 +168,7 @@ CalibrationProgress BackgroundCalibrator::progress() const {
   p.refinements = refinements_;
   p.last_change_deg = last_change_deg_;
   p.last_change_m = last_change_m_;
+  p.solving = solving_;
   p.next_solve_frames = done_ ? 0 : next_attempt_frames_;
   p.hint = done_       ? ""
            : refining_ ? "calibrated; keep walking around the whole area: the calibration is "

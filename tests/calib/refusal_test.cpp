@@ -70,8 +70,8 @@ TEST(SelfCalibrationRefusalTest, ViewThatSeesPeopleOnlyAtItsBorder) {
     ViewDetections& v = f.detections.views[2];
     for (std::size_t j = 0; j < v.candidates.size(); ++j) {
       for (std::size_t i = 0; i < v.candidates[j].size(); ++i) {
-        const double x = v.candidates[j][i].x_px / v.width_px;
-        const double y = v.candidates[j][i].y_px / v.height_px;
+        const double x = static_cast<double>(v.candidates[j][i].x_px) / v.width_px;
+        const double y = static_cast<double>(v.candidates[j][i].y_px) / v.height_px;
         if (x > 0.1 && x < 0.9 && y > 0.1 && y < 0.9) f.truth_person[2][j][i] = -2;
       }
     }

@@ -820,6 +820,7 @@ nlohmann::json Daemon::calibration_json(std::vector<std::string>& problems) cons
                      {"refinements", cp.refinements},
                      {"last_change_deg", cp.last_change_deg},
                      {"last_change_m", cp.last_change_m},
+                     {"solving", cp.solving},
                      {"next_solve_frames", cp.next_solve_frames},
                      {"what_to_do", cp.hint}};
   }
