@@ -194,16 +194,20 @@ jq -e '.source.kind == "cameras" and .calibration.state == "ok" and .output == "
 # mounted read-only and refusing a write, /var on the state file system and writable, and no
 # listening socket but mocapd's, save the DHCP and NTP clients' own ports.
 report() { sed -e 's/\x1b\[[0-9;]*[A-Za-z]//g' -e 's/\r//g' "$serial" | grep -ao 'mocap-box-report: .*' | sed 's/^mocap-box-report: //'; }
-for _ in $(seq 120); do report | grep -qx done && break; sleep 1; done
-report | grep -qx done || fail "no mocap-box-report from the guest (mocap-qemu-report.service)"
-report | sed 's/^/    report: /'
-report | grep -Eq '^root [^ ]+ +ext4 +ro(,|$)' || fail "the root file system is not mounted read-only"
-report | grep -qx 'root_write refused' || fail "a write to / was not refused"
-report | grep -Eq '^var [^ ]+ +ext4 +rw(,| ).* label mocap-state$' || fail "/var is not the writable mocap-state file system"
-stray=$(report | grep '^listen ' | grep -v '"mocapd"' |
+for _ in $(seq 120); do grep -qx done <<<"$(report)" && break; sleep 1; done
+# Read once into a variable: `report | grep -q` under pipefail failed at random (grep -q exits at
+# its first match and the pipeline's writer, still reading the console log, gets SIGPIPE).
+rep=$(report)
+grep -qx done <<<"$rep" || fail "no mocap-box-report from the guest (mocap-qemu-report.service)"
+sed 's/^/    report: /' <<<"$rep"
+grep -Eq '^root [^ ]+ +ext4 +ro(,|$)' <<<"$rep" || fail "the root file system is not mounted read-only"
+grep -qx 'root_write refused' <<<"$rep" || fail "a write to / was not refused"
+grep -Eq '^var [^ ]+ +ext4 +rw(,| ).* label mocap-state$' <<<"$rep" ||
+    fail "/var is not the writable mocap-state file system"
+stray=$(grep '^listen ' <<<"$rep" | grep -v '"mocapd"' |
     grep -Ev '^listen udp [^ ]+:(68|546) .*"systemd-network"|^listen udp [^ ]+ .*"systemd-timesyn"' || true)
 [[ -z $stray ]] || fail "listening sockets other than mocapd's: $stray"
-report | grep -q '^listen tcp [^ ]*:9870 .*"mocapd"' || fail "mocapd does not listen on 9870 (report above)"
+grep -q '^listen tcp [^ ]*:9870 .*"mocapd"' <<<"$rep" || fail "mocapd does not listen on 9870 (report above)"
 say "read-only root, /var on mocap-state, no listening service but mocapd"
 # Guest clock (kernel timestamps) of: systemd starting mocapd, mocapd listening.
 guest_t() { sed -e 's/\x1b\[[0-9;]*[A-Za-z]//g' "$serial" | grep -a -m1 "$1" | sed -n 's/^\[ *\([0-9.]*\)\].*/\1/p'; }

@@ -232,55 +232,6 @@ void carry_on(Hypothesis& h, const std::vector<std::vector<Tracklet>>& tracklets
   score(h, priors, o, &tracklets, &topology);
 }
 
-// The file's intrinsics (and lens) back in place of the adjusted ones.
-Reconstruction with_prior_intrinsics(Reconstruction rec, const std::vector<CameraPrior>& priors,
-                                     bool with_lens) {
-  for (std::size_t v = 0; v < priors.size(); ++v) {
-    const BundleCamera prior = initial_camera(priors[v], 0, with_lens);
-    BundleCamera& c = rec.problem.cameras[v];
-    c.fx = prior.fx, c.fy = prior.fy, c.focal_scale = 1;
-    std::copy_n(prior.principal, 2, c.principal);
-    std::copy_n(prior.dist, 5, c.dist);
-  }
-  return rec;
-}
-
-// carry_on, and with --refine-intrinsics over a calibration file's intrinsics: the refined
-// intrinsics are kept only when they fit the same people clearly better than the file's
-// (leave-one-view-out mean at least min_intrinsics_gain lower, both adjusted alike); a short
-// clip lets them drift to fit its detectors' errors.
-void carry_on_checked(Hypothesis& h, const std::vector<std::vector<Tracklet>>& tracklets,
-                      const std::vector<CameraPrior>& priors, const SkeletonTopology& topology,
-                      const HypothesisOptions& o) {
-  const IntrinsicsRefinement& in = o.reconstruct.intrinsics;
-  bool all_known = true;
-  for (const CameraPrior& p : priors) all_known = all_known && p.intrinsics.has_value();
-  if (!(in.focal || in.principal_point || in.radial) || !all_known) {
-    carry_on(h, tracklets, priors, topology, o);
-    return;
-  }
-  carry_on(h, tracklets, priors, topology, o);
-  if (!h.rec) return;
-  const double refined = refit(*h.rec, {}).mean_view_px;
-  const double kept = refit(with_prior_intrinsics(*h.rec, priors, in.radial), {}).mean_view_px;
-  char buf[200];
-  if (refined <= (1 - o.min_intrinsics_gain) * kept) {
-    std::snprintf(buf, sizeof buf, "refined: the fit improved from %.2f to %.2f px", kept, refined);
-    h.diag.intrinsics = buf;
-    return;
-  }
-  h.rec = with_prior_intrinsics(*h.rec, priors, in.radial);
-  ReconstructOptions fixed = o.reconstruct;
-  fixed.intrinsics = {};
-  adjust_again(*h.rec, topology, fixed);
-  score(h, priors, o, &tracklets, &topology);
-  std::snprintf(buf, sizeof buf,
-                "the file's kept: refining them improved the fit only from %.2f to %.2f px "
-                "(%.0f %% needed)",
-                kept, refined, 100 * o.min_intrinsics_gain);
-  h.diag.intrinsics = buf;
-}
-
 // Every stride-th frame of each tracklet (the hypotheses are compared on fewer frames).
 std::vector<std::vector<Tracklet>> every(const std::vector<std::vector<Tracklet>>& in, int stride) {
   if (stride <= 1) return in;
@@ -300,6 +251,47 @@ std::vector<std::vector<Tracklet>> every(const std::vector<std::vector<Tracklet>
 }
 
 }  // namespace
+
+ReconstructOptions effective_reconstruct_options(const std::vector<CameraPrior>& priors,
+                                                 const HypothesisOptions& o) {
+  double diag_px = 0;
+  bool focal_unknown = false;
+  for (const CameraPrior& p : priors) {
+    focal_unknown = focal_unknown || !p.intrinsics;
+    diag_px = std::max(diag_px, diagonal(p));
+  }
+  ReconstructOptions ro = o.reconstruct;
+  ro.estimate_focal = ro.estimate_focal || focal_unknown;
+  // Pixel thresholds grow with the image (detector noise does).
+  const double k = o.threshold_scale;
+  ro.pnp_threshold_px = k * std::max(ro.pnp_threshold_px, 0.006 * diag_px);
+  ro.outlier_min_px = k * std::max(ro.outlier_min_px, 0.004 * diag_px);
+  return ro;
+}
+
+void refine_chosen_intrinsics(Hypothesis& h, const CalibrationInput& input,
+                              const std::vector<CameraPrior>& priors,
+                              const SkeletonTopology& topology, const HypothesisOptions& o) {
+  const IntrinsicsRefinement& in = o.reconstruct.intrinsics;
+  if (!h.rec || !(in.focal || in.principal_point || in.radial)) return;
+  Reconstruction refined = *h.rec;
+  adjust_again(refined, topology, effective_reconstruct_options(priors, o));
+  const double kept = refit(*h.rec, {}).mean_view_px;
+  const double better = refit(refined, {}).mean_view_px;
+  char buf[200];
+  if (better > (1 - o.min_intrinsics_gain) * kept) {
+    std::snprintf(buf, sizeof buf,
+                  "the file's kept: refining them improved the fit only from %.2f to %.2f px "
+                  "(%.0f %% needed)",
+                  kept, better, 100 * o.min_intrinsics_gain);
+    h.diag.intrinsics = buf;
+    return;
+  }
+  h.rec = std::move(refined);
+  score(h, priors, o, in.radial ? &input.raw : &input.ideal, &topology);
+  std::snprintf(buf, sizeof buf, "refined: the fit improved from %.2f to %.2f px", kept, better);
+  h.diag.intrinsics = buf;
+}
 
 Status HypothesisOptions::validate() const {
   if (match_fractions.empty()) {
@@ -409,19 +401,17 @@ std::vector<Hypothesis> run_hypotheses(const CalibrationInput& input,
   few.raw = every(input.raw, stride);
   few.ideal = every(input.ideal, stride);
   const auto& tracklets = with_lens ? few.raw : few.ideal;
-  double diag_px = 0, longest = 0;
+  double longest = 0;
   bool focal_unknown = false;
   for (const CameraPrior& p : priors) {
     focal_unknown = focal_unknown || !p.intrinsics;
-    diag_px = std::max(diag_px, diagonal(p));
     longest = std::max<double>(longest, std::max(p.width_px, p.height_px));
   }
-  ReconstructOptions ro = o.reconstruct;
-  ro.estimate_focal = ro.estimate_focal || focal_unknown;
-  // Pixel thresholds grow with the image (detector noise does).
   const double k = o.threshold_scale;
-  ro.pnp_threshold_px = k * std::max(ro.pnp_threshold_px, 0.006 * diag_px);
-  ro.outlier_min_px = k * std::max(ro.outlier_min_px, 0.004 * diag_px);
+  ReconstructOptions ro = effective_reconstruct_options(priors, o);
+  // With a file's intrinsics, --refine-intrinsics comes after the choice
+  // (refine_chosen_intrinsics): the hypotheses are compared with the file's.
+  if (!focal_unknown) ro.intrinsics = {};
   HypothesisOptions oo = o;
   oo.reconstruct = ro;
   oo.match.ransac.threshold_px = k * o.match.ransac.threshold_px;
@@ -470,9 +460,7 @@ std::vector<Hypothesis> run_hypotheses(const CalibrationInput& input,
     if (!out[i].rec) break;
     if (carried < o.carried && !o.cancelled()) {
       out[i].diag.carried = true;
-      if (o.rematch) {
-        carry_on_checked(out[i], with_lens ? input.raw : input.ideal, priors, topology, oo);
-      }
+      if (o.rematch) carry_on(out[i], with_lens ? input.raw : input.ideal, priors, topology, oo);
       ++carried;
     } else {
       out[i].rec.reset();  // not carried on: only its figures on the thinned frames stay

@@ -79,7 +79,8 @@ struct Hypothesis {
   bool accepted() const { return rec.has_value() && misfit.empty(); }
 };
 
-// Every hypothesis, in the order tried; `diag` gets the view pairs' matching. Each is first
+// Every hypothesis, in the order tried; `diag` gets the view pairs' matching. With every
+// view's intrinsics known they are held here (refine_chosen_intrinsics comes after). Each is first
 // carried to an adjusted result on at most hypothesis_frames frames and scored there; the
 // best `carried` go on with every frame, everyone matched again with their cameras, and are
 // scored again. The others keep only their figures.
@@ -87,6 +88,19 @@ std::vector<Hypothesis> run_hypotheses(const CalibrationInput& input,
                                        const std::vector<CameraPrior>& priors,
                                        const SkeletonTopology& topology,
                                        const HypothesisOptions& options, SolveDiagnostics& diag);
+
+// With a calibration file's intrinsics and --refine-intrinsics (options.reconstruct.intrinsics):
+// the chosen hypothesis's final adjustments redone with them free, kept only when they predict
+// the same people at least min_intrinsics_gain better than the file's (a short clip lets them
+// drift to fit its detectors' errors); diag.intrinsics says which and why.
+void refine_chosen_intrinsics(Hypothesis& h, const CalibrationInput& input,
+                              const std::vector<CameraPrior>& priors,
+                              const SkeletonTopology& topology, const HypothesisOptions& options);
+
+// The reconstruction options the hypotheses run with: pixel thresholds grown with the image
+// and scaled by threshold_scale, focal lengths estimated when a view's are unknown.
+ReconstructOptions effective_reconstruct_options(const std::vector<CameraPrior>& priors,
+                                                 const HypothesisOptions& options);
 
 // Why a view does not fit like the others (empty when every view does): the first view whose
 // leave-one-view-out median exceeds both limits.

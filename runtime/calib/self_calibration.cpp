@@ -402,6 +402,12 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
         break;  // the runner-up is as ambiguous with this one
       }
     }
+    bool all_known = true;
+    for (const CameraPrior& p : priors) all_known = all_known && p.intrinsics.has_value();
+    if (options.refine_intrinsics && all_known) {
+      refine_chosen_intrinsics(h, input, priors, keypoints.topology(), ho);
+      fill_views(h, qh);
+    }
     std::string why = focal_check(h, priors, options, qh);
     if (why.empty() && !options.refine_intrinsics) {
       why = held_intrinsics_problem(h, priors, options.hypotheses.min_lens_gain,
