@@ -5,6 +5,8 @@
 #            (tests/tools/, and the fuzz target of mocapd's configuration,
 #            tests/fuzz/fuzz_config_json.cpp): the executables compose runtime/ and hal/, never
 #            the reverse.
+#   opencv   OpenCV (the board calibration's detection and calibrateCamera) is included under
+#            runtime/boardcal/ only: it never reaches the real-time path.
 if(RULE STREQUAL "runtime")
   file(GLOB_RECURSE files "${ROOT}/runtime/*.h" "${ROOT}/runtime/*.hpp" "${ROOT}/runtime/*.cpp"
        "${ROOT}/runtime/*.cc")
@@ -17,8 +19,15 @@ elseif(RULE STREQUAL "tools")
   list(FILTER files EXCLUDE REGEX "^${ROOT}/tests/fuzz/fuzz_config_json\\.cpp$")
   set(regex "tools/")
   set(what "tools/ included from outside tools/")
+elseif(RULE STREQUAL "opencv")
+  file(GLOB_RECURSE files "${ROOT}/runtime/*.h" "${ROOT}/runtime/*.cpp" "${ROOT}/hal/*.h"
+       "${ROOT}/hal/*.cpp" "${ROOT}/tools/*.h" "${ROOT}/tools/*.cpp")
+  list(FILTER files EXCLUDE REGEX "^${ROOT}/runtime/boardcal/")
+  list(FILTER files EXCLUDE REGEX "/node_modules/")
+  set(regex "opencv")
+  set(what "OpenCV included outside runtime/boardcal/")
 else()
-  message(FATAL_ERROR "RULE must be runtime or tools, got '${RULE}'")
+  message(FATAL_ERROR "RULE must be runtime, tools or opencv, got '${RULE}'")
 endif()
 set(bad "")
 foreach(f IN LISTS files)

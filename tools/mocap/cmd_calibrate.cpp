@@ -152,17 +152,23 @@ int run_people(Args args) {
 }
 
 constexpr const char* kUsage =
-    "usage: mocap calibrate people|stability ...   (--help after either for details)\n"
+    "usage: mocap calibrate people|stability|board|print-board ...   (--help after either for "
+    "details)\n"
     "\n"
     "subcommands:\n"
     "  people     calibrate the cameras from the people walking in the room (no board)\n"
-    "  stability  the self-calibration run again with perturbed settings, against a reference\n";
+    "  stability  the self-calibration run again with perturbed settings, against a reference\n"
+    "  board      calibrate the cameras (intrinsics, lens, rig, floor) from a ChArUco board or\n"
+    "             a chessboard waved through the volume\n"
+    "  print-board  the board as a PNG or PDF to print, to scale\n";
 
 }  // namespace
 
 int run_calibrate(Args args) {
   static constexpr cli::Subcommand kSubcommands[] = {{"people", run_people},
-                                                     {"stability", run_calibrate_stability}};
+                                                     {"stability", run_calibrate_stability},
+                                                     {"board", run_calibrate_board},
+                                                     {"print-board", run_print_board}};
   return cli::dispatch_subcommand("mocap calibrate", kUsage, kSubcommands, args);
 }
 
