@@ -52,6 +52,9 @@ std::string fixed(double v, int digits) {
 
 Error refuse(const std::string& m) { return Error(ErrorCode::kInvalidArgument, m); }
 
+// Worse than this (RMS, pixels) the corners do not fit one rigid board.
+constexpr double kBadRmsPx = 2.0;
+
 Result<Intrinsics> held_intrinsics(const Calibration& file, const CameraFrames& cam) {
   const auto i = file.index_of(cam.view_id);
   if (!i) {
@@ -116,6 +119,29 @@ void first_camera_world(detail::RigInit& rig) {
   }
 }
 
+// Every camera at the origin with its own intrinsics; the RMS is calibrateCamera's.
+BoardCalibrationResult intrinsics_only_result(const std::vector<CameraFrames>& cams,
+                                              const std::vector<Intrinsics>& intr,
+                                              BoardCalibrationResult result) {
+  double sq = 0;
+  int n = 0;
+  for (std::size_t c = 0; c < cams.size(); ++c) {
+    auto& rep = result.cameras[c];
+    rep.rms_px = rep.intrinsics_rms_px;
+    sq += rep.rms_px * rep.rms_px * rep.frames_intrinsics;
+    n += rep.frames_intrinsics;
+    result.calibration.cameras.emplace_back(intr[c].K, intr[c].dist, cams[c].width_px,
+                                            cams[c].height_px, Eigen::Matrix3d::Identity(),
+                                            Eigen::Vector3d::Zero());
+    result.calibration.view_ids.push_back(cams[c].view_id);
+  }
+  result.reprojection_px = n > 0 ? std::sqrt(sq / n) : 0;
+  result.warnings.push_back(
+      "intrinsics only: every camera's pose is the identity (use the file with calibrate people "
+      "--intrinsics FILE --keep-intrinsics, or as --intrinsics of a board calibration)");
+  return result;
+}
+
 }  // namespace
 
 Result<BoardCalibrationResult> calibrate_board(const BoardSpec& board,
@@ -177,6 +203,16 @@ Result<BoardCalibrationResult> calibrate_board(const BoardSpec& board,
     rep.frames_intrinsics = fit->frames_used;
     rep.intrinsics_rms_px = fit->rms_px;
   }
+  if (o.intrinsics_only) {
+    for (const auto& rep : result.cameras) {
+      if (rep.intrinsics_rms_px > kBadRmsPx) {
+        return refuse("camera " + rep.view_id + ": its board views fit with " +
+                      fixed(rep.intrinsics_rms_px, 2) + " px: check that the board description (" +
+                      board.to_spec() + ") matches the printed board and that it is flat");
+      }
+    }
+    return intrinsics_only_result(cams, intr, std::move(result));
+  }
   // 2. Board poses and the rig.
   std::vector<std::vector<std::optional<Pose>>> poses(n);
   for (std::size_t c = 0; c < n; ++c) {
@@ -201,7 +237,6 @@ Result<BoardCalibrationResult> calibrate_board(const BoardSpec& board,
   }
   result.reprojection_px = ba.rms_all_px;
   result.observations = ba.observations_all;
-  constexpr double kBadRmsPx = 2.0;
   if (result.reprojection_px > kBadRmsPx) {
     return refuse("board reprojection " + fixed(result.reprojection_px, 2) +
                   " px: the corners do not fit one rigid board: check that the board "

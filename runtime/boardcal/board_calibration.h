@@ -48,6 +48,9 @@ struct BoardCalibrationOptions {
   std::optional<Calibration> intrinsics;
   bool refine_intrinsics = true;  // in the bundle adjustment (with or without held ones)
   int floor_frames = 0;           // the board lies on the floor in frames [0, floor_frames)
+  // Each camera's intrinsics only (its own photos, not taken at the same moments): no rig, every
+  // pose the identity; for --keep-intrinsics of the people calibration.
+  bool intrinsics_only = false;
   int max_intrinsic_frames = 40;  // per camera, chosen for coverage
   int grid_cols = 8;              // coverage grid over each image
   int grid_rows = 6;

@@ -55,6 +55,59 @@ cv::Mat wrap(const GrayView& image) {
                  static_cast<std::size_t>(image.stride_bytes));
 }
 
+// Whether a chessboard's corners lie on a plane's image: a homography from the board fits them
+// to within a tenth of a square (lens distortion bends a board by far less across a few
+// squares; a grid found on the wrong structure does not fit at all).
+bool plausible_grid(const std::vector<cv::Point2f>& corners, const BoardSpec& board) {
+  std::vector<cv::Point2f> flat;
+  for (int r = 0; r < board.rows; ++r) {
+    for (int c = 0; c < board.cols; ++c)
+      flat.emplace_back(static_cast<float>(c), static_cast<float>(r));
+  }
+  const cv::Mat H = cv::findHomography(flat, corners, 0);
+  if (H.empty()) return false;
+  std::vector<cv::Point2f> back;
+  cv::perspectiveTransform(flat, back, H);
+  double worst = 0;
+  double spacing = 1e30;
+  for (std::size_t i = 0; i < corners.size(); ++i) {
+    worst = std::max(worst, static_cast<double>(cv::norm(back[i] - corners[i])));
+    if (i + 1 < corners.size() && (i + 1) % static_cast<std::size_t>(board.cols) != 0) {
+      spacing = std::min(spacing, static_cast<double>(cv::norm(corners[i + 1] - corners[i])));
+    }
+  }
+  return spacing > 3 && worst < std::max(1.5, 0.1 * spacing);
+}
+
+// The sector-based detector first (more accurate), then the classic one refined to sub-pixel;
+// each result must pass plausible_grid.
+std::vector<cv::Point2f> find_chessboard(const cv::Mat& gray, const BoardSpec& board) {
+  const cv::Size pattern(board.cols, board.rows);
+  std::vector<cv::Point2f> corners;
+  if (cv::findChessboardCornersSB(
+          gray, pattern, corners,
+          cv::CALIB_CB_EXHAUSTIVE | cv::CALIB_CB_ACCURACY | cv::CALIB_CB_NORMALIZE_IMAGE) &&
+      static_cast<int>(corners.size()) == board.corner_count() && plausible_grid(corners, board)) {
+    return corners;
+  }
+  corners.clear();
+  if (!cv::findChessboardCorners(gray, pattern, corners,
+                                 cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE) ||
+      static_cast<int>(corners.size()) != board.corner_count()) {
+    return {};
+  }
+  double spacing = 1e30;
+  for (std::size_t i = 0; i + 1 < corners.size(); ++i) {
+    if ((i + 1) % static_cast<std::size_t>(board.cols) == 0) continue;
+    spacing = std::min(spacing, static_cast<double>(cv::norm(corners[i + 1] - corners[i])));
+  }
+  const int win = std::clamp(static_cast<int>(spacing / 4), 2, 11);
+  cv::cornerSubPix(gray, corners, cv::Size(win, win), cv::Size(-1, -1),
+                   cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 0.001));
+  if (!plausible_grid(corners, board)) return {};
+  return corners;
+}
+
 }  // namespace
 
 BoardObservation BoardDetector::detect(const GrayView& image) const {
@@ -62,11 +115,8 @@ BoardObservation BoardDetector::detect(const GrayView& image) const {
   if (image.data == nullptr || image.width_px < 16 || image.height_px < 16) return obs;
   const cv::Mat gray = wrap(image);
   if (board_.type == BoardType::kChessboard) {
-    std::vector<cv::Point2f> corners;
-    const bool found = cv::findChessboardCornersSB(
-        gray, cv::Size(board_.cols, board_.rows), corners,
-        cv::CALIB_CB_EXHAUSTIVE | cv::CALIB_CB_ACCURACY | cv::CALIB_CB_NORMALIZE_IMAGE);
-    if (!found || static_cast<int>(corners.size()) != board_.corner_count()) return obs;
+    std::vector<cv::Point2f> corners = find_chessboard(gray, board_);
+    if (corners.empty()) return obs;
     for (std::size_t i = 0; i < corners.size(); ++i) {
       obs.ids.push_back(static_cast<int>(i));
       obs.px.emplace_back(corners[i].x, corners[i].y);

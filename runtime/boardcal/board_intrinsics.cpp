@@ -163,15 +163,35 @@ Result<IntrinsicsFit> fit_intrinsics(const BoardSpec& board, const CameraFrames&
     default:
       break;
   }
-  cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
-  K.at<double>(0, 2) = 0.5 * (cam.width_px - 1);
-  K.at<double>(1, 2) = 0.5 * (cam.height_px - 1);
+  cv::Mat K;
   cv::Mat dist;
-  std::vector<cv::Mat> rvecs;
-  std::vector<cv::Mat> tvecs;
   try {
-    fit.rms_px = cv::calibrateCamera(object, image, cv::Size(cam.width_px, cam.height_px), K, dist,
-                                     rvecs, tvecs, flags);
+    // A view far worse than the others (a misdetected or mirrored corner order) is dropped and
+    // the fit run again, at most 3 times.
+    for (int round = 0; round < 4; ++round) {
+      K = cv::Mat::eye(3, 3, CV_64F);
+      K.at<double>(0, 2) = 0.5 * (cam.width_px - 1);
+      K.at<double>(1, 2) = 0.5 * (cam.height_px - 1);
+      dist = cv::Mat();
+      std::vector<cv::Mat> rvecs;
+      std::vector<cv::Mat> tvecs;
+      cv::Mat sd_in, sd_ex, per_view;
+      fit.rms_px = cv::calibrateCamera(object, image, cv::Size(cam.width_px, cam.height_px), K,
+                                       dist, rvecs, tvecs, sd_in, sd_ex, per_view, flags);
+      std::vector<double> errs(per_view.begin<double>(), per_view.end<double>());
+      std::vector<double> sorted = errs;
+      std::sort(sorted.begin(), sorted.end());
+      const double median = sorted[sorted.size() / 2];
+      const auto worst = std::max_element(errs.begin(), errs.end());
+      if (round == 3 || *worst <= std::max(1.0, 3 * median) ||
+          static_cast<int>(object.size()) <= o.min_frames) {
+        break;
+      }
+      const auto at = worst - errs.begin();
+      object.erase(object.begin() + at);
+      image.erase(image.begin() + at);
+      fit.frames_used = static_cast<int>(object.size());
+    }
   } catch (const cv::Exception& e) {
     return Error(ErrorCode::kInvalidArgument,
                  "camera " + cam.view_id + ": the intrinsics could not be solved from " +

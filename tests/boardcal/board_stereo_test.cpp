@@ -89,12 +89,13 @@ TEST(BoardStereoPhotosTest, IntrinsicsAndRigAgreeWithOpenCvOnTheSameCorners) {
     std::vector<cv::Mat> rv, tv;
     cv_rms[c] = cv::calibrateCamera(object, image, size, K[c], D[c], rv, tv);
     const Camera& cam = ours->calibration.cameras[static_cast<std::size_t>(c)];
-    std::printf("camera %d: ours fx %.2f fy %.2f cx %.2f cy %.2f rms %.3f px | OpenCV fx %.2f fy "
-                "%.2f cx %.2f cy %.2f rms %.3f px (%zu views)\n",
-                c, cam.fx(), cam.fy(), cam.cx(), cam.cy(),
-                ours->cameras[static_cast<std::size_t>(c)].rms_px, K[c].at<double>(0, 0),
-                K[c].at<double>(1, 1), K[c].at<double>(0, 2), K[c].at<double>(1, 2), cv_rms[c],
-                image.size());
+    std::printf(
+        "camera %d: ours fx %.2f fy %.2f cx %.2f cy %.2f rms %.3f px | OpenCV fx %.2f fy "
+        "%.2f cx %.2f cy %.2f rms %.3f px (%zu views)\n",
+        c, cam.fx(), cam.fy(), cam.cx(), cam.cy(),
+        ours->cameras[static_cast<std::size_t>(c)].rms_px, K[c].at<double>(0, 0),
+        K[c].at<double>(1, 1), K[c].at<double>(0, 2), K[c].at<double>(1, 2), cv_rms[c],
+        image.size());
     EXPECT_NEAR(cam.fx() / K[c].at<double>(0, 0), 1.0, 0.005);
     EXPECT_NEAR(cam.fy() / K[c].at<double>(1, 1), 1.0, 0.005);
   }
@@ -116,9 +117,8 @@ TEST(BoardStereoPhotosTest, IntrinsicsAndRigAgreeWithOpenCvOnTheSameCorners) {
     add_view(cams[1].frames[f], board, nullptr, v.right);
   }
   cv::Mat R, T, E, F;
-  const double stereo_rms =
-      cv::stereoCalibrate(v.object, v.left, v.right, K[0], D[0], K[1], D[1], size, R, T, E, F,
-                          cv::CALIB_USE_INTRINSIC_GUESS);
+  const double stereo_rms = cv::stereoCalibrate(v.object, v.left, v.right, K[0], D[0], K[1], D[1],
+                                                size, R, T, E, F, cv::CALIB_USE_INTRINSIC_GUESS);
   Eigen::Matrix3d Rcv;
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) Rcv(r, c) = R.at<double>(r, c);
@@ -128,10 +128,11 @@ TEST(BoardStereoPhotosTest, IntrinsicsAndRigAgreeWithOpenCvOnTheSameCorners) {
   const double rot_deg = std::acos(cosang) * 180 / M_PI;
   const double base_cv = cv::norm(T);
   const double base_ours = right.t_m().norm();
-  std::printf("stereo: rotation between ours and OpenCV's %.4f deg; baseline ours %.2f mm, "
-              "OpenCV %.2f mm (%.3f %%); rms ours %.3f px, stereoCalibrate %.3f px (%zu pairs)\n",
-              rot_deg, 1000 * base_ours, 1000 * base_cv, 100 * (base_ours / base_cv - 1),
-              ours->reprojection_px, stereo_rms, v.left.size());
+  std::printf(
+      "stereo: rotation between ours and OpenCV's %.4f deg; baseline ours %.2f mm, "
+      "OpenCV %.2f mm (%.3f %%); rms ours %.3f px, stereoCalibrate %.3f px (%zu pairs)\n",
+      rot_deg, 1000 * base_ours, 1000 * base_cv, 100 * (base_ours / base_cv - 1),
+      ours->reprojection_px, stereo_rms, v.left.size());
   EXPECT_LE(rot_deg, 0.1);
   EXPECT_NEAR(base_ours / base_cv, 1.0, 0.005);
   std::printf("board_reprojection_px=%.2f\n", ours->reprojection_px);

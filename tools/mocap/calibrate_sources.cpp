@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 
 #include "runtime/calib/world_frame.h"
 #include "runtime/geometry/calibration.h"
@@ -101,11 +102,18 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
   if (!parts.ok()) return parts.error();
   const Calibration& cal = parts->source->calibration();
   const bool file = parts->source->calibrated();
-  if (keep_intrinsics && !file) {
+  if (keep_intrinsics && !file && a.intrinsics.empty()) {
     return Error(ErrorCode::kInvalidArgument,
                  "--keep-intrinsics: " + a.recording +
-                     " has no calibration.json to take the intrinsics from (leave the flag out: "
-                     "the focal lengths are then estimated)");
+                     " has no calibration.json to take the intrinsics from (give --intrinsics "
+                     "FILE, e.g. a board calibration, or leave the flag out: the focal lengths "
+                     "are then estimated)");
+  }
+  std::optional<Calibration> given;
+  if (!a.intrinsics.empty()) {
+    auto loaded = load_calibration(a.intrinsics);
+    if (!loaded.ok()) return loaded.error().with_context("--intrinsics");
+    given = std::move(*loaded);
   }
   std::vector<int> ids;
   for (std::size_t v = 0; v < cal.size(); ++v) {
@@ -113,6 +121,19 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
     calib::CameraPrior p{cal.view_ids[v], cal.cameras[v].width_px(), cal.cameras[v].height_px(),
                          std::nullopt};
     if (keep_intrinsics) p.intrinsics = cal.cameras[v];
+    if (given) {
+      // The intrinsics from another file (a board calibration): by view id, same image size.
+      const auto i = given->index_of(p.view_id);
+      if (!i) return Error(ErrorCode::kInvalidArgument, a.intrinsics + ": no view " + p.view_id);
+      const Camera& g = given->cameras[*i];
+      if (g.width_px() != p.width_px || g.height_px() != p.height_px) {
+        return Error(ErrorCode::kInvalidArgument,
+                     a.intrinsics + ": view " + p.view_id + " is " + std::to_string(g.width_px()) +
+                         "x" + std::to_string(g.height_px()) + " but the video is " +
+                         std::to_string(p.width_px) + "x" + std::to_string(p.height_px));
+      }
+      if (keep_intrinsics) p.intrinsics = g;
+    }
     priors.push_back(p);
   }
   if (!file) {

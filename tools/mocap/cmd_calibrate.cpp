@@ -75,7 +75,9 @@ int run_people(Args args) {
            "2D people saved by --keypoints-out (calibrate again without the CNN)");
   p.option("--intrinsics", &src.intrinsics, "FILE",
            "--keypoints: calibration file whose view ids (and with --keep-intrinsics, K and "
-           "distortion) to use");
+           "distortion) to use; --recording: the K and distortion --keep-intrinsics keeps, "
+           "instead of DIR/calibration.json's (e.g. a board calibration's, mocap calibrate "
+           "board --intrinsics-only)");
   p.option("--keypoints-out", &keypoints_out, "FILE", "save the collected 2D people as JSON");
   p.option("--views", &src.views, "N", "--synthetic: cameras (default 5)");
   p.option("--people", &src.people, "P", "--synthetic: people walking (default 2)");

@@ -106,6 +106,9 @@ int run_calibrate_board(Args args) {
   p.option("--frames", &src.max_frames, "N", "the first N frames of each camera only");
   p.option("--intrinsics", &intrinsics, "FILE",
            "take each camera's K and distortion from this calibration file (by view id)");
+  p.flag("--intrinsics-only", &opt.intrinsics_only,
+         "each camera's intrinsics from its own images (not taken at the same moments): no rig, "
+         "every pose the identity; for calibrate people --intrinsics FILE --keep-intrinsics");
   p.flag("--hold-intrinsics", &hold,
          "hold the intrinsics in the bundle adjustment (default: refined with the rig)");
   p.option("--lens", &lens, "auto|simple|radial|full",
