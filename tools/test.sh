@@ -43,6 +43,11 @@ LONG_SOLVES+='|CalibrateCliTest\.(SyntheticWritesCalibrationAndReport|ShelfWithi
 # The faults put in on purpose (issue 37: 10-40 s each in Release, two solves in some).
 LONG_SOLVES+='|SelfCalibrationRefusalTest\.|SelfCalibrationHypothesesTest\.'
 LONG_SOLVES+='|BackgroundCalibratorTest\.RefinesWithMoreFrames|CalibrateCliTest\.ShelfStabilityReduced'
+# The board calibration's accuracy runs (issue 38: 300 rendered views each, the caliscope videos
+# twice, the stereo photos; 8-25 s each in Release). Its refusals, the floor solve and the CLI's
+# bad input stay under the sanitizers.
+LONG_SOLVES+='|BoardCalibrationRenderTest\.(FiveCameras|WideAngle)|BoardCliTest\.Caliscope'
+LONG_SOLVES+='|BoardStereoPhotosTest\.'
 
 # The sanitizer builds use clang (Debian's clang 14, as the fuzz build does): it compiles this
 # code under ASan/TSan about 1.8 times faster than GCC 12 (measured on calib/epipolar.cpp at
