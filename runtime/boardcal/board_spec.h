@@ -11,7 +11,8 @@
 //
 // Board frame: z = 0 on the board, x along the columns, y along the rows, metres; corner id
 // r * inner_cols + c sits at (c + 1, r + 1) squares for a ChArUco board and at (c, r) squares
-// for a chessboard (OpenCV's numbering in both).
+// for a chessboard (OpenCV's numbering in both; a chessboard's is ambiguous up to a half turn:
+// a view numbered the other way than its neighbours' disagrees in the rig and is dropped).
 #pragma once
 
 #include <Eigen/Core>
