@@ -45,37 +45,22 @@ struct CornerCost {
   bool tie;
 };
 
-// Mean pixel motion of the corners one camera shares between frames f and g.
-double motion_px(const BoardObservation& a, const BoardObservation& b) {
-  double sum = 0;
-  int n = 0;
-  for (std::size_t i = 0; i < a.ids.size(); ++i) {
-    for (std::size_t j = 0; j < b.ids.size(); ++j) {
-      if (a.ids[i] != b.ids[j]) continue;
-      sum += (a.px[i] - b.px[j]).norm();
-      ++n;
-    }
-  }
-  return n > 0 ? sum / n : 0.0;
-}
-
 // A frame where the board moves (in some camera, between its neighbours) faster than
 // still_px per frame: unsynchronised cameras saw it at different places, so each camera's view
 // of it gets its own board pose (it then informs that camera's intrinsics only).
-bool board_still(const BoardSpec& board, const std::vector<CameraFrames>& cams, std::size_t f,
+bool board_still(const std::vector<CameraFrames>& cams, std::size_t f,
                  const BoardCalibrationOptions& o) {
   if (o.still_px <= 0) return true;
-  (void)board;
   for (const auto& cam : cams) {
     if (f >= cam.frames.size() || cam.frames[f].size() == 0) continue;
     double motion = 0;
     int sides = 0;
     if (f > 0 && cam.frames[f - 1].size() > 0) {
-      motion += motion_px(cam.frames[f], cam.frames[f - 1]);
+      motion += shared_corners(cam.frames[f], cam.frames[f - 1]).mean_px;
       ++sides;
     }
     if (f + 1 < cam.frames.size() && cam.frames[f + 1].size() > 0) {
-      motion += motion_px(cam.frames[f], cam.frames[f + 1]);
+      motion += shared_corners(cam.frames[f], cam.frames[f + 1]).mean_px;
       ++sides;
     }
     if (sides > 0 && motion / sides > o.still_px) return false;
@@ -175,7 +160,7 @@ BundleResult bundle_adjust(const BoardSpec& board, const std::vector<CameraFrame
   std::vector<int> block_frame;  // Problem::boards index -> frame
   for (std::size_t f = 0; f < rig.boards.size(); ++f) {
     if (!rig.boards[f]) continue;
-    const bool still = board_still(board, cams, f, o);
+    const bool still = board_still(cams, f, o);
     int block = -1;
     for (std::size_t c = 0; c < cams.size(); ++c) {
       if (f >= cams[c].frames.size()) continue;

@@ -2,7 +2,6 @@
 // the refusals.
 #include "runtime/boardcal/board_calibration.h"
 
-#include <Eigen/SVD>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -88,10 +87,7 @@ Status set_floor(detail::RigInit& rig, int floor_frames) {
                   ": no camera posed the board " +
                   "in those frames: lay it flat on the floor where two cameras see it whole");
   }
-  Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
-  for (const auto& r : rs) sum += r;
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(sum, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Pose board{svd.matrixU() * svd.matrixV().transpose(), t / static_cast<double>(rs.size())};
+  Pose board{detail::mean_rotation(rs), t / static_cast<double>(rs.size())};
   // New world = the board frame, flipped (x, -y, -z) when the cameras are on its -z side.
   Pose world_from_old = detail::inverse(board);
   Eigen::Vector3d mean_center = Eigen::Vector3d::Zero();

@@ -20,17 +20,9 @@ int cell_of(const Eigen::Vector2d& px, const CameraFrames& cam, int cols, int ro
 // Mean pixel distance of the corners two views share (infinity when they share fewer than
 // half of the smaller view's corners).
 double view_distance_px(const BoardObservation& a, const BoardObservation& b) {
-  double sum = 0;
-  int n = 0;
-  for (std::size_t i = 0; i < a.ids.size(); ++i) {
-    for (std::size_t j = 0; j < b.ids.size(); ++j) {
-      if (a.ids[i] != b.ids[j]) continue;
-      sum += (a.px[i] - b.px[j]).norm();
-      ++n;
-    }
-  }
-  if (2 * n < static_cast<int>(std::min(a.size(), b.size()))) return 1e30;
-  return sum / n;
+  const SharedCorners s = shared_corners(a, b);
+  if (2 * s.count < static_cast<int>(std::min(a.size(), b.size()))) return 1e30;
+  return s.mean_px;
 }
 
 std::vector<int> choose_frames(const CameraFrames& cam, const BoardSpec& board,

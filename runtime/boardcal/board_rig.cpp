@@ -23,15 +23,6 @@ double rotation_deg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
   return std::acos(c) * 180.0 / M_PI;
 }
 
-namespace {
-
-// Pair agreement: relative poses within these of the consensus.
-constexpr double kAgreeDeg = 2.0;
-constexpr double kAgreeM = 0.03;
-// A board pose whose own reprojection is worse than this is not used (a wrong PnP branch or a
-// misdetection).
-constexpr double kPnpRmsPx = 3.0;
-
 Eigen::Matrix3d mean_rotation(const std::vector<Eigen::Matrix3d>& rs) {
   Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
   for (const auto& r : rs) sum += r;
@@ -44,6 +35,29 @@ Eigen::Matrix3d mean_rotation(const std::vector<Eigen::Matrix3d>& rs) {
   }
   return r;
 }
+
+SharedCorners shared_corners(const BoardObservation& a, const BoardObservation& b) {
+  SharedCorners s;
+  double sum = 0;
+  for (std::size_t i = 0; i < a.ids.size(); ++i) {
+    for (std::size_t j = 0; j < b.ids.size(); ++j) {
+      if (a.ids[i] != b.ids[j]) continue;
+      sum += (a.px[i] - b.px[j]).norm();
+      ++s.count;
+    }
+  }
+  s.mean_px = s.count > 0 ? sum / s.count : 0.0;
+  return s;
+}
+
+namespace {
+
+// Pair agreement: relative poses within these of the consensus.
+constexpr double kAgreeDeg = 2.0;
+constexpr double kAgreeM = 0.03;
+// A board pose whose own reprojection is worse than this is not used (a wrong PnP branch or a
+// misdetection).
+constexpr double kPnpRmsPx = 3.0;
 
 struct PairFit {
   Pose b_to_a;

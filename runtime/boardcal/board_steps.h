@@ -20,6 +20,15 @@ struct Pose {
 Pose compose(const Pose& a, const Pose& b);  // a after b
 Pose inverse(const Pose& p);
 double rotation_deg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
+// The rotation nearest the mean of `rs` (chordal L2 mean, by SVD); `rs` not empty.
+Eigen::Matrix3d mean_rotation(const std::vector<Eigen::Matrix3d>& rs);
+
+// The corners two observations share: how many, and their mean pixel distance (0 when none).
+struct SharedCorners {
+  int count = 0;
+  double mean_px = 0;
+};
+SharedCorners shared_corners(const BoardObservation& a, const BoardObservation& b);
 
 struct Intrinsics {
   Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
