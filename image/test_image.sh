@@ -210,7 +210,10 @@ stray=$(grep '^listen ' <<<"$rep" | grep -v '"mocapd"' |
 grep -q '^listen tcp [^ ]*:9870 .*"mocapd"' <<<"$rep" || fail "mocapd does not listen on 9870 (report above)"
 say "read-only root, /var on mocap-state, no listening service but mocapd"
 # Guest clock (kernel timestamps) of: systemd starting mocapd, mocapd listening.
-guest_t() { sed -e 's/\x1b\[[0-9;]*[A-Za-z]//g' "$serial" | grep -a -m1 "$1" | sed -n 's/^\[ *\([0-9.]*\)\].*/\1/p'; }
+# The console is read once; grep -m1 in a pipe would end its writer with SIGPIPE, which fails
+# the script under pipefail when the log is long.
+console=$(sed -e 's/\x1b\[[0-9;]*[A-Za-z]//g' "$serial")
+guest_t() { grep -a -m1 "$1" <<<"$console" | sed -n 's/^\[ *\([0-9.]*\)\].*/\1/p'; }
 mocapd_started=$(guest_t 'systemd\[1\]: Started mocapd.service')
 mocapd_listening=$(guest_t 'mocapd\[[0-9]*\]: .*stream server on')
 
