@@ -29,11 +29,15 @@ Result<ReplayParts> open_replay(const ReplayPartsOptions& options) {
   gpu::CnnOptions cnn = options.cnn;
   cnn.max_views = parts.source->view_count();
   set_frame_size(cnn, parts.cameras);
+  parts.calibrated = parts.source->calibrated();
+  // Crops follow the tracked skeletons: a recording without calibration has none.
+  if (!parts.calibrated) cnn.crop_model.clear();
   if (!cnn.crop_model.empty()) cnn.cameras = parts.cameras;
   parts.cnn_options = cnn;
   auto det = gpu::CnnDetector::open(cnn);
   if (!det.ok()) return det.error();
   parts.detector = std::move(*det);
+  if (!parts.calibrated) return parts;  // 2D detections only, until a calibration comes
   auto eng = assoc::Engine::create(coco17_topology(), parts.cameras, options.assoc);
   if (!eng.ok()) return eng.error();
   parts.engine = std::move(*eng);

@@ -24,9 +24,12 @@ struct ReplayPartsOptions {
 struct ReplayParts {
   std::unique_ptr<hal::ReplaySource> source;  // moved into the pipeline
   std::vector<Camera> cameras;                // the recording's calibrated views
+  // False for a folder without calibration.json (source.calibration_optional): `cameras` are
+  // placeholders of the videos' sizes, there is no engine and no crops.
+  bool calibrated = true;
   std::unique_ptr<gpu::CnnDetector> detector;
-  gpu::CnnOptions cnn_options;  // what the detector was opened with (to open it again)
-  std::unique_ptr<assoc::Engine> engine;
+  gpu::CnnOptions cnn_options;            // what the detector was opened with (to open it again)
+  std::unique_ptr<assoc::Engine> engine;  // null when not calibrated
   // The pipeline's parts (moves the source out); the sinks are the caller's.
   pipeline::PipelineParts pipeline_parts(std::vector<pipeline::Sink*> sinks);
 };

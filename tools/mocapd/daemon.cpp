@@ -1,5 +1,7 @@
 #include "tools/mocapd/daemon.h"
 
+#include "runtime/boardcal/board_capture.h"
+
 #include "runtime/dds/detection_publisher.h"
 #include "runtime/dds/skeleton_publisher.h"
 #include "runtime/dds/stage.h"
@@ -157,18 +159,46 @@ Status Daemon::open_replay() {
   if (Status s = tools::set_crops(config_.crops, config_.crop_input_size_px, o.cnn); !s.ok()) {
     return s;
   }
+  o.source.calibration_optional = true;  // a fresh recording: calibrated while it plays
   auto parts = tools::open_replay(o);
   if (!parts.ok()) return parts.error().with_context("replay");
+  source_kind_ = "replay";
+  calibration_topology_ = &coco17_topology();
+  calibration_assoc_options_ = o.assoc;
+  for (std::size_t v = 0; v < parts->cameras.size(); ++v) {
+    const std::string& name = parts->cameras[v].name();
+    camera_names_.push_back(name.empty() ? std::to_string(v) : name);
+  }
+  if (Status s = adopt_cnn(std::move(parts->detector), parts->cnn_options); !s.ok()) return s;
+  pending_source_ = std::move(parts->source);
+  if (!parts->calibrated) {
+    // Like cameras without a calibration: 2D detections, and the box calibrates itself from
+    // the people (or from a board: "Calibrate with a board").
+    calibration_state_ = CalibrationState::kMissing;
+    problems_.push_back("the " + std::to_string(parts->cameras.size()) + " cameras of recording " +
+                        config_.replay +
+                        " have no calibration (no calibration.json): streaming "
+                        "2D detections only; use \"Calibrate with a board\" on the web page, or "
+                        "let the box calibrate itself from the people");
+    MOCAP_LOG(Daemon, Warn) << problems_.back();
+    if (!config_.crops.empty() && config_.crops != "auto" && config_.crops != "off") {
+      problems_.push_back("crops " + config_.crops + " are off: they need calibrated cameras");
+    }
+    std::vector<int> ids;
+    std::vector<calib::CameraPrior> priors;
+    for (std::size_t v = 0; v < parts->cameras.size(); ++v) {
+      ids.push_back(static_cast<int>(v));
+      priors.push_back({camera_names_[v], parts->cameras[v].width_px(),
+                        parts->cameras[v].height_px(), std::nullopt});
+    }
+    start_self_calibration(coco17_topology(), ids, priors, o.assoc);
+    return {};
+  }
   calibration_state_ = CalibrationState::kOk;
   calibration_file_ = (fs::path(config_.replay) / "calibration.json").string();
-  source_kind_ = "replay";
   cameras_ = std::move(parts->cameras);
-  for (std::size_t v = 0; v < cameras_.size(); ++v) {
-    camera_names_.push_back(cameras_[v].name().empty() ? std::to_string(v) : cameras_[v].name());
-  }
   engine_ = std::move(parts->engine);
-  pending_source_ = std::move(parts->source);
-  return adopt_cnn(std::move(parts->detector), parts->cnn_options);
+  return {};
 }
 
 Status Daemon::open_board(const fs::path& board_dir) {
@@ -296,6 +326,7 @@ Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, dou
   hal::RigSourceOptions ro;
   ro.frame_rate_hz = rate_hz;
   ro.external_trigger = disc.board.trigger.mode != hal::SyncMode::kSoftware;
+  external_trigger_ = ro.external_trigger;
   if (calibration) {
     for (const Camera& cam : calibration->cameras)
       ro.size_px.emplace_back(cam.width_px(), cam.height_px());
@@ -328,6 +359,8 @@ Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, dou
     return s;
   }
   if (!calibration) {
+    calibration_topology_ = &coco17_topology();  // for a calibration adopted later
+    calibration_assoc_options_ = assoc::posenet_coco17_options();
     if (config_.calibration.empty() && calibration_state_ == CalibrationState::kMissing) {
       std::vector<int> ids;
       std::vector<calib::CameraPrior> priors;
@@ -366,7 +399,8 @@ void Daemon::start_self_calibration(const SkeletonTopology& topology, std::vecto
   // The "no calibration" problem (naming the cameras) becomes what the box is doing about it.
   const std::string doing =
       "calibrating from the people walking in the room (2D detections meanwhile); walk around "
-      "the whole area for about a minute (progress under calibration.progress)";
+      "the whole area for about a minute (progress under calibration.progress), or use "
+      "\"Calibrate with a board\" on the web page";
   auto it = std::find_if(problems_.begin(), problems_.end(), [](const std::string& p) {
     return p.find("have no calibration") != std::string::npos;
   });
@@ -653,9 +687,10 @@ Status Daemon::start() {
     std::lock_guard<std::mutex> lock(state_mu_);
     if (engine_) start_calibration_check();
   }
-  if (calibrator_ || monitor_ || config_.calibration_check || config_.self_calibrate) {
+  {  // Always: a board calibration may be saved at any time.
     calibration_sink_ = std::make_unique<pipeline::CallbackSink>(
         "calibration", [this](const pipeline::PipelineFrame& f) {
+          adopt_board_calibration();
           if (recalibrate_requested_.exchange(false)) begin_recalibration();
           if (recalibrating_ && f.result) {  // solving anew; the old calibration meanwhile
             calibrator_->add(f.detections);
@@ -691,9 +726,12 @@ Status Daemon::start() {
   po.realtime_priority = config_.realtime_priority;
   po.max_frames = config_.max_frames;
   po.drop_policy = drop_policy(config_, source_kind_);
-  pipeline::PipelineParts parts{
-      std::move(pending_source_), detector_.get(), engine_.get(), sinks,
-      [this](const FrameSet& frames) { camera_views_->observe_images(frames, monotonic_ns()); }};
+  pipeline::PipelineParts parts{std::move(pending_source_), detector_.get(), engine_.get(), sinks,
+                                [this](const FrameSet& frames) {
+                                  const std::int64_t now_ns = monotonic_ns();
+                                  camera_views_->observe_images(frames, now_ns);
+                                  if (auto cap = board_capture()) cap->observe(frames, now_ns);
+                                }};
   auto p = pipeline::Pipeline::create(std::move(parts), po);
   if (!p.ok()) return p.error();
   pipeline_ = std::move(*p);
@@ -844,6 +882,7 @@ nlohmann::json Daemon::calibration_json(std::vector<std::string>& problems) cons
   if (!self_calibration_report_.empty()) {
     c["self_calibration"] = json::parse(self_calibration_report_, nullptr, false);
   }
+  if (!board_report_.empty()) c["board"] = json::parse(board_report_, nullptr, false);
   return c;
 }
 

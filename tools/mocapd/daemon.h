@@ -55,6 +55,10 @@ struct ResolvedCamera;
 struct SelfCalibrationResult;
 }  // namespace mocap::calib
 
+namespace mocap::boardcal {
+class BoardCapture;
+}
+
 namespace mocap::dds {
 class Stage;
 class DetectionPublisher;
@@ -100,6 +104,9 @@ class Daemon {
   std::optional<net::HttpReply> handle_http(const net::HttpRequest& req);
   // POST /calibration/recalibrate (202, or 409 with the reason).
   net::HttpReply request_recalibration();
+  // /calibration/board[/start|/solve|/save|/cancel] (tools/mocapd/board_routes.cpp); nullopt
+  // for other paths.
+  std::optional<net::HttpReply> handle_board(const net::HttpRequest& req);
   // The access token (<state_dir>/token; made on the first start).
   const std::string& token() const { return token_; }
   int stream_port() const;
@@ -149,6 +156,13 @@ class Daemon {
   // persists_calibration()).
   void adopt_resolved_camera(const calib::ResolvedCamera& r);
   bool persists_calibration() const;
+  // "Calibrate with a board" (board_routes.cpp).
+  std::shared_ptr<boardcal::BoardCapture> board_capture() const;
+  net::HttpReply start_board_capture(const net::HttpRequest& req);
+  net::HttpReply save_board_calibration();
+  std::filesystem::path board_calibration_path() const;
+  // On the assoc thread: a saved board calibration, if one waits, swapped in.
+  void adopt_board_calibration();
   // What a new take records about the box (Outputs::MetadataProvider).
   out::TakeMetadata take_metadata() const;
   void log_status() const;
@@ -203,6 +217,18 @@ class Daemon {
   std::atomic<bool> stopped_{false};
   std::atomic<bool> recalibrate_requested_{false};  // HTTP thread -> association thread
   std::atomic<bool> recalibrating_{false};          // a self-calibration runs beside the engine
+  bool external_trigger_ = false;  // the cameras share a trigger (one instant per frame set)
+  std::vector<std::unique_ptr<calib::BackgroundCalibrator>> retired_calibrators_;
+  std::string board_report_;  // the adopted board calibration's report JSON
+  struct BoardAdoption {
+    Calibration calibration;
+    std::string file;
+    std::string report;
+  };
+  mutable std::mutex board_mu_;  // the capture and a saved calibration waiting to be adopted
+  std::shared_ptr<boardcal::BoardCapture> board_capture_;
+  std::optional<BoardAdoption> board_adoption_;  // HTTP thread -> association thread
+  std::string board_saved_to_;
 };
 
 }  // namespace mocap::daemon

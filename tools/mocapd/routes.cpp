@@ -121,6 +121,9 @@ std::optional<net::HttpReply> Daemon::handle_http(const net::HttpRequest& req) {
     if (req.method != "POST") return error_reply(405, "/calibration/recalibrate takes POST");
     return request_recalibration();
   }
+  if (req.path.rfind("/calibration/board", 0) == 0) {
+    if (auto r = handle_board(req)) return r;
+  }
   if (req.path == "/token/check") {
     if (req.method != "POST") return error_reply(405, "/token/check takes POST");
     return json_reply(200, json{{"ok", true}});  // the access check let it through

@@ -430,19 +430,21 @@ function showCameras2D(c, scene) {
       t.loading = true;
       t.img.src = `/cameras/${i}/thumbnail.jpg?n=${++t.serial}`;
     }
-    drawKeypoints(t.canvas, v);
+    t.v = v;
+    drawKeypoints(t.canvas, v, i);
   }
   const skew = c.sync || {};
   $("cameras-panel").querySelector("h2").textContent =
     `Cameras · sync skew median ${fmt(skew.skew_median_ms, 2)} ms, max ${fmt(skew.skew_max_ms, 2)} ms`;
 }
 
-function drawKeypoints(canvas, v) {
+function drawKeypoints(canvas, v, i) {
   const w = canvas.clientWidth, h = canvas.clientHeight;
   canvas.width = w;
   canvas.height = h;
   const g = canvas.getContext("2d");
   g.clearRect(0, 0, w, h);
+  drawBoard(g, w, h, i);
   if (!v || !v.width_px) return;
   g.fillStyle = "#7fffd4";
   for (const j of v.joints) {
@@ -450,6 +452,28 @@ function drawKeypoints(canvas, v) {
     g.beginPath();
     g.arc(j[0] / v.width_px * w, j[1] / v.height_px * h, 3, 0, 2 * Math.PI);
     g.fill();
+  }
+}
+
+// While a board calibration collects: the cells of the image where the board was seen
+// (tinted by how often) and the board's corners in the last sampled frame.
+function drawBoard(g, w, h, i) {
+  const b = board.status;
+  if (!b || b.phase !== "collecting") return;
+  const cam = (b.cameras || [])[i];
+  if (!cam || !cam.width_px) return;
+  const grid = cam.grid;
+  const cw = w / grid.cols, ch = h / grid.rows;
+  for (let r = 0; r < grid.rows; r++) {
+    for (let c = 0; c < grid.cols; c++) {
+      const n = grid.corners[r * grid.cols + c];
+      g.fillStyle = n > 0 ? `rgba(60, 179, 113, ${Math.min(0.45, 0.12 + n / 400)})` : "rgba(224, 80, 80, 0.10)";
+      g.fillRect(c * cw + 1, r * ch + 1, cw - 2, ch - 2);
+    }
+  }
+  g.fillStyle = "#ffd24a";
+  for (const [x, y] of cam.last.corners_px) {
+    g.fillRect(x / cam.width_px * w - 2, y / cam.height_px * h - 2, 4, 4);
   }
 }
 
@@ -526,6 +550,82 @@ function initTakes() {
     ev.preventDefault();
     download(a.dataset.take, a.dataset.file);
   });
+}
+
+// ------------------------------------------------------------------------------ board calibration
+
+const board = { status: null };
+
+function boardMessage(text, error) {
+  const el = $("board-message");
+  el.textContent = text;
+  el.className = error ? "error" : "";
+}
+
+function showBoard(b) {
+  board.status = b;
+  const phase = b.phase || "idle";
+  $("board-solve").disabled = phase !== "collecting";
+  $("board-save").disabled = phase !== "solved";
+  $("board-cancel").disabled = !["collecting", "solving", "solved"].includes(phase);
+  $("board-start").disabled = phase === "solving";
+  if (phase !== "idle") $("board-panel").open = true;
+  const parts = [];
+  if (phase !== "idle") {
+    parts.push(`<div><b>${escapeHtml(phase)}</b> · ${escapeHtml(b.board ?? "")} · ${b.samples ?? 0} frame sets with the board` +
+               ` · detection ${fmt(b.detect_ms_median)} ms</div>`);
+    if (b.what_to_do) parts.push(`<div class="muted">${escapeHtml(b.what_to_do)}</div>`);
+  }
+  const result = b.result;
+  if (result && Array.isArray(result.cameras)) {
+    parts.push(`<div>board reprojection <b>${fmt(result.board_reprojection_px, 2)} px</b> · ${result.board_poses ?? 0} poses` +
+               (b.saved_to ? ` · saved to ${escapeHtml(b.saved_to)}` : " · not saved yet") + "</div>");
+    parts.push("<table><tr><th>camera</th><th>rms px</th><th>frames</th><th>coverage</th></tr>" +
+      result.cameras.map((c) => `<tr><td>${escapeHtml(c.view)}</td><td class="num">${fmt(c.rms_px, 2)}</td>` +
+        `<td class="num">${c.frames_posed ?? ""}</td><td class="num">${fmt(100 * (c.coverage ?? 0), 0)} %</td></tr>`).join("") +
+      "</table>");
+    for (const w of result.warnings || []) parts.push(`<div class="muted">${escapeHtml(w)}</div>`);
+  } else if (phase === "collecting" || phase === "solving") {
+    parts.push("<table><tr><th>camera</th><th>frames</th><th>coverage</th><th></th></tr>" +
+      (b.cameras || []).map((c) => `<tr><td>${escapeHtml(c.view_id)}</td><td class="num">${c.frames_seen}</td>` +
+        `<td class="num">${fmt(100 * c.coverage, 0)} %</td><td class="${c.ready ? "ready" : "muted"}">${c.ready ? "ready" : "more"}</td></tr>`).join("") +
+      "</table>");
+    parts.push("<table><tr><th>pair</th><th>frames seen by both</th></tr>" +
+      (b.pairs || []).map((p) => `<tr><td>${escapeHtml(p.a)}–${escapeHtml(p.b)}</td><td class="num">${p.frames}</td></tr>`).join("") +
+      "</table>");
+  }
+  if (b.error) parts.push(`<div class="error">${escapeHtml(b.error)}</div>`);
+  $("board-progress").innerHTML = parts.join("");
+  for (const [i, t] of tiles) drawKeypoints(t.canvas, t.v, i);
+}
+
+async function refreshBoard() {
+  const r = await box.call("GET", "/calibration/board");
+  if (r.status === 200 && r.body) showBoard(r.body);
+}
+
+async function boardAction(path, ok, done) {
+  const r = await box.call("POST", path);
+  if (r.status === ok) boardMessage(done(r.body));
+  else boardMessage(box.why(r), true);
+  refreshBoard();
+}
+
+function initBoard() {
+  $("board-form").addEventListener("submit", (ev) => {
+    ev.preventDefault();
+    const spec = $("board-spec").value.trim();
+    const floor = parseInt($("board-floor").value || "0", 10) || 0;
+    boardAction(`/calibration/board/start?board=${encodeURIComponent(spec)}&floor_samples=${floor}`, 202,
+                (b) => b.what_to_do);
+  });
+  $("board-solve").addEventListener("click", () =>
+    boardAction("/calibration/board/solve", 202, () => "solving in the background: the stream goes on"));
+  $("board-save").addEventListener("click", () =>
+    boardAction("/calibration/board/save", 200, (b) => `saved to ${b.saved}` +
+                (b.backup ? ` (the previous one kept as ${b.backup})` : "") + ": skeletons from the next frame"));
+  $("board-cancel").addEventListener("click", () =>
+    boardAction("/calibration/board/cancel", 200, () => "discarded: nothing was written"));
 }
 
 function initCalibration() {
@@ -618,6 +718,7 @@ function every(ms, fn) {
 initView();
 initTakes();
 initCalibration();
+initBoard();
 initToken();
 connectStream();
 requestAnimationFrame(frameLoop);
@@ -625,3 +726,9 @@ every(1000, refreshHealth);
 every(1000, refreshCameras);
 every(2000, refreshTakes);
 every(5000, refreshScene);
+// Often while a board calibration collects (the live corners), seldom otherwise.
+every(500, () => {
+  const phase = board.status?.phase;
+  const active = phase === "collecting" || phase === "solving" || $("board-panel").open;
+  if (active || (board.polls = (board.polls || 0) + 1) % 6 === 0) return refreshBoard();
+});
