@@ -15,6 +15,11 @@ using Clock = std::chrono::steady_clock;
 
 double round_to(double v, double step) { return std::round(v / step) * step; }
 
+// Grid cells where the board has been seen.
+int covered_cells(const std::vector<int>& grid) {
+  return static_cast<int>(std::count_if(grid.begin(), grid.end(), [](int n) { return n > 0; }));
+}
+
 // The luma of an RGB pixel (BT.601 weights, integer).
 std::uint8_t luma(std::uint8_t r, std::uint8_t g, std::uint8_t b) {
   return static_cast<std::uint8_t>((77 * r + 150 * g + 29 * b) >> 8);
@@ -352,8 +357,7 @@ std::string BoardCapture::what_to_do() const {
   const BoardCalibrationOptions& o = options_.calibration;
   const int cells = o.grid_cols * o.grid_rows;
   for (const CameraState& c : cameras_) {
-    const int covered =
-        static_cast<int>(std::count_if(c.grid.begin(), c.grid.end(), [](int n) { return n > 0; }));
+    const int covered = covered_cells(c.grid);
     if (c.frames_seen < o.min_frames) {
       return "show the board to camera " + c.view_id + " (" + std::to_string(c.frames_seen) +
              " of " + std::to_string(o.min_frames) + " frames so far)";
@@ -388,8 +392,7 @@ json BoardCapture::status_json() const {
   json cams = json::array();
   const int cells = o.grid_cols * o.grid_rows;
   for (const CameraState& c : cameras_) {
-    const int covered =
-        static_cast<int>(std::count_if(c.grid.begin(), c.grid.end(), [](int n) { return n > 0; }));
+    const int covered = covered_cells(c.grid);
     const double coverage = cells > 0 ? static_cast<double>(covered) / cells : 0;
     json px = json::array();
     for (const Eigen::Vector2d& p : c.last.px)
