@@ -21,7 +21,6 @@
 #include "runtime/calib/background.h"
 #include "runtime/calib/monitor.h"
 #include "runtime/core/log.h"
-#include "tools/mocapd/camera_views.h"
 #include "tools/mocapd/daemon.h"
 #include "tools/mocapd/json_reply.h"
 
@@ -213,12 +212,7 @@ void Daemon::adopt_board_calibration() {
   calibration_file_ = a->file;
   self_calibration_report_.clear();
   board_report_ = a->report;
-  cameras_ = cal.cameras;
-  if (camera_views_) camera_views_->set_cameras(cameras_);
-  calibration_ = cal;
-  if (engine_) retired_engines_.push_back(std::move(engine_));
-  engine_ = std::move(*eng);
-  pipeline_->set_engine(engine_.get());
+  swap_in(cal, std::move(*eng));
   start_calibration_check();
   MOCAP_LOG(Daemon, Info) << "board calibration adopted: skeletons from now on, calibration "
                           << calibration_file_;

@@ -476,6 +476,18 @@ bool Daemon::persists_calibration() const {
          !(source_kind_ == "simulator" && config_.sim_calibrated);
 }
 
+// With state_mu_ held, on the association thread: `cal` and its engine drive the pipeline from
+// the next frame. The engine used until now stays alive (this runs on that thread, after it;
+// the pipeline only reads the new pointer from the next frame).
+void Daemon::swap_in(const Calibration& cal, std::unique_ptr<assoc::Engine> engine) {
+  calibration_ = cal;
+  cameras_ = cal.cameras;
+  if (camera_views_) camera_views_->set_cameras(cameras_);
+  if (engine_) retired_engines_.push_back(std::move(engine_));
+  engine_ = std::move(engine);
+  pipeline_->set_engine(engine_.get());
+}
+
 void Daemon::adopt_resolved_camera(const calib::ResolvedCamera& r) {
   Calibration cal = calibration_;
   cal.cameras[r.view] = r.camera;
@@ -494,14 +506,7 @@ void Daemon::adopt_resolved_camera(const calib::ResolvedCamera& r) {
     written = calib::write_calibration_durably(cal, path);
   }
   std::lock_guard<std::mutex> lock(state_mu_);
-  calibration_ = cal;
-  cameras_ = cal.cameras;
-  if (camera_views_) camera_views_->set_cameras(cameras_);
-  // The engine the assoc thread used until now stays alive (this runs on that thread, after
-  // it; the pipeline only reads the new pointer from the next frame).
-  retired_engines_.push_back(std::move(engine_));
-  engine_ = std::move(*eng);
-  pipeline_->set_engine(engine_.get());
+  swap_in(cal, std::move(*eng));
   if (persists_calibration() && written.ok()) calibration_file_ = path.string();
   if (!written.ok()) {
     problems_.push_back(
@@ -542,12 +547,7 @@ void Daemon::adopt_self_calibration(const calib::SelfCalibrationResult& result) 
   calibration_state_ = CalibrationState::kOk;
   calibration_file_ = written.ok() ? path.string() : "(self-calibration, not saved)";
   self_calibration_report_ = calib::quality_to_json(result.quality);
-  cameras_ = cal.cameras;
-  if (camera_views_) camera_views_->set_cameras(cameras_);
-  calibration_ = cal;
-  if (engine_) retired_engines_.push_back(std::move(engine_));  // a recalibration's old one
-  engine_ = std::move(*eng);
-  pipeline_->set_engine(engine_.get());
+  swap_in(cal, std::move(*eng));  // a recalibration's old engine retired
   start_calibration_check();
   MOCAP_LOG(Daemon, Info) << "self-calibrated (" << result.quality.median_px
                           << " px median reprojection): skeletons from now on, calibration "

@@ -156,6 +156,9 @@ class Daemon {
   // persists_calibration()).
   void adopt_resolved_camera(const calib::ResolvedCamera& r);
   bool persists_calibration() const;
+  // With state_mu_ held, on the assoc thread: `cal` and `engine` drive the pipeline from the
+  // next frame (the old engine kept alive).
+  void swap_in(const Calibration& cal, std::unique_ptr<assoc::Engine> engine);
   // "Calibrate with a board" (board_routes.cpp).
   std::shared_ptr<boardcal::BoardCapture> board_capture() const;
   net::HttpReply start_board_capture(const net::HttpRequest& req);
