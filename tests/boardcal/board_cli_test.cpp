@@ -152,5 +152,35 @@ TEST(BoardCliTest, UnreadableImagesAndEmptyGlobsAreNamed) {
   EXPECT_FALSE(std::filesystem::exists(dir.path() / "o.json"));
 }
 
+// --live on a machine without the board's cameras: an error naming where it looked and what to
+// do instead, nothing written; two sources at once are refused. (The live capture on real V4L2
+// cameras is checked in the HIL guest, tests/hil/guest.sh.)
+TEST(BoardCliTest, LiveWithoutCamerasSaysSoAndWritesNothing) {
+  testing::TestTempDir dir("board_live");
+  std::filesystem::create_directories(dir.path() / "dev");
+  const std::string out = (dir.path() / "cal" / "calibration.json").string();
+  auto r = testing::run_process(
+      {kBin, "calibrate", "board", "--live", "--dev-dir", (dir.path() / "dev").string(),
+       "--seconds", "2", "--board", kCaliscopeBoard, "--out", out},
+      dir.path(), "live", 60000);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("no camera found"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--recording DIR"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(out));
+  auto both = testing::run_process({kBin, "calibrate", "board", "--live", "--recording",
+                                    dir.path().string(), "--board", kCaliscopeBoard, "--out", out},
+                                   dir.path(), "both", 60000);
+  EXPECT_NE(both.exit_code, 0);
+  EXPECT_NE(both.err.find("give one of --recording DIR, --images GLOBS or --live"),
+            std::string::npos)
+      << both.err;
+  auto secs = testing::run_process({kBin, "calibrate", "board", "--live", "--seconds", "0",
+                                    "--board", kCaliscopeBoard, "--out", out},
+                                   dir.path(), "secs", 60000);
+  EXPECT_NE(secs.exit_code, 0);
+  EXPECT_NE(secs.err.find("--seconds must be in (0, 3600]"), std::string::npos) << secs.err;
+  EXPECT_FALSE(std::filesystem::exists(out));
+}
+
 }  // namespace
 }  // namespace mocap

@@ -5,7 +5,8 @@
 #     unsupported / missing / permission errors, the synchroniser over both with one camera
 #     disconnected mid-stream and reconnected), the libcamera backend on vimc, the trigger
 #     master and monitor on gpio-sim lines, a GPIO line already requested;
-#   - the CLI: mocap cameras, capture, sync and trigger, checked on their last lines;
+#   - the CLI: mocap cameras, capture, sync and trigger, checked on their last lines; mocap
+#     calibrate board --live on the vivid cameras (no board in view: a refusal naming them);
 #   - mocapd on the vivid cameras: 2D detections without calibration, skeletons with one, and
 #     one camera unplugged and plugged back while it streams.
 # Exits with the number of failed checks (0 = pass).
@@ -118,6 +119,20 @@ cat >"$boards/hil/board.json" <<EOF
   "cameras": [{ "backend": "v4l2", "match": "$v0" }, { "backend": "v4l2", "match": "$v1" }],
   "max_cameras": 2, "frame_rate_hz": 30, "trigger": { "mode": "software" } }
 EOF
+# The board calibration on the box's own cameras (mocap calibrate board --live): vivid shows a
+# test pattern, never a board, so after 5 s of streaming (sampled 4 times a second) it must
+# refuse, naming each camera and what it saw, and write nothing.
+rm -rf /tmp/hil-boardcal
+if out=$("$MOCAP" calibrate board --live --board-dir "$boards" --hw-board hil --seconds 5 \
+  --board charuco:4x5:0.054:0.0405:DICT_4X4_1000 --out /tmp/hil-boardcal/calibration.json 2>&1); then
+  fail "calibrate board --live without a board in view must refuse: $(echo "$out" | tail -n2)"
+elif [[ $out =~ ([0-9]+)\ frame\ sets\ looked\ at && ${BASH_REMATCH[1]} -ge 5 &&
+  $out == *"2 cameras"* && $out == *"camera 0 saw the board in 0 frames"* &&
+  $out == *"camera 1 saw the board in 0 frames"* && ! -e /tmp/hil-boardcal/calibration.json ]]; then
+  pass "calibrate board --live streamed both cameras and refused: $(echo "$out" | tail -n1 | cut -c1-300)"
+else
+  fail "calibrate board --live: $(echo "$out" | tail -n4 | cut -c1-400)"
+fi
 health() {  # GET /health from the daemon's HTTP port
   exec 3<>/dev/tcp/127.0.0.1/9871 && printf 'GET /health HTTP/1.0\r\n\r\n' >&3 && cat <&3
   exec 3<&-

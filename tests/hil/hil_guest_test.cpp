@@ -348,7 +348,10 @@ TEST(HilV4l2, SyncTwoCamerasSurvivesOneDisappearingAndReconnects) {
   EXPECT_GT(back.cameras[1].frames, gone.cameras[1].frames) << "camera 1 delivers again";
   EXPECT_FALSE(back.cameras[1].dead);
   EXPECT_EQ(back.cameras[1].restarts, 1u) << "the re-opened camera counts from 0 again";
-  EXPECT_EQ(back.cameras[1].sequence_gaps, gone.cameras[1].sequence_gaps) << "no phantom drops";
+  // No phantom drops: a sequence restarting from 0 counted as a jump would add the whole
+  // sequence before the unplug (60 frames at 30 fps for 2 s). The emulated guest does drop a
+  // frame or two of its own now and then (2 measured once in ~10 runs).
+  EXPECT_LE(back.cameras[1].sequence_gaps, gone.cameras[1].sequence_gaps + 5) << "phantom drops";
   (*rig)->stop();
 }
 

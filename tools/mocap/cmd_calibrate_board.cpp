@@ -1,9 +1,12 @@
-// mocap calibrate board (--recording DIR | --images GLOB0,GLOB1,...) --board FILE|SPEC --out FILE
-//                       [--floor-frames N] [--intrinsics FILE] [--hold-intrinsics] [--report FILE]
+// mocap calibrate board (--recording DIR | --images GLOB0,GLOB1,... | --live) --board FILE|SPEC
+//                       --out FILE [--floor-frames N] [--intrinsics FILE] [--hold-intrinsics]
+//                       [--report FILE] [--hw-board NAME] [--board-dir DIR] [--seconds S]
 // The cameras calibrated from a board waved through the volume (runtime/boardcal): per camera
 // what it saw and its intrinsics, per pair what both saw, the registration order; the last line
 // is board_reprojection_px=X.XX. A failed solve writes nothing; an existing --out is kept as
 // FILE.bak before it is replaced.
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -12,10 +15,14 @@
 #include "runtime/io/text_scan.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/board_frames.h"
+#include "tools/mocap/board_live.h"
 #include "tools/mocap/commands.h"
 
 namespace mocap::tools {
 namespace {
+
+std::atomic<bool> g_interrupted{false};
+void on_signal(int) { g_interrupted = true; }
 
 int fail(const Error& e) {
   std::fprintf(stderr, "error: %s\n", e.message().c_str());
@@ -30,6 +37,10 @@ constexpr const char* kHelp =
     "scale comes from the square size. With --floor-frames N the board lies on the floor in\n"
     "the first N frames: z = 0 on it and +z up; without, camera 0 is the world frame (the\n"
     "floor then comes from the people). Boards printed in either polarity are found.\n"
+    "--live: the box's own cameras (as mocapd finds them) stream while the board is waved;\n"
+    "progress is printed every second, and the solve starts when every camera is covered and\n"
+    "the pairs join them all, at Ctrl-C, or after --seconds (the floor: the first\n"
+    "--floor-frames sampled sets with the board in view).\n"
     "SPEC: chessboard:COLSxROWS:SQUARE_M (inner corners, e.g. chessboard:9x6:0.025) or\n"
     "charuco:COLSxROWS:SQUARE_M:MARKER_M:DICT (squares, e.g. charuco:7x5:0.04:0.03:DICT_4X4_50).\n"
     "The last line is board_reprojection_px=X.XX (RMS, every corner kept, all cameras).";
@@ -94,11 +105,21 @@ int run_calibrate_board(Args args) {
   boardcal::BoardCalibrationOptions opt;
   bool hold = false;
   std::string lens = "auto";
+  LiveBoardOptions live;
+  bool use_live = false;
   cli::ArgParser p("mocap calibrate board", kHelp);
   p.option("--recording", &src.recording, "DIR", "recording folder: DIR/videos/N.mp4, view id N");
   p.option("--images", &src.images, "GLOB0,GLOB1,...",
            "one image glob per camera (JPEG or PNG), view ids 0, 1, ... in that order; the i-th "
            "image of every camera is frame i");
+  p.flag("--live", &use_live, "the cameras plugged into this box (see --hw-board, --seconds)");
+  p.option("--hw-board", &live.hw_board, "NAME",
+           "--live: the hardware board (board/NAME/board.json; default: the first whose cameras "
+           "are plugged in)");
+  p.option("--board-dir", &live.board_dir, "DIR",
+           "--live: hardware boards folder (default: installed)");
+  p.option("--dev-dir", &live.dev_dir, "DIR", "--live: device folder (default /dev)");
+  p.option("--seconds", &live.max_seconds, "S", "--live: collect at most S seconds (default 180)");
   p.option("--board", &board_arg, "FILE|SPEC", "the board: a board.json or a SPEC (required)");
   p.option("--out", &out, "FILE", "calibration JSON to write (required)");
   p.option("--floor-frames", &opt.floor_frames, "N",
@@ -120,9 +141,9 @@ int run_calibrate_board(Args args) {
            "frame do not tie the cameras together (default 0: every frame does)");
   p.option("--report", &report, "FILE", "write the report as JSON");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (src.recording.empty() == src.images.empty()) {
-    return fail(
-        Error(ErrorCode::kInvalidArgument, "give one of --recording DIR or --images GLOBS"));
+  if ((src.recording.empty() ? 0 : 1) + (src.images.empty() ? 0 : 1) + (use_live ? 1 : 0) != 1) {
+    return fail(Error(ErrorCode::kInvalidArgument,
+                      "give one of --recording DIR, --images GLOBS or --live"));
   }
   if (board_arg.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--board is required"));
   if (out.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--out FILE is required"));
@@ -145,13 +166,28 @@ int run_calibrate_board(Args args) {
   if (Status s = opt.validate(); !s.ok()) return fail(s.error());
   auto board = boardcal::board_from_argument(board_arg);
   if (!board.ok()) return fail(board.error());
-  auto detector = boardcal::BoardDetector::create(*board);
-  if (!detector.ok()) return fail(detector.error());
   std::printf("board %s\n", board->to_spec().c_str());
-  auto cams = collect_board_frames(src, *detector);
-  if (!cams.ok()) return fail(cams.error());
-  print_cameras(*cams);
-  auto result = boardcal::calibrate_board(*board, *cams, opt);
+  Result<boardcal::BoardCalibrationResult> result = Error(ErrorCode::kInternal, "not solved");
+  if (use_live) {
+    live.capture.floor_samples = opt.floor_frames;
+    live.capture.calibration = opt;
+    live.capture.calibration.floor_frames = 0;  // BoardCapture sets it from floor_samples
+    if (opt.still_px > 0) live.still_px = opt.still_px;
+    if (Status s = live.validate(); !s.ok()) return fail(s.error());
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+    result = calibrate_board_live(*board, live, g_interrupted);
+    if (!result.ok() && result.error().code() != ErrorCode::kInvalidArgument) {
+      return fail(result.error());
+    }
+  } else {
+    auto detector = boardcal::BoardDetector::create(*board);
+    if (!detector.ok()) return fail(detector.error());
+    auto cams = collect_board_frames(src, *detector);
+    if (!cams.ok()) return fail(cams.error());
+    print_cameras(*cams);
+    result = boardcal::calibrate_board(*board, *cams, opt);
+  }
   if (!result.ok()) {
     std::printf("refused: %s\n", result.error().message().c_str());
     return 1;
