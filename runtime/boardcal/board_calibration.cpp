@@ -218,8 +218,10 @@ Result<BoardCalibrationResult> calibrate_board(const BoardSpec& board,
       return refuse("camera " + cams[c].view_id + " posed the board in " +
                     std::to_string(result.cameras[c].frames_posed) + " of its " +
                     std::to_string(result.cameras[c].frames_seen) +
-                    " frames: show it closer and whole (the corners fit badly or too few were "
-                    "found)");
+                    " frames (its corners fit no board pose, or too few were found): show it "
+                    "closer and whole; if it was, check that the board description (" +
+                    board.to_spec() +
+                    ") matches the printed board (columns x rows, square size, dictionary)");
     }
   }
   auto rig = detail::register_rig(cams, poses);

@@ -5,7 +5,7 @@
 // centre <= 2 mm, board reprojection <= 0.3 px at the render's noise (grey noise sigma 2);
 // the principal point and rotation floors here are the measured 2 px and 0.2 deg. And the refusals:
 // a camera that never sees the board, a board seen by one camera at a time, a wrong board
-// description.
+// description (dictionary, column count).
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -34,14 +34,16 @@ struct Scene {
 };
 
 // `seen(c, f)`: whether camera c is shown pose f at all.
+// `detect_as`: the board the detector is told about (the user's description), when not `board`.
 template <typename Seen>
-Scene render_scene(const BoardSpec& board, int n_cams, int n_poses, double k1, Seen seen) {
+Scene render_scene(const BoardSpec& board, int n_cams, int n_poses, double k1, Seen seen,
+                   const BoardSpec* detect_as = nullptr) {
   std::mt19937 rng(7);
   Scene s;
   s.cams = arc_rig(n_cams, k1);
   const auto poses = board_poses(n_poses, rng);
   testing::BoardRenderer renderer(board);
-  auto det = BoardDetector::create(board);
+  auto det = BoardDetector::create(detect_as ? *detect_as : board);
   for (int c = 0; c < n_cams; ++c) {
     CameraFrames cf;
     cf.view_id = std::to_string(c);
@@ -220,6 +222,28 @@ TEST(BoardCalibrationRenderTest, WrongBoardDescriptionFindsNothingAndSaysSo) {
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message().find("check that the board description "
                                      "(charuco:7x5:0.1:0.075:DICT_5X5_50) matches"),
+            std::string::npos)
+      << r.error().message();
+}
+
+// The user gives 8x5 for a printed 7x5 board of the same dictionary: the markers are found, but
+// each id sits elsewhere on a board of another width, so the corners OpenCV interpolates do not
+// form the board said. Either nothing usable is found or the residuals reveal it; both say to
+// check the description, and no calibration comes out.
+TEST(BoardCalibrationRenderTest, WrongColumnCountIsRevealedAndNamed) {
+  const BoardSpec printed = charuco_7x5();
+  const BoardSpec said = *parse_board_spec("charuco:8x5:0.1:0.075:DICT_4X4_50");
+  const Scene s = render_scene(
+      printed, 3, 20, -0.05, [](int, int) { return true; }, &said);
+  std::size_t corners = 0;
+  for (const auto& c : s.frames) {
+    for (const auto& f : c.frames) corners += f.size();
+  }
+  std::printf("corners found with the wrong description: %zu\n", corners);
+  auto r = calibrate_board(said, s.frames, {});
+  ASSERT_FALSE(r.ok()) << "board_reprojection_px=" << r->reprojection_px;
+  std::printf("refused: %s\n", r.error().message().c_str());
+  EXPECT_NE(r.error().message().find("check that the board description (" + said.to_spec() + ")"),
             std::string::npos)
       << r.error().message();
 }

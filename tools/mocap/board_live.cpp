@@ -44,7 +44,8 @@ Status open_live_rig(const LiveBoardOptions& o, LiveRig& rig) {
     for (const auto& n : disc->notes) notes += "; " + n;
     return Error(ErrorCode::kNotFound,
                  "no camera found (boards in " + dir.string() + ", devices in " + o.dev_dir +
-                     notes + "): plug the cameras in, or calibrate from a recording with "
+                     notes +
+                     "): plug the cameras in, or calibrate from a recording with "
                      "--recording DIR or from images with --images GLOBS");
   }
   hal::RigSourceOptions ro;
@@ -67,7 +68,8 @@ Status open_live_rig(const LiveBoardOptions& o, LiveRig& rig) {
   if (!line.ok()) return line.error().with_context("board " + disc->board_name + " trigger");
   hal::TriggerMasterOptions to;
   to.rate_hz = disc->board.frame_rate_hz;
-  if (disc->board.trigger.pulse_width_us > 0) to.pulse_width_us = disc->board.trigger.pulse_width_us;
+  if (disc->board.trigger.pulse_width_us > 0)
+    to.pulse_width_us = disc->board.trigger.pulse_width_us;
   auto tm = hal::TriggerMaster::create(std::move(*line), to);
   if (!tm.ok()) return tm.error();
   rig.trigger = std::move(*tm);
@@ -103,8 +105,8 @@ bool enough_seen(const json& st, int min_pair_frames) {
 
 // "20 frame sets looked at: camera 0 saw the board in 3 frames (12 % of the image), camera 1 ..."
 std::string seen_summary(const json& st) {
-  const std::string head = std::to_string(st["sampled"].get<std::uint64_t>()) +
-                           " frame sets looked at: ";
+  const std::string head =
+      std::to_string(st["sampled"].get<std::uint64_t>()) + " frame sets looked at: ";
   std::string out;
   for (const auto& c : st["cameras"]) {
     char buf[128];
@@ -120,9 +122,9 @@ void print_progress(const json& st, double elapsed_s) {
   std::string line;
   for (const auto& c : st["cameras"]) {
     char buf[96];
-    std::snprintf(buf, sizeof buf, " cam %s %d frames %.0f%%%s", c["view_id"].get<std::string>().c_str(),
-                  c["frames_seen"].get<int>(), 100 * c["coverage"].get<double>(),
-                  c["ready"].get<bool>() ? " ready" : "");
+    std::snprintf(buf, sizeof buf, " cam %s %d frames %.0f%%%s",
+                  c["view_id"].get<std::string>().c_str(), c["frames_seen"].get<int>(),
+                  100 * c["coverage"].get<double>(), c["ready"].get<bool>() ? " ready" : "");
     line += buf;
   }
   std::printf("%5.1f s:%s | %s\n", elapsed_s, line.c_str(),
@@ -143,9 +145,9 @@ Status LiveBoardOptions::validate() const {
   return capture.validate();
 }
 
-Result<boardcal::BoardCalibrationResult> calibrate_board_live(const boardcal::BoardSpec& board,
-                                                              const LiveBoardOptions& options,
-                                                              const std::atomic<bool>& interrupted) {
+Result<boardcal::BoardCalibrationResult> calibrate_board_live(
+    const boardcal::BoardSpec& board, const LiveBoardOptions& options,
+    const std::atomic<bool>& interrupted) {
   if (Status s = options.validate(); !s.ok()) return s.error();
   LiveRig rig;
   if (Status s = open_live_rig(options, rig); !s.ok()) return s.error();
@@ -154,8 +156,9 @@ Result<boardcal::BoardCalibrationResult> calibrate_board_live(const boardcal::Bo
       options.still_px >= 0 ? options.still_px : (rig.external_trigger ? 0.0 : 6.0);
   auto cap = boardcal::BoardCapture::create(board, rig.view_ids, co);
   if (!cap.ok()) return cap.error();
-  std::printf("wave the board through the volume, near every camera's corners and tilted; "
-              "Ctrl-C solves with what was seen\n");
+  std::printf(
+      "wave the board through the volume, near every camera's corners and tilted; "
+      "Ctrl-C solves with what was seen\n");
   const std::int64_t start_ns = now_ns();
   std::int64_t last_print_ns = start_ns;
   int min_pair_frames = std::max(co.calibration.min_frames / 2, 5);
@@ -169,7 +172,8 @@ Result<boardcal::BoardCalibrationResult> calibrate_board_live(const boardcal::Bo
     auto got = rig.source->next(item, 200);
     if (!got.ok()) return got.error();
     if (*got == pipeline::SourceStatus::kEnded) break;
-    if (*got == pipeline::SourceStatus::kItem && item.frames) (*cap)->observe(*item.frames, now_ns());
+    if (*got == pipeline::SourceStatus::kItem && item.frames)
+      (*cap)->observe(*item.frames, now_ns());
     if (now_ns() - last_print_ns < 1'000'000'000) continue;
     last_print_ns = now_ns();
     const json st = (*cap)->status_json();
