@@ -43,6 +43,27 @@ double angle_deg(const Eigen::Matrix3d& R) {
   return std::atan2(0.5 * axis.norm(), 0.5 * (R.trace() - 1.0)) * 180.0 / std::numbers::pi;
 }
 
+// The median angle between r's and f's world rays (f's carried by Ra) through the same raw
+// pixels, a 9 x 5 grid over the inner 80 % of r's image (f's pixels scaled to its own size).
+double ray_deg(const Camera& r, const Camera& f, const Eigen::Matrix3d& Ra) {
+  std::vector<double> angles;
+  const double sx =
+      r.width_px() > 0 && f.width_px() > 0 ? static_cast<double>(f.width_px()) / r.width_px() : 1;
+  const double sy = r.height_px() > 0 && f.height_px() > 0
+                        ? static_cast<double>(f.height_px()) / r.height_px()
+                        : 1;
+  for (int j = 0; j < 5; ++j) {
+    for (int i = 0; i < 9; ++i) {
+      const Eigen::Vector2d px((0.1 + 0.1 * i) * r.width_px(), (0.1 + 0.2 * j) * r.height_px());
+      const Eigen::Vector3d dr = r.backproject(px).direction.normalized();
+      const Eigen::Vector3d df =
+          (Ra * f.backproject({px.x() * sx, px.y() * sy}).direction).normalized();
+      angles.push_back(std::atan2(dr.cross(df).norm(), dr.dot(df)) * 180.0 / std::numbers::pi);
+    }
+  }
+  return median(angles);
+}
+
 }  // namespace
 
 Result<CalibrationComparison> compare_calibrations(const Calibration& reference,
@@ -86,7 +107,9 @@ Result<CalibrationComparison> compare_calibrations(const Calibration& reference,
     c.rotation_deg = angle_deg(r.R() * (f.R() * Ra.transpose()).transpose());
     c.center_m = (out.scale * Ra * f.center_m() + t - r.center_m()).norm();
     c.focal_ratio = (f.fx() + f.fy()) / (r.fx() + r.fy());
+    c.ray_deg = ray_deg(r, f, Ra);
     out.max_rotation_deg = std::max(out.max_rotation_deg, c.rotation_deg);
+    out.max_ray_deg = std::max(out.max_ray_deg, c.ray_deg);
     out.max_center_m = std::max(out.max_center_m, c.center_m);
     center_errors.push_back(c.center_m);
     out.cameras.push_back(c);

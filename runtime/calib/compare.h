@@ -5,7 +5,8 @@
 // onto the reference's by the least-squares similarity (Umeyama 1991) — from the centres only,
 // never from anything the cameras saw. Per camera then: the rotation error (degrees) between
 // the reference's orientation and FILE's carried into the reference frame, the centre error
-// (metres, after the alignment) and the focal ratio (FILE / reference).
+// (metres, after the alignment), the focal ratio (FILE / reference) and the ray error (where
+// each camera's pixels look, lens included).
 #pragma once
 
 #include <Eigen/Core>
@@ -23,6 +24,11 @@ struct CameraComparison {
   double rotation_deg = 0;
   double center_m = 0;
   double focal_ratio = 1;  // (fx + fy) of FILE over the reference's
+  // Where the camera looks, lens included: the median angle between the two calibrations' world
+  // rays through the same raw pixels (a 9 x 5 grid over the inner 80 % of the image). A
+  // principal point shifted by d px trades against a rotation of atan(d / f): rotation_deg
+  // counts that trade, ray_deg does not.
+  double ray_deg = 0;
 };
 
 struct CalibrationComparison {
@@ -32,6 +38,7 @@ struct CalibrationComparison {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
   Eigen::Vector3d translation_m = Eigen::Vector3d::Zero();
   double max_rotation_deg = 0;
+  double max_ray_deg = 0;
   double median_center_m = 0;
   double max_center_m = 0;
 };

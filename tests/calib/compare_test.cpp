@@ -92,6 +92,38 @@ TEST(CalibCompareTest, ATurnedCameraALongerFocalAndAMovedCameraShow) {
   EXPECT_LT(d->median_center_m, d->cameras[1].center_m);
 }
 
+// A principal point 30 px lower with the camera tilted by atan(30 / f) to match: rotation_deg
+// sees 1.72 deg, but every pixel looks nearly where it did (ray_deg 0.12). A plain 1 deg tilt moves
+// every ray by about 1 deg.
+TEST(CalibCompareTest, RayErrorSeparatesAPrincipalPointTradeFromATurn) {
+  const Calibration ref = ring(5);
+  Calibration file = in_other_frame(ref, 1.0, kRa, kT);
+  const double d_px = 30;
+  Camera& traded = file.cameras[1];
+  Eigen::Matrix3d K = traded.K();
+  K(1, 2) += d_px;
+  traded.set_intrinsics(K);
+  const Eigen::Vector3d c1 = traded.center_m();
+  const Eigen::Matrix3d R1 =
+      Eigen::AngleAxisd(std::atan(d_px / K(1, 1)), Eigen::Vector3d::UnitX()) * traded.R();
+  traded.set_pose(R1, -R1 * c1);
+  Camera& tilted = file.cameras[3];
+  const Eigen::Vector3d c3 = tilted.center_m();
+  const Eigen::Matrix3d R3 =
+      Eigen::AngleAxisd(std::numbers::pi / 180, Eigen::Vector3d::UnitX()) * tilted.R();
+  tilted.set_pose(R3, -R3 * c3);
+  auto c = compare_calibrations(ref, file);
+  ASSERT_TRUE(c.ok()) << c.error().message();
+  EXPECT_NEAR(c->cameras[1].rotation_deg, std::atan(0.03) * 180 / std::numbers::pi, 1e-6);
+  // Exact at the principal point only: off-axis a shift is not a turn (0.117 deg median over
+  // this 53 deg field).
+  EXPECT_LT(c->cameras[1].ray_deg, 0.15);
+  EXPECT_NEAR(c->cameras[3].rotation_deg, 1.0, 1e-6);
+  EXPECT_NEAR(c->cameras[3].ray_deg, 1.0, 0.05);
+  EXPECT_LT(c->cameras[0].ray_deg, 1e-6);
+  EXPECT_NEAR(c->max_ray_deg, c->cameras[3].ray_deg, 1e-12);
+}
+
 TEST(CalibCompareTest, MismatchedViewsTooFewCamerasAndALineAreErrors) {
   const Calibration ref = ring(4);
   Calibration renamed = ref;

@@ -84,7 +84,9 @@ int run_compare(Args args) {
       "Compare FILE's cameras with REFERENCE's, matched by view id. FILE's world frame is "
       "aligned onto REFERENCE's by the least-squares similarity of the camera centres (scale, "
       "rotation, translation; nothing else), then per camera: the rotation error in degrees, "
-      "the centre error in metres and the focal ratio FILE / REFERENCE. Needs 3 or more "
+      "the centre error in metres, the focal ratio FILE / REFERENCE and ray_deg (the median "
+      "angle between the two world rays through the same pixels: where the camera looks, lens "
+      "included, without the trade of a principal point against a rotation). Needs 3 or more "
       "cameras not on one line. The last line is max_rotation_deg=X.XX median_center_m=X.XXX.");
   parser.positional("REFERENCE", &reference, "calibration JSON file taken as right");
   parser.positional("FILE", &file, "calibration JSON file to check, e.g. a self-calibration");
@@ -102,11 +104,12 @@ int run_compare(Args args) {
   }
   std::printf("%s against %s: %zu cameras, scale %.6f (FILE units to REFERENCE metres)\n",
               file.c_str(), reference.c_str(), c->cameras.size(), c->scale);
-  std::printf("view        rotation_deg  center_m  focal_ratio\n");
+  std::printf("view        rotation_deg  center_m  focal_ratio  ray_deg\n");
   for (const calib::CameraComparison& cam : c->cameras) {
-    std::printf("%-10s  %12.3f  %8.3f  %11.4f\n", cam.view_id.c_str(), cam.rotation_deg,
-                cam.center_m, cam.focal_ratio);
+    std::printf("%-10s  %12.3f  %8.3f  %11.4f  %7.3f\n", cam.view_id.c_str(), cam.rotation_deg,
+                cam.center_m, cam.focal_ratio, cam.ray_deg);
   }
+  std::printf("max_ray_deg=%.2f (where the pixels look, lens included)\n", c->max_ray_deg);
   std::printf("max_rotation_deg=%.2f median_center_m=%.3f\n", c->max_rotation_deg,
               c->median_center_m);
   return 0;
