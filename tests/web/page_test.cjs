@@ -4,13 +4,17 @@
 //
 //   NODE_PATH=tools/web/node_modules node tests/web/page_test.cjs --url http://127.0.0.1:PORT
 //     --token TOKEN --out DIR [--chromium /usr/bin/chromium] [--mode page|keepup|stage]
-//     [--seconds N]
+//     [--seconds N] [--board SPEC] [--unsynced yes]
 //
 // page:   loads the page (console errors, requests outside the box), counts each person's colour
 //         on a screenshot after 2 s, the person list, a camera thumbnail, record/stop without
 //         and with the token, the take's BVH downloaded through the page.
 // keepup: watches the page for N s: the lag of each drawn frame and the tab's JS heap.
 // stage:  a fusion node's page: the Stage panel's summary and its rows (node, alive, cameras).
+// board:  "Calibrate with a board" as a user does it: unlock, type the board (and tick "not
+//         synchronised" with --unsynced yes), Start; the camera
+//         tiles' corner dots (yellow) and coverage grid while it collects, until every camera
+//         is ready (or N s); Solve; the residuals shown; Save; the message.
 "use strict";
 const fs = require("fs");
 const path = require("path");
@@ -172,6 +176,74 @@ async function keepupMode(a, browser, result) {
   await page.screenshot({ path: path.join(a.out, "keepup.png") });
 }
 
+// Yellow corner dots (#ffd24a) drawn over the camera tiles, counted on a screenshot of each.
+async function cornerDots(page) {
+  let total = 0;
+  for (const tile of await page.$$(".tile")) {
+    const png = await tile.screenshot({ encoding: "base64" });
+    total += (await countColours(page, png, ["#ffd24a"]))[0];
+  }
+  return total;
+}
+
+async function boardMode(a, browser, result) {
+  const page = await browser.newPage();
+  result.console_errors = [];
+  page.on("console", (m) => { if (m.type() === "error") result.console_errors.push(m.text()); });
+  page.on("pageerror", (e) => result.console_errors.push("pageerror: " + e.message));
+  await page.goto(a.url, { waitUntil: "load" });
+  await page.waitForFunction(() => {
+    const img = document.querySelector(".tile img");
+    return img && img.complete && img.naturalWidth > 0;
+  }, { timeout: 20000 }).catch(() => {});
+  result.tiles = await page.$$eval(".tile", (t) => t.length);
+  result.dots_before = await cornerDots(page);
+  await page.click("#unlock");
+  await page.type("#token-input", a.token);
+  await page.click("#token-form button[value=ok]");
+  await page.waitForFunction(() => document.querySelector("#lock-state").textContent === "actions unlocked",
+                             { timeout: 5000 }).catch(() => {});
+  await page.click("#board-panel summary");
+  await page.type("#board-spec", a.board);
+  if (a.unsynced === "yes") await page.click("#board-unsynced");
+  await page.click("#board-start");
+  await page.waitForFunction(() => mocapBoard.status && mocapBoard.status.phase === "collecting",
+                             { timeout: 10000 }).catch(() => {});
+  result.start_message = await page.$eval("#board-message", (e) => e.textContent);
+  // Collect until every camera is ready, counting the dots now and then.
+  const t0 = Date.now();
+  result.dots_max = 0;
+  result.solve_enabled_while_collecting = false;
+  while (Date.now() - t0 < a.seconds * 1000) {
+    result.dots_max = Math.max(result.dots_max, await cornerDots(page));
+    const st = await page.evaluate(() => mocapBoard.status && {
+      phase: mocapBoard.status.phase, samples: mocapBoard.status.samples,
+      ready: (mocapBoard.status.cameras || []).map((c) => c.ready),
+      coverage: (mocapBoard.status.cameras || []).map((c) => c.coverage) });
+    result.collect = st;
+    result.solve_enabled_while_collecting =
+      await page.$eval("#board-solve", (b) => !b.disabled);
+    if (st && st.ready.length > 0 && st.ready.every((r) => r) && result.dots_max > 0) break;
+    await sleep(1000);
+  }
+  result.collect_s = (Date.now() - t0) / 1000;
+  result.progress_collecting = await page.$eval("#board-progress", (e) => e.innerText);
+  await page.screenshot({ path: path.join(a.out, "board_collecting.png"), fullPage: true });
+  await page.click("#board-solve");
+  await page.waitForFunction(() => mocapBoard.status && ["solved", "failed"].includes(mocapBoard.status.phase),
+                             { timeout: 120000 }).catch(() => {});
+  result.phase_after_solve = await page.evaluate(() => mocapBoard.status && mocapBoard.status.phase);
+  result.progress_solved = await page.$eval("#board-progress", (e) => e.innerText);
+  result.result_rows = await page.$$eval("#board-progress table tr", (trs) =>
+    trs.slice(1).map((tr) => [...tr.cells].map((td) => td.textContent)));
+  result.save_enabled = await page.$eval("#board-save", (b) => !b.disabled);
+  await page.screenshot({ path: path.join(a.out, "board_solved.png"), fullPage: true });
+  await page.click("#board-save");
+  await page.waitForFunction(() => document.querySelector("#board-message").textContent.startsWith("saved"),
+                             { timeout: 10000 }).catch(() => {});
+  result.save_message = await page.$eval("#board-message", (e) => e.textContent);
+}
+
 async function stageMode(a, browser, result) {
   const page = await browser.newPage();
   result.console_errors = [];
@@ -199,6 +271,7 @@ async function stageMode(a, browser, result) {
     result.browser = await browser.version();
     if (a.mode === "keepup") await keepupMode(a, browser, result);
     else if (a.mode === "stage") await stageMode(a, browser, result);
+    else if (a.mode === "board") await boardMode(a, browser, result);
     else await pageMode(a, browser, result);
   } catch (e) {
     result.error = String(e && e.stack || e);

@@ -555,6 +555,7 @@ function initTakes() {
 // ------------------------------------------------------------------------------ board calibration
 
 const board = { status: null };
+window.mocapBoard = board;  // the last GET /calibration/board, for tests/web/page_test.cjs
 
 function boardMessage(text, error) {
   const el = $("board-message");
@@ -616,7 +617,8 @@ function initBoard() {
     ev.preventDefault();
     const spec = $("board-spec").value.trim();
     const floor = parseInt($("board-floor").value || "0", 10) || 0;
-    boardAction(`/calibration/board/start?board=${encodeURIComponent(spec)}&floor_samples=${floor}`, 202,
+    const still = $("board-unsynced").checked ? "&still_px=6" : "";
+    boardAction(`/calibration/board/start?board=${encodeURIComponent(spec)}&floor_samples=${floor}${still}`, 202,
                 (b) => b.what_to_do);
   });
   $("board-solve").addEventListener("click", () =>
