@@ -15,6 +15,7 @@
 #include <mutex>
 #include <utility>
 
+#include "runtime/core/atomic_file.h"
 #include "runtime/core/log.h"
 
 namespace mocap::hal {
@@ -30,8 +31,6 @@ int xioctl(int fd, unsigned long request, void* arg) {
   } while (r < 0 && errno == EINTR);
   return r;
 }
-
-std::string errno_text(int err) { return std::strerror(err); }
 
 std::optional<PixelFormat> to_pixel_format(std::uint32_t fourcc) {
   switch (fourcc) {

@@ -1,14 +1,10 @@
 #include "runtime/calib/background.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <cstring>
 #include <filesystem>
 #include <utility>
 
 #include "runtime/calib/compare.h"
+#include "runtime/core/atomic_file.h"
 #include "runtime/core/log.h"
 
 MOCAP_LOG_CATEGORY(Calib);
@@ -177,59 +173,21 @@ CalibrationProgress BackgroundCalibrator::progress() const {
   return p;
 }
 
-namespace {
-
-Error io_error(const fs::path& path, const std::string& what) {
-  return Error(ErrorCode::kIo, path.string() + ": " + what + ": " + std::strerror(errno) +
-                                   " (make the folder writable, or give mocapd another "
-                                   "state_dir)");
-}
-
-}  // namespace
-
 Status write_calibration_durably(const Calibration& calibration, const fs::path& path) {
   auto text = calibration_to_json(calibration);
   if (!text.ok()) return text.error();
-  const fs::path tmp = path.string() + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) return io_error(tmp, "cannot create");
-  std::size_t done = 0;
-  while (done < text->size()) {
-    const ssize_t n = ::write(fd, text->data() + done, text->size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const Error e = io_error(tmp, "cannot write");
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      return e;
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  if (::fsync(fd) != 0) {
-    const Error e = io_error(tmp, "cannot flush");
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    return e;
-  }
-  ::close(fd);
   std::error_code ec;
   if (fs::exists(path, ec)) {
     fs::copy_file(path, path.string() + ".bak", fs::copy_options::overwrite_existing, ec);
     if (ec) {
-      ::unlink(tmp.c_str());
       return Error(ErrorCode::kIo,
                    path.string() + ".bak: cannot keep the previous calibration: " + ec.message());
     }
   }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const Error e = io_error(path, "cannot replace");
-    ::unlink(tmp.c_str());
-    return e;
-  }
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  if (const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC); dfd >= 0) {
-    ::fsync(dfd);
-    ::close(dfd);
+  if (Status s = write_file_atomically(path, *text, Durability::kDurable); !s.ok()) {
+    return Error(ErrorCode::kIo, s.error().message() +
+                                     " (make the folder writable, or give mocapd another "
+                                     "state_dir)");
   }
   return {};
 }

@@ -1,5 +1,7 @@
 #include "runtime/geometry/calibration.h"
 
+#include "runtime/core/atomic_file.h"
+
 #include <Eigen/Core>
 #include <Eigen/LU>
 #include <Eigen/SVD>
@@ -301,8 +303,6 @@ Json numbers(std::initializer_list<double> values) {
   return arr;
 }
 
-std::string errno_text(int err) { return std::generic_category().message(err); }
-
 }  // namespace
 
 std::optional<std::size_t> Calibration::index_of(std::string_view view_id) const {
@@ -397,40 +397,9 @@ Result<std::string> calibration_to_json(const Calibration& calib) {
 }
 
 Status save_calibration(const Calibration& calib, const std::filesystem::path& path) {
-  namespace fs = std::filesystem;
   Result<std::string> text = calibration_to_json(calib);
   if (!text.ok()) return text.error().with_context(path.string());
-  try {
-    const std::string name = path.string();
-    fs::path tmp = path;
-    tmp += ".tmp";
-    {
-      std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-      if (!out) {
-        return Error(ErrorCode::kIo,
-                     name + ": cannot open " + tmp.string() + " for writing: " + errno_text(errno));
-      }
-      out.write(text->data(), static_cast<std::streamsize>(text->size()));
-      out.flush();
-      if (!out) {
-        const int err = errno;
-        out.close();
-        std::error_code ignored;
-        fs::remove(tmp, ignored);
-        return Error(ErrorCode::kIo, name + ": write failed: " + errno_text(err));
-      }
-    }
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    if (ec) {
-      std::error_code ignored;
-      fs::remove(tmp, ignored);
-      return Error(ErrorCode::kIo, name + ": cannot replace file: " + ec.message());
-    }
-    return Status::Ok();
-  } catch (const std::exception& e) {
-    return Error(ErrorCode::kIo, path.string() + ": cannot write calibration: " + e.what());
-  }
+  return write_file_atomically(path, *text, Durability::kDurable);
 }
 
 }  // namespace mocap

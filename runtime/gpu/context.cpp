@@ -16,6 +16,7 @@
 #include <string>
 #include <system_error>
 
+#include "runtime/core/atomic_file.h"
 #include "runtime/core/log.h"
 
 MOCAP_LOG_CATEGORY(Gpu)
@@ -581,17 +582,13 @@ Status Context::save_pipeline_cache() {
   }
   std::error_code ec;
   std::filesystem::create_directories(cache_path_.parent_path(), ec);
-  const auto tmp = cache_path_.string() + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) {
-      MOCAP_LOG(Gpu, Warn) << "cannot write pipeline cache " << tmp << "; pipelines will be "
-                           << "rebuilt at the next start";
-      return Status::Ok();
-    }
-    f.write(data.data(), static_cast<std::streamsize>(n));
+  // A cache: rebuilt when lost, so no fsync (Durability::kAtomic).
+  if (Status s =
+          write_file_atomically(cache_path_, std::string_view(data.data(), n), Durability::kAtomic);
+      !s.ok()) {
+    MOCAP_LOG(Gpu, Warn) << "pipeline cache not saved (" << s.error().message()
+                         << "); pipelines will be rebuilt at the next start";
   }
-  std::filesystem::rename(tmp, cache_path_, ec);
   return Status::Ok();
 }
 

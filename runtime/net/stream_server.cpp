@@ -26,6 +26,7 @@
 #include <utility>
 #include <vector>
 
+#include "runtime/core/atomic_file.h"
 #include "runtime/core/log.h"
 #include "runtime/net/websocket.h"
 
@@ -48,8 +49,6 @@ constexpr auto kFlushTimeout = std::chrono::seconds(10);       // sending the la
 constexpr auto kLingerTimeout = std::chrono::seconds(2);       // reading after our FIN
 constexpr auto kAcceptPause = std::chrono::milliseconds(100);  // after EMFILE/ENFILE
 constexpr std::uint16_t kWsProtocolError = 1002;
-
-std::string errno_text(int err) { return std::strerror(err); }
 
 // ------------------------------------------------------------------------------ connections
 

@@ -1,5 +1,7 @@
 #include "runtime/nn/model_file.h"
 
+#include "runtime/core/atomic_file.h"
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -582,64 +584,14 @@ Result<Model> parse_model_bytes(std::span<const std::uint8_t> bytes, std::string
   return model;
 }
 
-Status write_file_atomically(std::span<const std::uint8_t> bytes,
-                             const std::filesystem::path& path) {
-  static std::atomic<unsigned> counter{0};
-  const std::filesystem::path dir =
-      path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
-  const std::filesystem::path tmp =
-      dir / ("." + path.filename().string() + ".tmp." + std::to_string(::getpid()) + "." +
-             std::to_string(counter.fetch_add(1)));
-  auto fail = [&](std::string_view what, int err) {
-    std::string m = path.string() + ": " + std::string(what);
-    if (err != 0) m += ": " + std::string(std::strerror(err));
-    return Error(ErrorCode::kIo, std::move(m));
-  };
-  constexpr mode_t kFileMode = 0644;
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, kFileMode);
-  if (fd < 0) return fail("cannot create the temporary file " + tmp.string(), errno);
-  std::size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int err = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      return fail("cannot write " + tmp.string(), err);
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  if (::fsync(fd) != 0) {
-    const int err = errno;
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    return fail("cannot flush " + tmp.string(), err);
-  }
-  if (::close(fd) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    return fail("cannot close " + tmp.string(), err);
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    return fail("cannot rename " + tmp.string() + " into place", err);
-  }
-  // Make the rename itself durable; a failure here leaves a complete file, so it is not fatal.
-  if (const int dir_fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC); dir_fd >= 0) {
-    (void)::fsync(dir_fd);
-    ::close(dir_fd);
-  }
-  return Status::Ok();
-}
-
 Status write_model_file(const Model& model, const std::filesystem::path& path) {
   if (Status s = model.validate(); !s.ok()) {
     return s.error().with_context(path.string() + ": refusing to write an invalid model");
   }
   const std::vector<std::uint8_t> bytes = serialize_model(model);
-  return write_file_atomically(bytes, path);
+  return write_file_atomically(
+      path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
+      Durability::kDurable);
 }
 
 Result<std::vector<std::uint8_t>> read_file_bytes(const std::filesystem::path& path) {

@@ -43,9 +43,6 @@ Result<Model> parse_model_bytes(std::span<const std::uint8_t> bytes, std::string
 // Writes serialize_model(model) to a temporary file in the same directory, flushes it to disk
 // and renames it over `path`, so readers see the old file or the new one, never a mix.
 Status write_model_file(const Model& model, const std::filesystem::path& path);
-// The same for bytes already serialized (the CLI prints their size and checksum).
-Status write_file_atomically(std::span<const std::uint8_t> bytes,
-                             const std::filesystem::path& path);
 
 // Reads the whole file (at most kMaxModelFileBytes) and parses it.
 Result<Model> read_model_file(const std::filesystem::path& path);

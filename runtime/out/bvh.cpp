@@ -11,7 +11,9 @@
 #include <cstring>
 #include <string_view>
 #include <system_error>
+
 #include <vector>
+#include "runtime/core/atomic_file.h"
 
 namespace mocap::out {
 
@@ -161,8 +163,6 @@ Vector3d wrapped_near(const Vector3d& e, const Vector3d& near) {
   return Vector3d(wrap_near(e[0], near[0]), wrap_near(e[1], near[1]), wrap_near(e[2], near[2]));
 }
 
-std::string errno_text(int err) { return std::strerror(err); }
-
 }  // namespace
 
 Vector3d zxy_euler_deg(const Quaterniond& q, const Vector3d& previous_zxy_deg) {
@@ -263,28 +263,9 @@ Status write_bvh(const Animation& anim, const PersonAnimation& person, const Bvh
   const std::string name = file.string();
   if (Status s = options.validate(); !s.ok()) return s.error().with_context(name);
   if (Status s = check_person_animation(anim, person); !s.ok()) return s.error().with_context(name);
-  std::filesystem::path tmp = file;
-  tmp += ".tmp";
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (f == nullptr) {
-    return Error(ErrorCode::kIo, name + ": cannot create " + tmp.string() + ": " +
-                                     errno_text(errno) +
-                                     " (does the folder exist and is it writable?)");
-  }
-  const bool written = write_frames(f, anim, person, units_of(options));
-  const int err = errno;
-  const bool closed = std::fclose(f) == 0;
-  std::error_code ec;
-  if (!written || !closed) {
-    std::filesystem::remove(tmp, ec);
-    return Error(ErrorCode::kIo, name + ": write failed: " + errno_text(err) + " (disk full?)");
-  }
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    return Error(ErrorCode::kIo, name + ": cannot rename " + tmp.string() + ": " + ec.message());
-  }
-  return Status();
+  const Units units = units_of(options);
+  return write_file_atomically(file, Durability::kDurable,
+                               [&](std::FILE* f) { return write_frames(f, anim, person, units); });
 }
 
 }  // namespace mocap::out

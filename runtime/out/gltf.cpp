@@ -10,6 +10,7 @@
 #include <system_error>
 #include <vector>
 
+#include "runtime/core/atomic_file.h"
 #include "runtime/out/bvh.h"
 
 #define TINYGLTF_IMPLEMENTATION
@@ -193,32 +194,6 @@ Status check_animation(const Animation& anim, const std::filesystem::path& file,
   return Status();
 }
 
-Status write_atomically(const std::string& content, const std::filesystem::path& file) {
-  const std::string name = file.string();
-  std::filesystem::path tmp = file;
-  tmp += ".tmp";
-  std::error_code ec;
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) {
-      return Error(ErrorCode::kIo, name + ": cannot create " + tmp.string() + ": " +
-                                       std::strerror(errno) + " (does the folder exist?)");
-    }
-    out.write(content.data(), static_cast<std::streamsize>(content.size()));
-    out.close();
-    if (!out) {
-      std::filesystem::remove(tmp, ec);
-      return Error(ErrorCode::kIo, name + ": write failed: " + std::strerror(errno));
-    }
-  }
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    return Error(ErrorCode::kIo, name + ": cannot rename " + tmp.string() + ": " + ec.message());
-  }
-  return Status();
-}
-
 }  // namespace
 
 Status GltfOptions::validate() const { return Status(); }
@@ -234,7 +209,7 @@ Status write_gltf(const Animation& anim, const GltfOptions& options,
     if (!writer.WriteGltfSceneToStream(&model, text, false, options.binary)) {
       return Error(ErrorCode::kInternal, file.string() + ": tinygltf could not serialise the take");
     }
-    return write_atomically(text.str(), file);
+    return write_file_atomically(file, text.str(), Durability::kDurable);
   } catch (const std::exception& e) {
     return Error(ErrorCode::kInternal, file.string() + ": glTF export failed: " + e.what());
   }

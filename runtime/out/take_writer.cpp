@@ -13,6 +13,8 @@
 #include <ctime>
 #include <system_error>
 
+#include "runtime/core/atomic_file.h"
+
 namespace mocap::out {
 namespace {
 
@@ -119,26 +121,6 @@ Status validate_take_name(std::string_view name) {
                    "': use 1 to 64 characters of A-Z a-z 0-9 . _ -, not starting with '.'");
 }
 
-Status write_file_durably(const fs::path& path, std::string_view text) {
-  const fs::path tmp = path.string() + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) return errno_error(tmp, "cannot create", errno);
-  if (!write_all(fd, text) || ::fsync(fd) != 0) {
-    const Error e = errno_error(tmp, "cannot write", errno);
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    return e;
-  }
-  ::close(fd);
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const Error e = errno_error(path, "cannot replace", errno);
-    ::unlink(tmp.c_str());
-    return e;
-  }
-  fsync_folder(path.has_parent_path() ? path.parent_path() : fs::path("."));
-  return {};
-}
-
 Result<std::unique_ptr<TakeWriter>> TakeWriter::start(const fs::path& takes_dir,
                                                       const TakeMetadata& meta,
                                                       std::int64_t started_unix_ns) {
@@ -156,7 +138,8 @@ Result<std::unique_ptr<TakeWriter>> TakeWriter::start(const fs::path& takes_dir,
   ::flock(fd, LOCK_EX | LOCK_NB);  // tells list_takes that the take is being recorded
   std::unique_ptr<TakeWriter> w(new TakeWriter(*dir, meta, started_unix_ns, fd));
   const std::string text = dump_json(w->take_json("recording", 0));
-  if (Status s = write_file_durably(*dir / kTakeMetadataFile, text); !s.ok()) {
+  if (Status s = write_file_atomically(*dir / kTakeMetadataFile, text, Durability::kDurable);
+      !s.ok()) {
     w->finished_ = true;  // nothing to finish: the take is removed
     ::close(w->fd_);
     w->fd_ = -1;
@@ -243,8 +226,9 @@ Status TakeWriter::stop(int error_number, const char* what) {
                                            "new take)");
   ::close(fd_);
   fd_ = -1;
-  (void)write_file_durably(dir_ / kTakeMetadataFile,
-                           dump_json(take_json("stopped", wall_clock_unix_ns())));
+  (void)write_file_atomically(dir_ / kTakeMetadataFile,
+                              dump_json(take_json("stopped", wall_clock_unix_ns())),
+                              Durability::kDurable);
   return stop_status_;
 }
 
@@ -263,7 +247,8 @@ Status TakeWriter::finish(std::int64_t stopped_unix_ns) {
   }
   const char* status = stopped_ ? "stopped" : "complete";
   finish_status_ =
-      write_file_durably(dir_ / kTakeMetadataFile, dump_json(take_json(status, stopped_unix_ns)));
+      write_file_atomically(dir_ / kTakeMetadataFile, dump_json(take_json(status, stopped_unix_ns)),
+                            Durability::kDurable);
   return finish_status_;
 }
 

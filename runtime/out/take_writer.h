@@ -112,8 +112,4 @@ class TakeWriter {
   std::string line_;  // reused buffer: message + '\n'
 };
 
-// Writes `text` to `path` durably: a temporary file next to it, fsync, rename over `path`,
-// fsync of the folder. The error names the file.
-Status write_file_durably(const std::filesystem::path& path, std::string_view text);
-
 }  // namespace mocap::out

@@ -20,6 +20,7 @@
 #include "runtime/sim/simulator.h"
 #include "runtime/skeleton/topology.h"
 #include "tests/calib/sim_keypoints.h"
+#include "tests/support/temp_dir.h"
 
 namespace mocap::calib {
 namespace {
@@ -274,7 +275,7 @@ TEST(CalibrationFileTest, DurableWriteKeepsTheOldOneAsBackup) {
   ASSERT_TRUE(now.ok() && backup.ok());
   EXPECT_NEAR((now->cameras[0].t_m() - rig->cameras[0].t_m()).x(), 0.1, 1e-9);
   EXPECT_NEAR((backup->cameras[0].t_m() - rig->cameras[0].t_m()).norm(), 0, 1e-9);
-  EXPECT_FALSE(std::filesystem::exists(path.string() + ".tmp"));
+  EXPECT_TRUE(mocap::testing::temporary_files(path.parent_path()).empty());
   const auto bad = dir / "calibration.json" / "x.json";  // a file is not a folder
   const Status s = write_calibration_durably(*rig, bad);
   ASSERT_FALSE(s.ok());

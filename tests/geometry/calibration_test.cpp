@@ -10,6 +10,7 @@
 #include <string>
 
 #include "tests/support/data.h"
+#include "tests/support/temp_dir.h"
 
 namespace mocap {
 namespace {
@@ -311,7 +312,7 @@ TEST(Calibration, SaveLoadRoundTrip) {
 
   const std::filesystem::path path = temp_file("round_trip.json");
   ASSERT_TRUE(save_calibration(*original, path).ok());
-  EXPECT_FALSE(std::filesystem::exists(path.string() + ".tmp"));
+  EXPECT_TRUE(mocap::testing::temporary_files(path.parent_path()).empty());
   Result<Calibration> loaded = load_calibration(path);
   ASSERT_TRUE(loaded.ok()) << loaded.error().message();
   expect_same_calibration(*original, *loaded);

@@ -21,6 +21,7 @@
 #include "runtime/out/bvh.h"
 #include "runtime/out/gltf.h"
 #include "runtime/out/humanoid.h"
+#include "tests/support/temp_dir.h"
 
 // The implementation is compiled into runtime/out/gltf.cpp, with these options (the same ones
 // here keep TinyGLTF's inline members identical).
@@ -301,7 +302,7 @@ TEST(Bvh, WritesFileAndReportsErrors) {
   std::stringstream content;
   content << in.rdbuf();
   EXPECT_EQ(content.str(), bvh_text(anim, anim.persons[0], BvhOptions{}));
-  EXPECT_FALSE(fs::exists(dir / "p1.bvh.tmp"));
+  EXPECT_TRUE(testing::temporary_files(dir).empty());
 
   const Status missing_dir = write_bvh(anim, anim.persons[0], BvhOptions{}, dir / "no/p.bvh");
   ASSERT_FALSE(missing_dir.ok());

@@ -160,7 +160,7 @@ TEST(Take, WriterToReaderRoundTrip) {
   ASSERT_TRUE(writer.finish(kStartUnix_ns + 7).ok());
   EXPECT_TRUE(writer.finish(kStartUnix_ns + 8).ok());  // idempotent
   EXPECT_FALSE(writer.write(skeletons_message(10, {0}), 0).ok());
-  EXPECT_FALSE(fs::exists(takes / "walk" / "take.json.tmp"));
+  EXPECT_TRUE(testing::temporary_files(takes / "walk").empty());
 
   const nlohmann::json meta = read_json(takes / "walk" / "take.json");
   EXPECT_EQ(meta["status"], "complete");

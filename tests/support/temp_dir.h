@@ -9,8 +9,21 @@
 #include <filesystem>
 #include <string>
 #include <system_error>
+#include <vector>
 
 namespace mocap::testing {
+
+// The temporary files write_file_atomically (runtime/core/atomic_file.h) left in `dir` (names
+// with ".tmp"): none once a write returned, succeeded or not.
+inline std::vector<std::string> temporary_files(const std::filesystem::path& dir) {
+  std::vector<std::string> left;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.find(".tmp") != std::string::npos) left.push_back(name);
+  }
+  return left;
+}
 
 class TestTempDir {
  public:

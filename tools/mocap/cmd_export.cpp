@@ -17,6 +17,7 @@
 #include <system_error>
 #include <vector>
 
+#include "runtime/core/atomic_file.h"
 #include "runtime/out/animation.h"
 #include "runtime/out/bvh.h"
 #include "runtime/out/gltf.h"
@@ -203,7 +204,7 @@ json sidecar_json(const Source& src, const out::Animation& anim, const std::stri
 
 Status write_sidecar(const fs::path& file, const json& j) {
   const std::string text = j.dump(2, ' ', false, json::error_handler_t::replace) + "\n";
-  Status s = out::write_file_durably(file, text);
+  Status s = write_file_atomically(file, text, Durability::kDurable);
   if (s.ok()) std::printf("wrote %s\n", file.c_str());
   return s;
 }
@@ -329,37 +330,31 @@ int run_gltf(Args args) {
   return 0;
 }
 
-// Copies the first `bytes` of `from` into `to` (a temporary file renamed when complete).
+// Copies the first `bytes` of `from` into `to` (written whole or not at all, durably).
 Status copy_prefix(const fs::path& from, const fs::path& to, std::uint64_t bytes) {
-  const fs::path tmp = to.string() + ".tmp";
   const int in = ::open(from.c_str(), O_RDONLY | O_CLOEXEC);
-  if (in < 0)
-    return Error(ErrorCode::kIo, from.string() + ": cannot open: " + std::strerror(errno));
-  const int outfd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (outfd < 0) {
-    const Error e(ErrorCode::kIo, tmp.string() + ": cannot create: " + std::strerror(errno) +
-                                      " (give another --out)");
-    ::close(in);
-    return e;
-  }
-  std::vector<char> buf(1 << 20);
-  std::uint64_t done = 0;
-  bool ok = true;
-  while (ok && done < bytes) {
-    const std::size_t want =
-        static_cast<std::size_t>(std::min<std::uint64_t>(buf.size(), bytes - done));
-    const ssize_t n = ::read(in, buf.data(), want);
-    if (n < 0 && errno == EINTR) continue;
-    ok = n > 0 && ::write(outfd, buf.data(), static_cast<std::size_t>(n)) == n;
-    if (ok) done += static_cast<std::uint64_t>(n);
-  }
-  const int error_number = errno;
+  if (in < 0) return Error(ErrorCode::kIo, from.string() + ": cannot open: " + errno_text(errno));
+  Status s = write_file_atomically(to, Durability::kDurable, [&](std::FILE* out) {
+    std::vector<char> buf(1 << 20);
+    std::uint64_t done = 0;
+    while (done < bytes) {
+      const std::size_t want =
+          static_cast<std::size_t>(std::min<std::uint64_t>(buf.size(), bytes - done));
+      const ssize_t n = ::read(in, buf.data(), want);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) return false;
+      if (std::fwrite(buf.data(), 1, static_cast<std::size_t>(n), out) !=
+          static_cast<std::size_t>(n)) {
+        return false;
+      }
+      done += static_cast<std::uint64_t>(n);
+    }
+    return true;
+  });
   ::close(in);
-  ok = ::close(outfd) == 0 && ok && ::rename(tmp.c_str(), to.c_str()) == 0;
-  if (ok) return {};
-  ::unlink(tmp.c_str());
-  return Error(ErrorCode::kIo, to.string() + ": cannot write: " + std::strerror(error_number) +
-                                   " (check the free space, or give another --out)");
+  if (s.ok()) return s;
+  return Error(ErrorCode::kIo,
+               s.error().message() + " (check the free space, or give another --out)");
 }
 
 int run_ndjson(Args args) {

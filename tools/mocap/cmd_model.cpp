@@ -6,6 +6,7 @@
 #include <string_view>
 #include <vector>
 
+#include "runtime/core/atomic_file.h"
 #include "runtime/nn/model.h"
 #include "runtime/nn/model_file.h"
 #include "runtime/nn/movenet.h"
@@ -169,7 +170,10 @@ int run_convert(Args args) {
   std::printf("imported %s\n", tfjs.c_str());
   print_model(*model, size_px);
   const std::vector<std::uint8_t> bytes = nn::serialize_model(*model);
-  if (Status s = nn::write_file_atomically(bytes, out); !s.ok()) {
+  if (Status s = write_file_atomically(
+          out, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
+          Durability::kDurable);
+      !s.ok()) {
     std::fprintf(stderr, "error: %s\n", s.error().message().c_str());
     return 1;
   }

@@ -166,7 +166,7 @@ TEST(DaemonSimulator, CalibratesItselfFromThePeopleThenStreamsSkeletons) {
   auto cal = load_calibration(file);
   ASSERT_TRUE(cal.ok()) << cal.error().message();
   EXPECT_EQ(cal->size(), 4u);
-  EXPECT_FALSE(fs::exists(file.string() + ".tmp"));
+  EXPECT_TRUE(testing::temporary_files(file.parent_path()).empty());
   // Against the rig the simulator kept to itself.
   auto sim = sim::SimulatorSource::open({});
   ASSERT_TRUE(sim.ok());
