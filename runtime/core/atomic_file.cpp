@@ -39,8 +39,7 @@ Error io_error(const fs::path& path, const std::string& what, int err, const cha
 
 std::string errno_text(int err) { return std::generic_category().message(err); }
 
-Status write_file_atomically(const fs::path& path, std::string_view bytes,
-                             Durability durability) {
+Status write_file_atomically(const fs::path& path, std::string_view bytes, Durability durability) {
   return write_file_atomically(path, durability, [bytes](std::FILE* f) {
     return bytes.empty() || std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
   });
