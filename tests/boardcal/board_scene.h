@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 #include <utility>
@@ -60,12 +61,16 @@ inline std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>> board_poses(int 
     face.col(0) = Eigen::Vector3d(1, 0, 0);
     face.col(1) = Eigen::Vector3d(0, 0, 1);
     face.col(2) = Eigen::Vector3d(0, -1, 0);
-    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(0.7 * u(rng), Eigen::Vector3d::UnitZ()) *
-                                  Eigen::AngleAxisd(0.6 * u(rng), Eigen::Vector3d::UnitX()) *
-                                  Eigen::AngleAxisd(0.6 * u(rng), Eigen::Vector3d::UnitY()))
+    // One draw per statement: the order of operands and arguments is unspecified, and GCC and
+    // clang draw them in opposite orders (the same seed gave two different scenes).
+    std::array<double, 6> d{};
+    for (double& v : d) v = u(rng);
+    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(0.7 * d[0], Eigen::Vector3d::UnitZ()) *
+                                  Eigen::AngleAxisd(0.6 * d[1], Eigen::Vector3d::UnitX()) *
+                                  Eigen::AngleAxisd(0.6 * d[2], Eigen::Vector3d::UnitY()))
                                      .toRotationMatrix();
     const Eigen::Matrix3d R = tilt * face;
-    const Eigen::Vector3d centre(0.45 * u(rng), 0.3 * u(rng), 1.0 + 0.35 * u(rng));
+    const Eigen::Vector3d centre(0.45 * d[3], 0.3 * d[4], 1.0 + 0.35 * d[5]);
     // The board's middle at `centre`.
     const Eigen::Vector3d half(0.35, 0.25, 0);
     poses.emplace_back(R, centre - R * half);
