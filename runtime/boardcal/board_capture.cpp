@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "runtime/core/stats.h"
 #include "runtime/image/image.h"
 
 namespace mocap::boardcal {
@@ -382,13 +383,7 @@ json BoardCapture::status_json() const {
   j["sampled"] = sampled_;
   j["max_samples"] = options_.max_samples;
   j["floor_samples"] = options_.floor_samples;
-  std::vector<double> ms = detect_ms_;
-  double median = 0;
-  if (!ms.empty()) {
-    std::nth_element(ms.begin(), ms.begin() + static_cast<std::ptrdiff_t>(ms.size() / 2), ms.end());
-    median = ms[ms.size() / 2];
-  }
-  j["detect_ms_median"] = round_to(median, 0.1);
+  j["detect_ms_median"] = round_to(sample_median(detect_ms_), 0.1);
   json cams = json::array();
   const int cells = o.grid_cols * o.grid_rows;
   for (const CameraState& c : cameras_) {

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "runtime/boardcal/board_steps.h"
+#include "runtime/core/stats.h"
 
 namespace mocap::boardcal::detail {
 namespace {
@@ -171,9 +172,7 @@ Result<IntrinsicsFit> fit_intrinsics(const BoardSpec& board, const CameraFrames&
       fit.rms_px = cv::calibrateCamera(object, image, cv::Size(cam.width_px, cam.height_px), K,
                                        dist, rvecs, tvecs, sd_in, sd_ex, per_view, flags);
       std::vector<double> errs(per_view.begin<double>(), per_view.end<double>());
-      std::vector<double> sorted = errs;
-      std::sort(sorted.begin(), sorted.end());
-      const double median = sorted[sorted.size() / 2];
+      const double median = sample_median(errs);
       const auto worst = std::max_element(errs.begin(), errs.end());
       if (round == 3 || *worst <= std::max(1.0, 3 * median) ||
           static_cast<int>(object.size()) <= o.min_frames) {

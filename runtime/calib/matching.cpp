@@ -5,6 +5,7 @@
 #include <limits>
 #include <numeric>
 
+#include "runtime/core/stats.h"
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::calib {
@@ -52,8 +53,7 @@ double median_sampson(const Eigen::Matrix3d& F, const Person2D& pa, const Person
   if (c.a.empty()) return std::numeric_limits<double>::infinity();
   std::vector<double> e(c.a.size());
   for (std::size_t i = 0; i < c.a.size(); ++i) e[i] = sampson_sq(F, c.a[i], c.b[i]);
-  std::nth_element(e.begin(), e.begin() + static_cast<std::ptrdiff_t>(e.size() / 2), e.end());
-  return e[e.size() / 2];
+  return sample_median(std::move(e));
 }
 
 struct Scored {

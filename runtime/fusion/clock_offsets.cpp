@@ -4,18 +4,13 @@
 #include <cstdlib>
 #include <vector>
 
+#include "runtime/core/stats.h"
+
 namespace mocap::fusion {
 namespace {
 
 constexpr std::size_t kWindow = 64;
 constexpr std::uint64_t kUpdateEvery = 16;  // samples between two updates of the corrections
-
-std::int64_t median_of(std::vector<std::int64_t> v) {
-  if (v.empty()) return 0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 }  // namespace
 
@@ -29,10 +24,10 @@ void ClockOffsets::add(const std::string& node, std::int64_t source_ns, std::int
 void ClockOffsets::update_corrections() {
   std::vector<std::int64_t> medians;
   for (auto& [name, n] : nodes_) {
-    n.median_offset_ns = median_of({n.offsets_ns.begin(), n.offsets_ns.end()});
+    n.median_offset_ns = sample_median<std::int64_t>({n.offsets_ns.begin(), n.offsets_ns.end()});
     medians.push_back(n.median_offset_ns);
   }
-  const std::int64_t reference = medians.size() >= 3 ? median_of(medians) : 0;
+  const std::int64_t reference = medians.size() >= 3 ? sample_median(medians) : 0;
   for (auto& [name, n] : nodes_) {
     const std::int64_t off = n.median_offset_ns - reference;
     if (n.correction_ns == 0 && std::llabs(off) > period_ns_ / 4)

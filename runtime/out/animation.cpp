@@ -12,6 +12,7 @@
 #include <thread>
 #include <utility>
 
+#include "runtime/core/stats.h"
 #include "runtime/out/take_reader.h"
 #include "runtime/skeleton/topology.h"
 
@@ -34,9 +35,7 @@ double median_interval_rate_hz(const TakeData& take) {
     if (d > 0) intervals_ns.push_back(static_cast<double>(d));
   }
   if (intervals_ns.empty()) return 0;
-  const auto mid = intervals_ns.begin() + static_cast<std::ptrdiff_t>(intervals_ns.size() / 2);
-  std::nth_element(intervals_ns.begin(), mid, intervals_ns.end());
-  return 1e9 / *mid;
+  return 1e9 / sample_median(std::move(intervals_ns));
 }
 
 bool usable_rate(double rate_hz) {

@@ -5,6 +5,7 @@
 #include <limits>
 #include <string>
 
+#include "runtime/core/stats.h"
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::out {
@@ -99,11 +100,9 @@ Matrix3d swing_frame(const Matrix3d& parent, const Vector3d& rest_dir, const Vec
   return swing(parent * rest_dir, d) * parent;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return kNaN;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
+// The middle sample, NaN for none (a length nobody measured).
+double middle_or_nan(std::vector<double> v) {
+  return v.empty() ? kNaN : sample_median(std::move(v));
 }
 
 // BodyLengths as a flat list of its fields (for the estimator and validation).
@@ -461,7 +460,7 @@ BodyLengths ShapeEstimator::lengths() const {
   const BodyLengths defaults;
   const auto f = fields(out);
   for (int i = 0; i < kLengthFields && ix(i) < values_.size(); ++i) {
-    *f[ix(i)] = median(values_[ix(i)]);
+    *f[ix(i)] = middle_or_nan(values_[ix(i)]);
   }
   // Lengths never measured: the adult defaults scaled by the torso.
   const double scale = std::isfinite(out.torso_m) ? out.torso_m / defaults.torso_m : 1.0;
