@@ -21,6 +21,7 @@
 #include "runtime/out/animation.h"
 #include "runtime/out/bvh.h"
 #include "runtime/out/gltf.h"
+#include "runtime/out/take_export.h"
 #include "runtime/out/take_reader.h"
 #include "runtime/out/take_writer.h"
 #include "tools/common/cli.h"
@@ -47,14 +48,6 @@ struct ExportArgs {
   std::string out;
   std::string units = "cm";
   double fps = 0;
-};
-
-// A loaded take and what names it.
-struct Source {
-  out::TakeData data;
-  std::string name;  // the take folder's name, or the stream file's stem
-  fs::path input;    // --take or --stream as given
-  fs::path stream;   // the NDJSON file
 };
 
 int fail(const std::string& message) {
@@ -86,148 +79,24 @@ int check_args(const std::string& command, const ExportArgs& a) {
   return -1;
 }
 
-// The last name of a path given with or without a trailing slash ("takes/walk/" -> "walk").
-std::string last_name(const fs::path& p) {
-  fs::path n = p.lexically_normal();
-  if (n.filename().empty()) n = n.parent_path();
-  if (n.filename().empty() || n.filename() == "." || n.filename() == "..") {
-    std::error_code ec;
-    n = fs::weakly_canonical(p, ec);
-  }
-  return n.filename().string();
-}
-
-Result<Source> load_source(const ExportArgs& a) {
-  Source src;
-  if (!a.take_dir.empty()) {
-    src.input = a.take_dir;
-    src.stream = src.input / out::kTakeStreamFile;
-    src.name = last_name(src.input);
-    Result<out::TakeData> data = out::read_take(src.input);
-    if (!data.ok()) return data.error();
-    src.data = std::move(*data);
-  } else {
-    src.input = a.stream_file;
-    src.stream = src.input;
-    src.name = src.input.stem().string();
-    Result<out::TakeData> data = out::read_stream_file(src.input);
-    if (!data.ok()) return data.error();
-    src.data = std::move(*data);
-  }
-  if (src.data.partial_lines > 0) {
+Result<out::ExportSource> load_source(const ExportArgs& a) {
+  Result<out::ExportSource> src =
+      a.take_dir.empty() ? out::load_stream_file(a.stream_file) : out::load_take_folder(a.take_dir);
+  if (src.ok() && src->data.partial_lines > 0) {
     std::fprintf(stderr,
                  "note: %s: skipped its incomplete last line (the recording was cut off there)\n",
-                 src.stream.c_str());
+                 src->stream.c_str());
   }
   return src;
 }
 
-// "2024-06-01T12:34:56Z" of a Unix time; empty for 0.
-std::string iso_date(std::int64_t unix_ns) {
-  if (unix_ns <= 0) return {};
-  const std::time_t t = static_cast<std::time_t>(unix_ns / 1'000'000'000);
-  std::tm tm{};
-  if (::gmtime_r(&t, &tm) == nullptr) return {};
-  char buf[32];
-  const std::size_t n = std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return std::string(buf, n);
-}
-
-// Metres to 0.1 mm (the stream's precision).
-double round_m(double x_m) { return std::round(x_m * 1e4) / 1e4; }
-
-json lengths_json(const out::BodyLengths& L) {
-  const auto pair = [](const std::array<double, 2>& v) {
-    return json::array({round_m(v[0]), round_m(v[1])});
-  };
-  return {{"hip_half_width_m", round_m(L.hip_half_width_m)},
-          {"torso_m", round_m(L.torso_m)},
-          {"head_m", round_m(L.head_m)},
-          {"head_top_m", round_m(L.head_top_m)},
-          {"left_right", "[left, right]"},
-          {"clavicle_m", pair(L.clavicle_m)},
-          {"upper_arm_m", pair(L.upper_arm_m)},
-          {"forearm_m", pair(L.forearm_m)},
-          {"hand_m", pair(L.hand_m)},
-          {"thigh_m", pair(L.thigh_m)},
-          {"shank_m", pair(L.shank_m)},
-          {"foot_m", pair(L.foot_m)},
-          {"toe_m", pair(L.toe_m)}};
-}
-
-json person_json(const out::PersonAnimation& p, const std::string& file) {
-  json j = {{"id", p.person_id},
-            {"frames_seen", std::count(p.seen.begin(), p.seen.end(), true)},
-            {"first_frame", p.first_seen},
-            {"last_frame", p.last_seen},
-            {"body_lengths_m", lengths_json(p.lengths)}};
-  if (!file.empty()) j["file"] = file;
-  return j;
-}
-
-// Copies take.json's fields the sidecar passes on (when there is a take.json).
-void add_take_metadata(const json& meta, json& j) {
-  if (!meta.is_object()) return;
-  for (const char* key : {"status", "reason", "software", "cameras", "calibration"}) {
-    if (meta.contains(key)) j[key] = meta[key];
-  }
-}
-
-// The sidecar of an export: the take (metadata when there is a take.json), the animation and
-// each person (`files`: the person's file, parallel to anim.persons; may be empty strings).
-json sidecar_json(const Source& src, const out::Animation& anim, const std::string& format,
-                  const std::string& units, const std::vector<std::string>& files) {
-  const json& meta = src.data.metadata;
-  std::int64_t started_ns = src.data.frames.front().capture_unix_ns;
-  if (meta.is_object() && meta.contains("started_unix_ns") &&
-      meta["started_unix_ns"].is_number_integer()) {
-    started_ns = meta["started_unix_ns"].get<std::int64_t>();
-  }
-  json j = {{"schema", "mocap-box.export/1"},
-            {"take", src.name},
-            {"source", src.input.string()},
-            {"format", format},
-            {"units", units},
-            {"frame_rate_hz", anim.frame_rate_hz},
-            {"frame_count", anim.frame_count},
-            {"topology", src.data.topology},
-            {"started_unix_ns", started_ns},
-            {"date", iso_date(started_ns)},
-            {"partial_lines", src.data.partial_lines}};
-  add_take_metadata(meta, j);
-  j["persons"] = json::array();
-  for (std::size_t i = 0; i < anim.persons.size(); ++i) {
-    j["persons"].push_back(person_json(anim.persons[i], i < files.size() ? files[i] : ""));
-  }
-  return j;
-}
-
-Status write_sidecar(const fs::path& file, const json& j) {
-  const std::string text = j.dump(2, ' ', false, json::error_handler_t::replace) + "\n";
-  Status s = write_file_atomically(file, text, Durability::kDurable);
-  if (s.ok()) std::printf("wrote %s\n", file.c_str());
-  return s;
-}
-
-Status make_folder(const fs::path& dir) {
-  if (dir.empty()) return {};
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec || !fs::is_directory(dir, ec)) {
-    return Error(ErrorCode::kIo, dir.string() + ": cannot create the output folder: " +
-                                     (ec ? ec.message() : std::string("a file is in the way")) +
-                                     " (give another --out)");
-  }
-  return {};
-}
-
 // A source and its animation.
 struct Loaded {
-  Source src;
+  out::ExportSource src;
   out::Animation anim;
 };
 Result<Loaded> load_animation(const ExportArgs& a) {
-  Result<Source> src = load_source(a);
+  Result<out::ExportSource> src = load_source(a);
   if (!src.ok()) return src.error();
   Result<out::Animation> anim = out::build_animation(src->data, {.frame_rate_hz = a.fps});
   if (!anim.ok()) return anim.error().with_context(src->stream.string());
@@ -237,30 +106,6 @@ Result<Loaded> load_animation(const ExportArgs& a) {
 void print_summary(const out::Animation& anim, const fs::path& to) {
   std::printf("exported %zu persons, %d frames to %s\n", anim.persons.size(), anim.frame_count,
               to.c_str());
-}
-
-// The BVH file name of a person of the take `take`.
-std::string bvh_file_name(const std::string& take, const out::PersonAnimation& p) {
-  return take + "_person" + std::to_string(p.person_id) + ".bvh";
-}
-
-// One BVH file per person in `dir` (written on several threads); their names.
-Result<std::vector<std::string>> write_bvh_files(const Loaded& loaded,
-                                                 const out::BvhOptions& options,
-                                                 const fs::path& dir) {
-  const Status written = out::for_each_person(loaded.anim, [&](const out::PersonAnimation& p) {
-    return out::write_bvh(loaded.anim, p, options, dir / bvh_file_name(loaded.src.name, p));
-  });
-  if (!written.ok()) return written.error();
-  std::vector<std::string> files;
-  for (const out::PersonAnimation& p : loaded.anim.persons) {
-    const std::string file_name = bvh_file_name(loaded.src.name, p);
-    std::printf("wrote %s (person %d, seen in %d of %d frames)\n", (dir / file_name).c_str(),
-                p.person_id, static_cast<int>(std::count(p.seen.begin(), p.seen.end(), true)),
-                loaded.anim.frame_count);
-    files.push_back(file_name);
-  }
-  return files;
 }
 
 int run_bvh(Args args) {
@@ -286,13 +131,15 @@ int run_bvh(Args args) {
   if (!loaded.ok()) return fail(loaded.error().message());
   const out::Animation& anim = loaded->anim;
   const fs::path dir = a.out;
-  if (Status s = make_folder(dir); !s.ok()) return fail(s.error().message());
-  Result<std::vector<std::string>> files = write_bvh_files(*loaded, options, dir);
+  Result<out::ExportedFiles> files = out::export_bvh(loaded->src, anim, options, dir);
   if (!files.ok()) return fail(files.error().message());
-  const json sidecar = sidecar_json(loaded->src, anim, "bvh", a.units, *files);
-  if (Status s = write_sidecar(dir / (loaded->src.name + ".json"), sidecar); !s.ok()) {
-    return fail(s.error().message());
+  for (std::size_t i = 0; i < anim.persons.size(); ++i) {
+    const out::PersonAnimation& p = anim.persons[i];
+    std::printf("wrote %s (person %d, seen in %d of %d frames)\n",
+                (dir / files->person_files[i]).c_str(), p.person_id,
+                static_cast<int>(std::count(p.seen.begin(), p.seen.end(), true)), anim.frame_count);
   }
+  std::printf("wrote %s\n", (dir / files->sidecar).c_str());
   print_summary(anim, dir);
   return 0;
 }
@@ -317,15 +164,11 @@ int run_gltf(Args args) {
   }
   Result<Loaded> loaded = load_animation(a);
   if (!loaded.ok()) return fail(loaded.error().message());
-  if (Status s = make_folder(file.parent_path()); !s.ok()) return fail(s.error().message());
-  if (Status s = out::write_gltf(loaded->anim, {.binary = ext == ".glb"}, file); !s.ok()) {
-    return fail(s.error().message());
-  }
+  Result<out::ExportedFiles> files =
+      out::export_gltf(loaded->src, loaded->anim, {.binary = ext == ".glb"}, file);
+  if (!files.ok()) return fail(files.error().message());
   std::printf("wrote %s\n", file.c_str());
-  fs::path sidecar_file = file;
-  sidecar_file.replace_extension(".take.json");
-  const json sidecar = sidecar_json(loaded->src, loaded->anim, "gltf", "m", {});
-  if (Status s = write_sidecar(sidecar_file, sidecar); !s.ok()) return fail(s.error().message());
+  std::printf("wrote %s\n", (file.parent_path() / files->sidecar).c_str());
   print_summary(loaded->anim, file);
   return 0;
 }
@@ -368,7 +211,8 @@ int run_ndjson(Args args) {
   parser.option("--out", &a.out, "FILE", "output file (.ndjson)");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (int rc = check_args(command, a); rc >= 0) return rc;
-  Result<Source> src = load_source(a);  // checks the stream first: a foreign file is refused
+  Result<out::ExportSource> src =
+      load_source(a);  // checks the stream first: a foreign file is refused
   if (!src.ok()) return fail(src.error().message());
   const fs::path file = a.out;
   std::error_code ec;
@@ -377,7 +221,9 @@ int run_ndjson(Args args) {
   }
   Result<std::uint64_t> bytes = out::complete_lines_bytes(src->stream);
   if (!bytes.ok()) return fail(bytes.error().message());
-  if (Status s = make_folder(file.parent_path()); !s.ok()) return fail(s.error().message());
+  if (Status s = out::make_export_folder(file.parent_path()); !s.ok()) {
+    return fail(s.error().message());
+  }
   if (Status s = copy_prefix(src->stream, file, *bytes); !s.ok()) return fail(s.error().message());
   std::set<int> ids;
   for (const out::TakeFrame& f : src->data.frames) {

@@ -5,9 +5,7 @@
 
 #include "runtime/core/log.h"
 #include "runtime/out/animation.h"
-#include "runtime/out/bvh.h"
-#include "runtime/out/gltf.h"
-#include "runtime/out/take_reader.h"
+#include "runtime/out/take_export.h"
 
 MOCAP_LOG_CATEGORY(Exports)
 
@@ -71,17 +69,14 @@ Status TakeExports::export_take(const fs::path& take_dir) {
     std::ofstream(out_dir / "error.txt") << e.message() << "\n";
     return e;
   };
-  Result<out::TakeData> take = out::read_take(take_dir);
-  if (!take.ok()) return fail(take.error());
-  Result<out::Animation> anim = out::build_animation(*take, {});
+  Result<out::ExportSource> src = out::load_take_folder(take_dir);
+  if (!src.ok()) return fail(src.error());
+  Result<out::Animation> anim = out::build_animation(src->data, {});
   if (!anim.ok()) return fail(anim.error());
-  const Status bvh = out::for_each_person(*anim, [&](const out::PersonAnimation& p) {
-    return out::write_bvh(*anim, p, {},
-                          out_dir / (name + "_person" + std::to_string(p.person_id) + ".bvh"));
-  });
-  if (!bvh.ok()) return fail(bvh.error());
-  if (Status s = out::write_gltf(*anim, {.binary = true}, out_dir / (name + ".glb")); !s.ok()) {
-    return fail(s.error());
+  if (auto bvh = out::export_bvh(*src, *anim, {}, out_dir); !bvh.ok()) return fail(bvh.error());
+  if (auto glb = out::export_gltf(*src, *anim, {.binary = true}, out_dir / (name + ".glb"));
+      !glb.ok()) {
+    return fail(glb.error());
   }
   fs::remove(out_dir / "error.txt", ec);
   MOCAP_LOG(Exports, Info) << "take " << name << ": exports written (" << anim->persons.size()
@@ -100,7 +95,8 @@ std::vector<std::string> TakeExports::files(const fs::path& take_dir) {
        it.increment(ec)) {
     const std::string f = it->path().filename().string();
     const std::string ext = it->path().extension().string();
-    if ((ext == ".bvh" || ext == ".glb") &&
+    const bool top_name = f == "skeletons.ndjson" || f == "take.json";  // a take named "take"
+    if ((ext == ".bvh" || ext == ".glb" || ext == ".json") && !top_name &&
         it->symlink_status(ec).type() == fs::file_type::regular) {
       exports.push_back(f);  // a link could point anywhere: not served
     }

@@ -161,12 +161,22 @@ TEST_F(WebTest, TakeDownloadsAndNothingOutsideTakes) {
   for (int i = 0; i < 100; ++i) {  // the exports are written in the background
     const json list = json::parse(request(port_, "GET", "/takes").body, nullptr, false);
     take = list["takes"][0];
-    if (take["files"].size() >= 4 && !take["exporting"].get<bool>()) break;
+    if (take["files"].size() >= 6 && !take["exporting"].get<bool>()) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
   const std::vector<std::string> files = take["files"].get<std::vector<std::string>>();
-  ASSERT_GE(files.size(), 5u) << take.dump();  // ndjson, take.json, 2 BVH, glb
+  // ndjson, take.json, 2 BVH, glb and the two sidecars `mocap export` writes
+  ASSERT_GE(files.size(), 7u) << take.dump();
   EXPECT_EQ(files[0], "skeletons.ndjson");
+  const Answer sidecar = request(port_, "GET", "/takes/walk/walk.json");
+  ASSERT_EQ(sidecar.status, 200) << sidecar.body;
+  const json meta = json::parse(sidecar.body, nullptr, false);
+  EXPECT_EQ(meta["schema"], "mocap-box.export/1") << sidecar.body;
+  EXPECT_EQ(meta["take"], "walk");
+  EXPECT_EQ(meta["format"], "bvh");
+  ASSERT_GE(meta["persons"].size(), 1u);
+  EXPECT_EQ(meta["persons"][0]["file"], "walk_person0.bvh");
+  EXPECT_EQ(request(port_, "GET", "/takes/walk/walk.take.json").status, 200);
   const Answer bvh = request(port_, "GET", "/takes/walk/walk_person0.bvh");
   ASSERT_EQ(bvh.status, 200) << bvh.body;
   EXPECT_EQ(bvh.body.substr(0, 9), "HIERARCHY");
