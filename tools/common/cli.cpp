@@ -160,12 +160,21 @@ Result<std::vector<int>> parse_int_list(std::string_view text) {
   return out;
 }
 
+int fail(std::string_view message) {
+  std::fprintf(stderr, "error: %.*s\n", static_cast<int>(message.size()), message.data());
+  return 1;
+}
+
+int fail(const Error& error) { return fail(error.message()); }
+
+int usage_error(std::string_view message) {
+  fail(message);
+  return 2;
+}
+
 int handle_parse(ArgParser& parser, std::span<const std::string_view> args) {
   Status s = parser.parse(args);
-  if (!s.ok()) {
-    std::fprintf(stderr, "error: %s\n", s.error().message().c_str());
-    return 2;
-  }
+  if (!s.ok()) return usage_error(s.error().message());
   if (parser.help_requested()) {
     std::fputs(parser.help().c_str(), stdout);
     return 0;

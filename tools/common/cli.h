@@ -49,6 +49,13 @@ class ArgParser {
   bool help_requested_ = false;
 };
 
+// A command's failure the user can fix: "error: MESSAGE" on stderr (the message names the
+// thing and the fix); returns exit code 1 (2 is a usage error, handle_parse's).
+int fail(std::string_view message);
+int fail(const Error& error);
+// A command given wrong arguments: "error: MESSAGE" on stderr; returns exit code 2.
+int usage_error(std::string_view message);
+
 // Parses a comma-separated list of non-negative integers ("0,2,4").
 Result<std::vector<int>> parse_int_list(std::string_view text);
 

@@ -67,8 +67,7 @@ class Digest {
 // The simulator renders all frames first, so only the engine is timed.
 int bench_synthetic(int views, int people, int frames, bool no_fit) {
   if (views < 2 || views > 64 || people < 0 || people > 64 || frames < 1) {
-    std::fprintf(stderr, "error: need --views in [2, 64], --people in [0, 64], --frames >= 1\n");
-    return 2;
+    return cli::usage_error("need --views in [2, 64], --people in [0, 64], --frames >= 1");
   }
   sim::SceneOptions scene;
   scene.people = people;
@@ -80,16 +79,14 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   auto simulator =
       sim::Simulator::create(rig, scene, sim::DetectionNoiseOptions{}, body19_topology());
   if (!simulator.ok()) {
-    std::fprintf(stderr, "error: %s\n", simulator.error().message().c_str());
-    return 1;
+    return cli::fail(simulator.error().message());
   }
   std::vector<DetectionSet> rendered;
   std::vector<int> truth_count;
   for (int f = 0; f < frames; ++f) {
     auto r = simulator->next();
     if (!r.ok()) {
-      std::fprintf(stderr, "error: %s\n", r.error().message().c_str());
-      return 1;
+      return cli::fail(r.error().message());
     }
     rendered.push_back(std::move(r->detections));
     truth_count.push_back(static_cast<int>(simulator->truth_ref().persons.size()));
@@ -98,8 +95,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   opt.fit.enabled = !no_fit;
   auto engine = assoc::Engine::create(body19_topology(), simulator->rig().cameras, opt);
   if (!engine.ok()) {
-    std::fprintf(stderr, "error: %s\n", engine.error().message().c_str());
-    return 1;
+    return cli::fail(engine.error().message());
   }
   std::vector<double> assoc;
   std::vector<double> fit;
@@ -112,8 +108,7 @@ int bench_synthetic(int views, int people, int frames, bool no_fit) {
   for (std::size_t f = 0; f < rendered.size(); ++f) {
     auto r = (*engine)->process(rendered[f]);
     if (!r.ok()) {
-      std::fprintf(stderr, "error: %s\n", r.error().message().c_str());
-      return 1;
+      return cli::fail(r.error().message());
     }
     digest.add(*r);
     const auto& st = r->stats;
@@ -181,8 +176,7 @@ int bench_assoc(Args args) {
   p.flag("--no-fit", &no_fit, "skip the parametric skeleton fit (triangulated joints only)");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   if (repeat < 1) {
-    std::fprintf(stderr, "error: --repeat must be >= 1\n");
-    return 2;
+    return cli::usage_error("--repeat must be >= 1");
   }
   std::vector<double> assoc;
   std::vector<double> fit;
@@ -194,8 +188,7 @@ int bench_assoc(Args args) {
   opt.association.fit.enabled = !no_fit;
   auto run = run_shelf_sequence(data, opt);
   if (!run.ok()) {
-    std::fprintf(stderr, "error: %s\n", run.error().message().c_str());
-    return 1;
+    return cli::fail(run.error().message());
   }
   for (const ShelfFrameTiming& t : run->timings) {
     assoc.push_back(t.association_ms);

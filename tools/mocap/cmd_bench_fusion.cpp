@@ -130,8 +130,7 @@ int live_stage(const FusionBenchOptions& o) {
   so.frame_rate_hz = o.rate_hz;
   auto st = dds::Stage::join(so);
   if (!st.ok()) {
-    std::fprintf(stderr, "error: %s\n", st.error().message().c_str());
-    return 1;
+    return cli::fail(st.error().message());
   }
   auto ring = sim::simulator_ring(o.people, views);
   dds::FusionSourceOptions fo;
@@ -230,8 +229,7 @@ int run_bench_fusion(Args args) {
       for (int people : {5, 10, 20}) {
         auto ms = engine_ms(v, people, std::max(20, o.frames / 4));
         if (!ms.ok()) {
-          std::fprintf(stderr, "error: %s\n", ms.error().message().c_str());
-          return 1;
+          return cli::fail(ms.error().message());
         }
         std::printf("  %7.2f (%5.0f)", *ms, 1000.0 / *ms);
         std::fflush(stdout);
@@ -244,8 +242,7 @@ int run_bench_fusion(Args args) {
   }
   auto ms = engine_ms(views, o.people, o.frames);
   if (!ms.ok()) {
-    std::fprintf(stderr, "error: %s\n", ms.error().message().c_str());
-    return 1;
+    return cli::fail(ms.error().message());
   }
   std::printf("association + fitting at %d views x %d people: median %.3f ms/frame\n", views,
               o.people, *ms);

@@ -33,8 +33,7 @@ int run_show(Args args) {
 
   Result<Calibration> calib = load_calibration(file);
   if (!calib.ok()) {
-    std::fprintf(stderr, "error: %s\n", calib.error().message().c_str());
-    return 1;
+    return cli::fail(calib.error().message());
   }
   std::printf("%s: %zu views\n", file.c_str(), calib->size());
   for (std::size_t i = 0; i < calib->size(); ++i) {
@@ -94,13 +93,11 @@ int run_compare(Args args) {
   Result<Calibration> ref = load_calibration(reference);
   Result<Calibration> got = ref.ok() ? load_calibration(file) : ref;
   if (!got.ok()) {
-    std::fprintf(stderr, "error: %s\n", got.error().message().c_str());
-    return 1;
+    return cli::fail(got.error().message());
   }
   auto c = calib::compare_calibrations(*ref, *got);
   if (!c.ok()) {
-    std::fprintf(stderr, "error: %s\n", c.error().message().c_str());
-    return 1;
+    return cli::fail(c.error().message());
   }
   std::printf("%s against %s: %zu cameras, scale %.6f (FILE units to REFERENCE metres)\n",
               file.c_str(), reference.c_str(), c->cameras.size(), c->scale);

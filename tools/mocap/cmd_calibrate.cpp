@@ -30,11 +30,6 @@
 namespace mocap::tools {
 namespace {
 
-int fail(const Error& e) {
-  std::fprintf(stderr, "error: %s\n", e.message().c_str());
-  return 1;
-}
-
 constexpr const char* kHelp =
     "Calibrates the cameras from the people walking in the room, no board: each view's 2D\n"
     "people over time are matched across views by epipolar consistency (RANSAC), the views\n"
@@ -105,8 +100,8 @@ int run_people(Args args) {
            "write what the solve saw and tried: report.json (views, view pairs, every "
            "hypothesis with its registration steps) and coverage_view<N>.png per view");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (Status s = src.check(); !s.ok()) return fail(s.error());
-  if (out.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--out FILE is required"));
+  if (Status s = src.check(); !s.ok()) return cli::fail(s.error());
+  if (out.empty()) return cli::fail(Error(ErrorCode::kInvalidArgument, "--out FILE is required"));
   calib::SelfCalibrationOptions opt;
   opt.person_height_m = height_m;
   opt.refine_intrinsics = refine_intrinsics;
@@ -118,36 +113,36 @@ int run_people(Args args) {
   }
   if (!reference.empty()) {
     auto ref = load_calibration(reference);
-    if (!ref.ok()) return fail(ref.error().with_context("--reference"));
+    if (!ref.ok()) return cli::fail(ref.error().with_context("--reference"));
     opt.reference = std::move(*ref);
   }
-  if (Status s = opt.validate(); !s.ok()) return fail(s.error().with_context("--height-m"));
+  if (Status s = opt.validate(); !s.ok()) return cli::fail(s.error().with_context("--height-m"));
   std::unique_ptr<calib::KeypointCollector> keypoints;
   std::vector<calib::CameraPrior> priors;
   Status collected = collect_people(src, keep_intrinsics, keypoints, priors);
-  if (!collected.ok()) return fail(collected.error());
+  if (!collected.ok()) return cli::fail(collected.error());
   if (!keypoints_out.empty()) {
     if (Status s = io::write_text_file(keypoints_out, keypoints->to_json() + "\n"); !s.ok()) {
-      return fail(s.error());
+      return cli::fail(s.error());
     }
   }
   auto result = calib::self_calibrate(*keypoints, priors, opt);
-  if (!result.ok()) return fail(result.error());
+  if (!result.ok()) return cli::fail(result.error());
   const calib::CalibrationQuality& q = result->quality;
   std::fputs(calib::format_quality(q).c_str(), stdout);
   if (!debug_dir.empty()) {
     if (Status s = calib::write_debug_dir(debug_dir, *keypoints, priors, opt, *result); !s.ok()) {
-      return fail(s.error());
+      return cli::fail(s.error());
     }
     std::printf("debug files written to %s\n", debug_dir.c_str());
   }
   if (!report.empty()) {
     if (Status s = io::write_text_file(report, calib::quality_to_json(q) + "\n"); !s.ok()) {
-      return fail(s.error());
+      return cli::fail(s.error());
     }
   }
   if (!result->calibration) return 1;
-  if (Status s = save_calibration(*result->calibration, out); !s.ok()) return fail(s.error());
+  if (Status s = save_calibration(*result->calibration, out); !s.ok()) return cli::fail(s.error());
   std::printf("calibration written to %s\n", out.c_str());
   std::printf("calibration_reprojection_px=%.2f\n", q.median_px);
   return 0;

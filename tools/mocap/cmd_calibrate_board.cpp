@@ -24,11 +24,6 @@ namespace {
 std::atomic<bool> g_interrupted{false};
 void on_signal(int) { g_interrupted = true; }
 
-int fail(const Error& e) {
-  std::fprintf(stderr, "error: %s\n", e.message().c_str());
-  return 1;
-}
-
 constexpr const char* kHelp =
     "Calibrates the cameras from a ChArUco board or a chessboard waved through the volume:\n"
     "each camera's focal length, principal point and lens distortion (k1 k2 p1 p2 k3) from\n"
@@ -142,11 +137,12 @@ int run_calibrate_board(Args args) {
   p.option("--report", &report, "FILE", "write the report as JSON");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   if ((src.recording.empty() ? 0 : 1) + (src.images.empty() ? 0 : 1) + (use_live ? 1 : 0) != 1) {
-    return fail(Error(ErrorCode::kInvalidArgument,
-                      "give one of --recording DIR, --images GLOBS or --live"));
+    return cli::fail(Error(ErrorCode::kInvalidArgument,
+                           "give one of --recording DIR, --images GLOBS or --live"));
   }
-  if (board_arg.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--board is required"));
-  if (out.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--out FILE is required"));
+  if (board_arg.empty())
+    return cli::fail(Error(ErrorCode::kInvalidArgument, "--board is required"));
+  if (out.empty()) return cli::fail(Error(ErrorCode::kInvalidArgument, "--out FILE is required"));
   opt.refine_intrinsics = !hold;
   if (lens == "simple") {
     opt.lens = boardcal::LensModel::kSimple;
@@ -155,17 +151,17 @@ int run_calibrate_board(Args args) {
   } else if (lens == "full") {
     opt.lens = boardcal::LensModel::kFull;
   } else if (lens != "auto") {
-    return fail(Error(ErrorCode::kInvalidArgument,
-                      "--lens " + lens + ": give auto, simple, radial or full"));
+    return cli::fail(Error(ErrorCode::kInvalidArgument,
+                           "--lens " + lens + ": give auto, simple, radial or full"));
   }
   if (!intrinsics.empty()) {
     auto file = load_calibration(intrinsics);
-    if (!file.ok()) return fail(file.error().with_context("--intrinsics"));
+    if (!file.ok()) return cli::fail(file.error().with_context("--intrinsics"));
     opt.intrinsics = std::move(*file);
   }
-  if (Status s = opt.validate(); !s.ok()) return fail(s.error());
+  if (Status s = opt.validate(); !s.ok()) return cli::fail(s.error());
   auto board = boardcal::board_from_argument(board_arg);
-  if (!board.ok()) return fail(board.error());
+  if (!board.ok()) return cli::fail(board.error());
   std::printf("board %s\n", board->to_spec().c_str());
   Result<boardcal::BoardCalibrationResult> result = Error(ErrorCode::kInternal, "not solved");
   if (use_live) {
@@ -173,18 +169,18 @@ int run_calibrate_board(Args args) {
     live.capture.calibration = opt;
     live.capture.calibration.floor_frames = 0;  // BoardCapture sets it from floor_samples
     if (opt.still_px > 0) live.still_px = opt.still_px;
-    if (Status s = live.validate(); !s.ok()) return fail(s.error());
+    if (Status s = live.validate(); !s.ok()) return cli::fail(s.error());
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);
     result = calibrate_board_live(*board, live, g_interrupted);
     if (!result.ok() && result.error().code() != ErrorCode::kInvalidArgument) {
-      return fail(result.error());
+      return cli::fail(result.error());
     }
   } else {
     auto detector = boardcal::BoardDetector::create(*board);
-    if (!detector.ok()) return fail(detector.error());
+    if (!detector.ok()) return cli::fail(detector.error());
     auto cams = collect_board_frames(src, *detector);
-    if (!cams.ok()) return fail(cams.error());
+    if (!cams.ok()) return cli::fail(cams.error());
     print_cameras(*cams);
     result = boardcal::calibrate_board(*board, *cams, opt);
   }
@@ -195,10 +191,10 @@ int run_calibrate_board(Args args) {
   print_result(*result);
   if (!report.empty()) {
     if (Status s = io::write_text_file(report, boardcal::board_report_json(*result)); !s.ok()) {
-      return fail(s.error());
+      return cli::fail(s.error());
     }
   }
-  if (Status s = save_with_backup(result->calibration, out); !s.ok()) return fail(s.error());
+  if (Status s = save_with_backup(result->calibration, out); !s.ok()) return cli::fail(s.error());
   const auto board_file = std::filesystem::path(out).parent_path() / "board.json";
   std::error_code ec;
   if (!std::filesystem::exists(board_file, ec)) {

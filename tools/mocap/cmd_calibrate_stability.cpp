@@ -123,10 +123,7 @@ int run_calibrate_stability(Args args) {
   p.option("--target-center-m", &target_center_m, "M",
            "the centre target the within_2x count uses (default 0.10)");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  auto usage = [](const std::string& what) {
-    std::fprintf(stderr, "error: %s\n", what.c_str());
-    return 2;
-  };
+  auto usage = [](const std::string& what) { return cli::usage_error(what); };
   if (Status s = src.check(); !s.ok()) return usage(s.error().message());
   if (!src.recording.empty()) {
     return usage(
@@ -137,14 +134,12 @@ int run_calibrate_stability(Args args) {
   if (runs < 1 || runs > 1000) return usage("--runs must be in [1, 1000]");
   auto ref = load_calibration(reference);
   if (!ref.ok()) {
-    std::fprintf(stderr, "error: --reference: %s\n", ref.error().message().c_str());
-    return 2;
+    return cli::usage_error("--reference: " + ref.error().message());
   }
   std::unique_ptr<calib::KeypointCollector> keypoints;
   std::vector<calib::CameraPrior> priors;
   if (Status s = collect_people(src, keep_intrinsics, keypoints, priors); !s.ok()) {
-    std::fprintf(stderr, "error: %s\n", s.error().message().c_str());
-    return 1;
+    return cli::fail(s.error().message());
   }
   std::mt19937_64 rng(static_cast<std::uint64_t>(seed));
   int accepted = 0, refused = 0, within = 0, over10 = 0;

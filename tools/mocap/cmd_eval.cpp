@@ -66,40 +66,34 @@ int eval_shelf(Args args) {
   opt.association.fit.enabled = !no_fit;
   auto smooth = smoothing.get();
   if (!smooth.ok()) {
-    std::fprintf(stderr, "error: %s\n", smooth.error().message().c_str());
-    return 2;
+    return cli::usage_error(smooth.error().message());
   }
   opt.association.fit.smoothing = *smooth;
   if (!views_text.empty()) {
     auto v = cli::parse_int_list(views_text);
     if (!v.ok()) {
-      std::fprintf(stderr, "error: --views: %s\n", v.error().message().c_str());
-      return 2;
+      return cli::usage_error("--views: " + v.error().message());
     }
     opt.views = *v;
     if (opt.views.size() < 2) {
-      std::fprintf(stderr, "error: --views needs at least 2 views\n");
-      return 2;
+      return cli::usage_error("--views needs at least 2 views");
     }
   }
   const std::filesystem::path dir(data);
   if (!calibration.empty()) {
     auto mapped = shelf_frame_calibration(dir / "calibration.json", calibration);
     if (!mapped.ok()) {
-      std::fprintf(stderr, "error: --calibration: %s\n", mapped.error().message().c_str());
-      return 1;
+      return cli::fail("--calibration: " + mapped.error().message());
     }
     opt.calibration = std::move(*mapped);
   }
   auto gt = load_shelf_gt(dir / "gt.txt");
   if (!gt.ok()) {
-    std::fprintf(stderr, "error: %s\n", gt.error().message().c_str());
-    return 1;
+    return cli::fail(gt.error().message());
   }
   auto run = run_shelf_sequence(dir, opt);
   if (!run.ok()) {
-    std::fprintf(stderr, "error: %s\n", run.error().message().c_str());
-    return 1;
+    return cli::fail(run.error().message());
   }
   if (run->estimates.size() != gt->size()) {
     std::fprintf(stderr, "error: %s has %zu frames but the detections have %zu\n",
@@ -118,13 +112,11 @@ int eval_shelf(Args args) {
   }
   auto report = evaluate_shelf_pcp(*gt, run->estimates);
   if (!report.ok()) {
-    std::fprintf(stderr, "error: %s\n", report.error().message().c_str());
-    return 1;
+    return cli::fail(report.error().message());
   }
   if (!estimates_out.empty()) {
     if (Status s = write_shelf_gt(estimates_out, to_shelf_gt_frames(run->estimates)); !s.ok()) {
-      std::fprintf(stderr, "error: %s\n", s.error().message().c_str());
-      return 1;
+      return cli::fail(s.error().message());
     }
   }
   std::printf("Shelf: %zu frames, %d views\n", gt->size(), run->views_used);
@@ -163,38 +155,32 @@ int eval_shelf_ceiling(Args args) {
            "a candidate supports a point that reprojects within this distance (default: 25)");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   if (Status s = copt.validate(); !s.ok()) {
-    std::fprintf(stderr, "error: --max-reprojection-px: %s\n", s.error().message().c_str());
-    return 2;
+    return cli::usage_error("--max-reprojection-px: " + s.error().message());
   }
   ShelfRunOptions opt;
   if (!views_text.empty()) {
     auto v = cli::parse_int_list(views_text);
     if (!v.ok()) {
-      std::fprintf(stderr, "error: --views: %s\n", v.error().message().c_str());
-      return 2;
+      return cli::usage_error("--views: " + v.error().message());
     }
     opt.views = *v;
     if (opt.views.size() < 2) {
-      std::fprintf(stderr, "error: --views needs at least 2 views\n");
-      return 2;
+      return cli::usage_error("--views needs at least 2 views");
     }
   }
   const std::filesystem::path dir(data);
   auto gt = load_shelf_gt(dir / "gt.txt");
   if (!gt.ok()) {
-    std::fprintf(stderr, "error: %s\n", gt.error().message().c_str());
-    return 1;
+    return cli::fail(gt.error().message());
   }
   // The engine run validates the calibration and the view list and names what is wrong.
   auto run = run_shelf_sequence(dir, opt);
   if (!run.ok()) {
-    std::fprintf(stderr, "error: %s\n", run.error().message().c_str());
-    return 1;
+    return cli::fail(run.error().message());
   }
   auto calib = load_calibration(dir / "calibration.json");
   if (!calib.ok()) {
-    std::fprintf(stderr, "error: %s\n", calib.error().message().c_str());
-    return 1;
+    return cli::fail(calib.error().message());
   }
   std::vector<int> views = opt.views;
   if (views.empty()) {
@@ -207,8 +193,7 @@ int eval_shelf_ceiling(Args args) {
   }
   auto detections = load_shelf_detections(dir / "detection", views, sizes);
   if (!detections.ok()) {
-    std::fprintf(stderr, "error: %s\n", detections.error().message().c_str());
-    return 1;
+    return cli::fail(detections.error().message());
   }
   if (detections->size() != gt->size()) {
     std::fprintf(stderr, "error: %s has %zu frames but the detections have %zu\n",
@@ -221,8 +206,7 @@ int eval_shelf_ceiling(Args args) {
   for (std::size_t f = 0; f < gt->size(); ++f) {
     auto est = detection_ceiling_frame((*detections)[f], calib->cameras, (*gt)[f], copt, &cstats);
     if (!est.ok()) {
-      std::fprintf(stderr, "error: %s\n", est.error().message().c_str());
-      return 1;
+      return cli::fail(est.error().message());
     }
     ceiling.push_back(std::move(*est));
   }
@@ -230,8 +214,7 @@ int eval_shelf_ceiling(Args args) {
   auto engine_report = evaluate_shelf_pcp(*gt, run->estimates);
   if (!ceiling_report.ok() || !engine_report.ok()) {
     const Error& e = ceiling_report.ok() ? engine_report.error() : ceiling_report.error();
-    std::fprintf(stderr, "error: %s\n", e.message().c_str());
-    return 1;
+    return cli::fail(e.message());
   }
   std::printf(
       "Shelf detection ceiling: %zu frames, %zu views; detector joints at the supported point "

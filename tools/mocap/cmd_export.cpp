@@ -50,11 +50,6 @@ struct ExportArgs {
   double fps = 0;
 };
 
-int fail(const std::string& message) {
-  std::fprintf(stderr, "error: %s\n", message.c_str());
-  return 1;
-}
-
 int usage_error(const std::string& command, const std::string& message) {
   std::fprintf(stderr, "error: %s (see %s --help)\n", message.c_str(), command.c_str());
   return 2;
@@ -128,11 +123,11 @@ int run_bvh(Args args) {
   out::BvhOptions options;
   options.units = a.units == "m" ? out::BvhUnits::kMetres : out::BvhUnits::kCentimetres;
   Result<Loaded> loaded = load_animation(a);
-  if (!loaded.ok()) return fail(loaded.error().message());
+  if (!loaded.ok()) return cli::fail(loaded.error().message());
   const out::Animation& anim = loaded->anim;
   const fs::path dir = a.out;
   Result<out::ExportedFiles> files = out::export_bvh(loaded->src, anim, options, dir);
-  if (!files.ok()) return fail(files.error().message());
+  if (!files.ok()) return cli::fail(files.error().message());
   for (std::size_t i = 0; i < anim.persons.size(); ++i) {
     const out::PersonAnimation& p = anim.persons[i];
     std::printf("wrote %s (person %d, seen in %d of %d frames)\n",
@@ -163,10 +158,10 @@ int run_gltf(Args args) {
     return usage_error(command, "--out " + a.out + ": the file must end in .gltf or .glb");
   }
   Result<Loaded> loaded = load_animation(a);
-  if (!loaded.ok()) return fail(loaded.error().message());
+  if (!loaded.ok()) return cli::fail(loaded.error().message());
   Result<out::ExportedFiles> files =
       out::export_gltf(loaded->src, loaded->anim, {.binary = ext == ".glb"}, file);
-  if (!files.ok()) return fail(files.error().message());
+  if (!files.ok()) return cli::fail(files.error().message());
   std::printf("wrote %s\n", file.c_str());
   std::printf("wrote %s\n", (file.parent_path() / files->sidecar).c_str());
   print_summary(loaded->anim, file);
@@ -213,18 +208,19 @@ int run_ndjson(Args args) {
   if (int rc = check_args(command, a); rc >= 0) return rc;
   Result<out::ExportSource> src =
       load_source(a);  // checks the stream first: a foreign file is refused
-  if (!src.ok()) return fail(src.error().message());
+  if (!src.ok()) return cli::fail(src.error().message());
   const fs::path file = a.out;
   std::error_code ec;
   if (fs::exists(file, ec) && fs::equivalent(file, src->stream, ec)) {
-    return fail(file.string() + ": is the take's own stream: give another --out");
+    return cli::fail(file.string() + ": is the take's own stream: give another --out");
   }
   Result<std::uint64_t> bytes = out::complete_lines_bytes(src->stream);
-  if (!bytes.ok()) return fail(bytes.error().message());
+  if (!bytes.ok()) return cli::fail(bytes.error().message());
   if (Status s = out::make_export_folder(file.parent_path()); !s.ok()) {
-    return fail(s.error().message());
+    return cli::fail(s.error().message());
   }
-  if (Status s = copy_prefix(src->stream, file, *bytes); !s.ok()) return fail(s.error().message());
+  if (Status s = copy_prefix(src->stream, file, *bytes); !s.ok())
+    return cli::fail(s.error().message());
   std::set<int> ids;
   for (const out::TakeFrame& f : src->data.frames) {
     for (const out::TakePerson& p : f.persons) ids.insert(p.id);

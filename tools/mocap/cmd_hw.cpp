@@ -30,11 +30,6 @@ void install_interrupt() {
   std::signal(SIGTERM, on_signal);
 }
 
-int fail(const Error& e) {
-  std::fprintf(stderr, "error: %s\n", e.message().c_str());
-  return 1;
-}
-
 std::vector<std::string> split_list(const std::string& text) {
   std::vector<std::string> out;
   std::size_t start = 0;
@@ -179,8 +174,8 @@ int run_cameras(Args args) {
   parser.option("--dev-dir", &dev_dir, "DIR", "where the V4L2 nodes are (default /dev)");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (backend != "all" && backend != "v4l2" && backend != "libcamera") {
-    return fail(Error(ErrorCode::kInvalidArgument,
-                      "--backend '" + backend + "': expected all, v4l2 or libcamera"));
+    return cli::fail(Error(ErrorCode::kInvalidArgument,
+                           "--backend '" + backend + "': expected all, v4l2 or libcamera"));
   }
   std::size_t n = 0;
   if (backend != "libcamera") {
@@ -212,7 +207,7 @@ int record(const CameraArgs& cam, const std::vector<std::string>& devices, int s
            const std::string& out, const std::string& calibration) {
   Result<std::vector<std::unique_ptr<hal::CameraSource>>> opened =
       open_cameras(cam, devices, nullptr);
-  if (!opened) return fail(opened.error());
+  if (!opened) return cli::fail(opened.error());
   std::vector<std::unique_ptr<hal::CameraSource>> sources = std::move(*opened);
   const double rate = max_frame_rate_hz(sources);
   hal::RecorderOptions ro;
@@ -221,13 +216,13 @@ int record(const CameraArgs& cam, const std::vector<std::string>& devices, int s
   ro.frame_rate_hz = rate > 0 ? rate : 30.0;
   if (!calibration.empty()) ro.calibration = calibration;
   Result<std::unique_ptr<hal::Recorder>> rec = hal::Recorder::create(ro);
-  if (!rec) return fail(rec.error());
+  if (!rec) return cli::fail(rec.error());
   hal::CaptureRigOptions opt;
   opt.sync.cameras = ro.views;
   opt.sync.frame_period_ms = 1000.0 / ro.frame_rate_hz;
   Result<std::unique_ptr<hal::CaptureRig>> rig = hal::CaptureRig::create(std::move(sources), opt);
-  if (!rig) return fail(rig.error());
-  if (Status s = (*rig)->start(); !s.ok()) return fail(s.error());
+  if (!rig) return cli::fail(rig.error());
+  if (Status s = (*rig)->start(); !s.ok()) return cli::fail(s.error());
   int written = 0;
   bool started = false;
   while (!g_interrupted && written < sets) {
@@ -241,12 +236,12 @@ int record(const CameraArgs& cam, const std::vector<std::string>& devices, int s
     started = true;
     if (Status s = (*rec)->write(*set); !s.ok()) {
       (*rig)->stop();
-      return fail(s.error());
+      return cli::fail(s.error());
     }
     ++written;
   }
   (*rig)->stop();
-  if (Status s = (*rec)->finish(); !s.ok()) return fail(s.error());
+  if (Status s = (*rec)->finish(); !s.ok()) return cli::fail(s.error());
   const hal::RecorderStats& st = (*rec)->stats();
   for (std::size_t v = 0; v < st.frames.size(); ++v) {
     std::printf("view %zu: frames=%llu repeated=%llu -> %s/videos/%zu.mp4\n", v,
@@ -280,18 +275,19 @@ int run_capture(Args args) {
   parser.option("--calibration", &calibration, "FILE",
                 "with --out: the rig's calibration, copied to DIR/calibration.json");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
-  if (frames < 1) return fail(Error(ErrorCode::kInvalidArgument, "--frames must be >= 1"));
+  if (frames < 1) return cli::fail(Error(ErrorCode::kInvalidArgument, "--frames must be >= 1"));
   install_interrupt();
 
   const std::vector<std::string> devices = cam.device_list();
-  if (devices.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--device: no camera given"));
+  if (devices.empty())
+    return cli::fail(Error(ErrorCode::kInvalidArgument, "--device: no camera given"));
   if (!out.empty()) return record(cam, devices, frames, out, calibration);
   Result<std::vector<std::unique_ptr<hal::CameraSource>>> opened =
       open_cameras(cam, devices, nullptr);
-  if (!opened) return fail(opened.error());
+  if (!opened) return cli::fail(opened.error());
   std::vector<std::unique_ptr<hal::CameraSource>> sources = std::move(*opened);
   for (auto& s : sources) {
-    if (Status st = s->start(); !st.ok()) return fail(st.error());
+    if (Status st = s->start(); !st.ok()) return cli::fail(st.error());
   }
   // All cameras are read in turn (short waits), so none overflows its driver queue while
   // another is read.
@@ -385,14 +381,14 @@ int run_trigger(Args args) {
   lo.active_low = active_low;
   if (monitor) {
     Result<std::unique_ptr<hal::InputLine>> in = hal::open_gpio_input(lo, hal::EdgeKind::kRising);
-    if (!in) return fail(in.error());
+    if (!in) return cli::fail(in.error());
     hal::TriggerMonitor mon(std::move(*in));
     std::printf("monitoring %s\n", mon.line().name().c_str());
     std::fflush(stdout);
     while (!g_interrupted &&
            (edges == 0 || mon.stats().edges < static_cast<std::uint64_t>(edges))) {
       Result<std::optional<hal::LineEdge>> e = mon.wait(timeout_ms);
-      if (!e) return fail(e.error());
+      if (!e) return cli::fail(e.error());
       if (!e->has_value()) {
         std::fprintf(stderr, "no edge on %s within %d ms\n", mon.line().name().c_str(), timeout_ms);
         break;
@@ -408,17 +404,17 @@ int run_trigger(Args args) {
     return edges == 0 || s.edges >= static_cast<std::uint64_t>(edges) ? 0 : 1;
   }
   Result<std::unique_ptr<hal::OutputLine>> out = hal::open_gpio_output(lo);
-  if (!out) return fail(out.error());
+  if (!out) return cli::fail(out.error());
   const std::string name = (*out)->name();
   hal::TriggerMasterOptions mo;
   mo.rate_hz = rate_hz;
   mo.pulse_width_us = width_us;
   mo.max_pulses = static_cast<std::uint64_t>(std::max(0, pulses));
   Result<std::unique_ptr<hal::TriggerMaster>> m = hal::TriggerMaster::create(std::move(*out), mo);
-  if (!m) return fail(m.error());
+  if (!m) return cli::fail(m.error());
   std::printf("driving %s at %.3f Hz, %.1f us pulses\n", name.c_str(), rate_hz, width_us);
   std::fflush(stdout);
-  if (Status s = (*m)->start(); !s.ok()) return fail(s.error());
+  if (Status s = (*m)->start(); !s.ok()) return cli::fail(s.error());
   while (!g_interrupted && !(*m)->wait_done(100)) {
   }
   (*m)->stop();
@@ -477,17 +473,17 @@ int run_sync(Args args) {
                 "statistics every S seconds (default 1, 0 = only at the end)");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (grouping != "timestamp" && grouping != "sequence") {
-    return fail(Error(ErrorCode::kInvalidArgument,
-                      "--grouping '" + grouping + "': expected timestamp or sequence"));
+    return cli::fail(Error(ErrorCode::kInvalidArgument,
+                           "--grouping '" + grouping + "': expected timestamp or sequence"));
   }
   install_interrupt();
   const std::vector<std::string> devices = cam.device_list();
   if (devices.size() < 1)
-    return fail(Error(ErrorCode::kInvalidArgument, "--device: no camera given"));
+    return cli::fail(Error(ErrorCode::kInvalidArgument, "--device: no camera given"));
   hal::ReconnectOptions ro;
   ro.retry_interval_ms = reconnect_ms;
   Result<std::vector<std::unique_ptr<hal::CameraSource>>> opened = open_cameras(cam, devices, &ro);
-  if (!opened) return fail(opened.error());
+  if (!opened) return cli::fail(opened.error());
   std::vector<std::unique_ptr<hal::CameraSource>> sources = std::move(*opened);
   const double rate = max_frame_rate_hz(sources);
   hal::CaptureRigOptions opt;
@@ -496,8 +492,8 @@ int run_sync(Args args) {
       grouping == "sequence" ? hal::SyncGrouping::kSequence : hal::SyncGrouping::kTimestamp;
   opt.sync.frame_period_ms = period_ms > 0 ? period_ms : (rate > 0 ? 1000.0 / rate : 1000.0 / 30.0);
   Result<std::unique_ptr<hal::CaptureRig>> rig = hal::CaptureRig::create(std::move(sources), opt);
-  if (!rig) return fail(rig.error());
-  if (Status s = (*rig)->start(); !s.ok()) return fail(s.error());
+  if (!rig) return cli::fail(rig.error());
+  if (Status s = (*rig)->start(); !s.ok()) return cli::fail(s.error());
   std::int64_t next_report = monotonic_ns() + static_cast<std::int64_t>(report_s) * 1'000'000'000;
   std::uint64_t got = 0;
   while (!g_interrupted && (sets == 0 || got < static_cast<std::uint64_t>(sets))) {

@@ -128,45 +128,40 @@ struct Runner {
   }
 };
 
-int fail(const Error& e) {
-  std::fprintf(stderr, "error: %s\n", e.message().c_str());
-  return 1;
-}
-
 // mocap infer --image: the whole detection path on one photo; writes the detections as JSON
 // (docs/detections-format.md) and prints candidates per joint and the limb chains.
 int infer_image(const std::string& model_path, const std::string& image_path, int size,
                 const std::string& backend, const std::string& device, const std::string& out) {
   if (out.empty()) {
-    return fail(Error(ErrorCode::kInvalidArgument, "--image needs --detections-out FILE"));
+    return cli::fail(Error(ErrorCode::kInvalidArgument, "--image needs --detections-out FILE"));
   }
   if (size < gpu::kMinInputSizePx || size > gpu::kMaxInputSizePx) {
-    return fail(Error(ErrorCode::kInvalidArgument,
-                      "--size must be in [" + std::to_string(gpu::kMinInputSizePx) + ", " +
-                          std::to_string(gpu::kMaxInputSizePx) + "] with --image"));
+    return cli::fail(Error(ErrorCode::kInvalidArgument,
+                           "--size must be in [" + std::to_string(gpu::kMinInputSizePx) + ", " +
+                               std::to_string(gpu::kMaxInputSizePx) + "] with --image"));
   }
   auto model = nn::load_model(model_path);
-  if (!model.ok()) return fail(model.error());
+  if (!model.ok()) return cli::fail(model.error());
   auto img = image::load_image(image_path);
-  if (!img.ok()) return fail(img.error());
+  if (!img.ok()) return cli::fail(img.error());
   gpu::PoseDetectorOptions o;
   o.input_size_px = size;
   gpu::GpuOptions go;
   go.device = device;
   auto request = gpu::parse_backend_request(backend);
-  if (!request.ok()) return fail(request.error().with_context("--backend"));
+  if (!request.ok()) return cli::fail(request.error().with_context("--backend"));
   auto b = gpu::choose_backend(*request, go);
-  if (!b.ok()) return fail(b.error());
+  if (!b.ok()) return cli::fail(b.error());
   std::fprintf(stderr, "backend: %s\n", b->description.c_str());
   o.backend = b->backend;
   const std::string used = b->backend == gpu::PoseBackend::kVulkan ? "vulkan" : "cpu";
   std::unique_ptr<gpu::Context> ctx = std::move(b->context);
   auto det = gpu::PoseDetector::create(*model, o, ctx.get());
-  if (!det.ok()) return fail(det.error());
+  if (!det.ok()) return cli::fail(det.error());
   const nn::FrameView frame{img->rgb, img->width_px, img->height_px, 0, PixelFormat::kRGB24};
   const int view_id = 0;
   auto set = (*det)->detect({&frame, 1}, {&view_id, 1});
-  if (!set.ok()) return fail(set.error());
+  if (!set.ok()) return cli::fail(set.error());
   const SkeletonTopology& topo = *set->topology;
   const ViewDetections& v = set->views[0];
   nlohmann::json j;
@@ -211,7 +206,7 @@ int infer_image(const std::string& model_path, const std::string& image_path, in
   j["views"] = nlohmann::json::array({view});
   {
     std::ofstream f(out, std::ios::trunc);
-    if (!(f << j.dump(1) << "\n")) return fail(Error(ErrorCode::kIo, out + ": cannot write"));
+    if (!(f << j.dump(1) << "\n")) return cli::fail(Error(ErrorCode::kIo, out + ": cannot write"));
   }
   const auto& t = (*det)->last_times();
   std::printf("%s: %dx%d px, input %d, %s: pre %.1f ms, network %.1f ms, post %.1f ms\n",
@@ -256,14 +251,14 @@ int layer_debug(Runner& r, const nn::Model& model, const std::vector<float>& inp
     values.resize(r.net->value_count());
     for (std::size_t v = 1; v < values.size(); ++v) {
       if (Status s = r.net->read_value(static_cast<int>(v), values[v]); !s.ok()) {
-        return fail(s.error());
+        return cli::fail(s.error());
       }
     }
   } else {
     nn::Tensor in(r.shape);
     in.data = input;
     auto all = nn::run_model_cpu(model, in, /*keep_all_values=*/true);
-    if (!all.ok()) return fail(all.error());
+    if (!all.ok()) return cli::fail(all.error());
     values = std::move(*all);
   }
   std::error_code ec;
@@ -276,7 +271,8 @@ int layer_debug(Runner& r, const nn::Model& model, const std::vector<float>& inp
     const nn::Tensor& t = values[li + 1];
     const std::string file = sanitise(model.layers[li].name) + ".f32";
     if (!dump_dir.empty()) {
-      if (Status s = write_f32(fs::path(dump_dir) / file, t.data); !s.ok()) return fail(s.error());
+      if (Status s = write_f32(fs::path(dump_dir) / file, t.data); !s.ok())
+        return cli::fail(s.error());
     }
     if (compare_dir.empty()) continue;
     const fs::path ref_path = fs::path(compare_dir) / file;
@@ -287,7 +283,7 @@ int layer_debug(Runner& r, const nn::Model& model, const std::vector<float>& inp
       verdict = "size differs";
     } else {
       auto ref = read_f32(ref_path.string(), static_cast<long>(t.data.size()));
-      if (!ref.ok()) return fail(ref.error());
+      if (!ref.ok()) return cli::fail(ref.error());
       double max_ref = 1e-12, max_err = 0;
       for (std::size_t i = 0; i < t.data.size(); ++i) {
         max_ref = std::max(max_ref, static_cast<double>(std::fabs((*ref)[i])));
@@ -310,11 +306,11 @@ int layer_debug(Runner& r, const nn::Model& model, const std::vector<float>& inp
   }
   if (!compare_dir.empty()) {
     if (compared == 0) {
-      return fail(Error(ErrorCode::kNotFound,
-                        "no layer of the model has a same-sized file in " + compare_dir +
-                            " (make one with: node tools/tfjs_ref/posenet_ref.mjs ... "
-                            "--dump-layers " +
-                            compare_dir + ")"));
+      return cli::fail(Error(ErrorCode::kNotFound,
+                             "no layer of the model has a same-sized file in " + compare_dir +
+                                 " (make one with: node tools/tfjs_ref/posenet_ref.mjs ... "
+                                 "--dump-layers " +
+                                 compare_dir + ")"));
     }
     std::printf("layers_compared=%d worst_layer=%s worst_rel_err=%.3e\n", compared,
                 worst_layer.c_str(), worst);
@@ -353,29 +349,31 @@ int run_infer(Args args) {
            "can be opened), vulkan or cpu");
   p.option("--device", &device, "NAME", "Vulkan device index or name substring");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (model_path.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--model is required"));
+  if (model_path.empty())
+    return cli::fail(Error(ErrorCode::kInvalidArgument, "--model is required"));
   if (!image_path.empty()) {
     return infer_image(model_path, image_path, size, backend, device, detections_out);
   }
   if (input_path.empty() || dump_dir.empty()) {
-    return fail(Error(ErrorCode::kInvalidArgument, "--input-f32 FILE and --dump DIR are required"));
+    return cli::fail(
+        Error(ErrorCode::kInvalidArgument, "--input-f32 FILE and --dump DIR are required"));
   }
   if (size < 1 || size > 4096)
-    return fail(Error(ErrorCode::kInvalidArgument, "--size must be in [1, 4096]"));
+    return cli::fail(Error(ErrorCode::kInvalidArgument, "--size must be in [1, 4096]"));
   auto model = nn::load_model(model_path);
-  if (!model.ok()) return fail(model.error());
+  if (!model.ok()) return cli::fail(model.error());
   const nn::Shape shape{1, size, size, model->input_channels};
   auto input = read_f32(input_path, shape.elements());
-  if (!input.ok()) return fail(input.error());
+  if (!input.ok()) return cli::fail(input.error());
   Runner r{backend, nullptr, nullptr, nullptr, {}};
-  if (Status s = r.init(*model, shape, device); !s.ok()) return fail(s.error());
+  if (Status s = r.init(*model, shape, device); !s.ok()) return cli::fail(s.error());
   std::vector<nn::Tensor> outs;
-  if (Status s = r.run(*input, &outs); !s.ok()) return fail(s.error());
+  if (Status s = r.run(*input, &outs); !s.ok()) return cli::fail(s.error());
   std::error_code ec;
   fs::create_directories(dump_dir, ec);
   for (std::size_t i = 0; i < outs.size(); ++i) {
     const fs::path out = fs::path(dump_dir) / (model->outputs[i].name + ".f32");
-    if (Status s = write_f32(out, outs[i].data); !s.ok()) return fail(s.error());
+    if (Status s = write_f32(out, outs[i].data); !s.ok()) return cli::fail(s.error());
     const nn::Shape& s = outs[i].shape;
     std::printf("%s [%d,%d,%d,%d]\n", out.string().c_str(), s.n, s.h, s.w, s.c);
   }
@@ -410,26 +408,28 @@ int run_bench_cnn(Args args) {
   p.option("--tfjs-threads", &tfjs_threads, "N", "TF.js wasm threads (default 1)");
   p.flag("--no-tfjs", &no_tfjs, "skip the TF.js reference");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (model_path.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--model is required"));
+  if (model_path.empty())
+    return cli::fail(Error(ErrorCode::kInvalidArgument, "--model is required"));
   if (runs < 20 || warmup < 0 || batch < 1 || batch > 64 || size < 1 || size > 4096) {
-    return fail(Error(ErrorCode::kInvalidArgument,
-                      "need --runs >= 20, --warmup >= 0, --batch in [1, 64], --size in [1, 4096]"));
+    return cli::fail(
+        Error(ErrorCode::kInvalidArgument,
+              "need --runs >= 20, --warmup >= 0, --batch in [1, 64], --size in [1, 4096]"));
   }
   auto model = nn::load_model(model_path);
-  if (!model.ok()) return fail(model.error());
+  if (!model.ok()) return cli::fail(model.error());
   const nn::Shape shape{batch, size, size, model->input_channels};
   std::vector<float> input(static_cast<std::size_t>(shape.elements()));
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-1.f, 1.f);
   for (float& v : input) v = u(rng);
   Runner r{backend, nullptr, nullptr, nullptr, {}};
-  if (Status s = r.init(*model, shape, device); !s.ok()) return fail(s.error());
+  if (Status s = r.init(*model, shape, device); !s.ok()) return cli::fail(s.error());
   const char* threads = std::getenv("LP_NUM_THREADS");
   std::printf("cnn: %s, input %dx%d, batch %d, backend %s%s%s\n", model->name.c_str(), size, size,
               batch, backend.c_str(), r.ctx ? (" on " + r.ctx->device_info().name).c_str() : "",
               threads ? (std::string(", LP_NUM_THREADS=") + threads).c_str() : "");
   for (int i = 0; i < warmup; ++i) {
-    if (Status s = r.run(input, nullptr); !s.ok()) return fail(s.error());
+    if (Status s = r.run(input, nullptr); !s.ok()) return cli::fail(s.error());
   }
   // Timed runs as the detector runs the network: no timestamps, outputs read back to the host
   // (as the TF.js reference does with data()).
@@ -437,7 +437,7 @@ int run_bench_cnn(Args args) {
   std::vector<nn::Tensor> outputs;
   for (int i = 0; i < runs; ++i) {
     const auto t0 = std::chrono::steady_clock::now();
-    if (Status s = r.run(input, &outputs); !s.ok()) return fail(s.error());
+    if (Status s = r.run(input, &outputs); !s.ok()) return cli::fail(s.error());
     wall_ms.push_back(
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
@@ -445,11 +445,11 @@ int run_bench_cnn(Args args) {
   // (timestamps cost lavapipe ~1 ms per frame at 257, so they stay out of the timed runs).
   if (r.net) {
     auto prof = gpu::Network::create(*r.ctx, *model, network_options(shape, /*timestamps=*/true));
-    if (!prof.ok()) return fail(prof.error());
+    if (!prof.ok()) return cli::fail(prof.error());
     std::vector<double> gpu_ms;
     std::vector<std::vector<double>> layer_ms((*prof)->layer_times().size());
     for (int i = 0; i < warmup + runs; ++i) {
-      if (Status s = (*prof)->run(input); !s.ok()) return fail(s.error());
+      if (Status s = (*prof)->run(input); !s.ok()) return cli::fail(s.error());
       if (i < warmup || (*prof)->gpu_ms() <= 0) continue;
       gpu_ms.push_back((*prof)->gpu_ms());
       for (std::size_t l = 0; l < layer_ms.size(); ++l) {
@@ -497,7 +497,7 @@ int run_bench_cnn(Args args) {
       fs::temp_directory_path() / ("mocap-bench-cnn-" + std::to_string(::getpid()));
   std::error_code ec;
   fs::create_directories(tmp, ec);
-  if (Status s = write_f32(tmp / "input.f32", input); !s.ok()) return fail(s.error());
+  if (Status s = write_f32(tmp / "input.f32", input); !s.ok()) return cli::fail(s.error());
   const std::string cmd =
       "node '" + script.string() + "' --model '" + tfjs_model + "' --input-f32 '" +
       (tmp / "input.f32").string() + "' --size " + std::to_string(size) + " --out '" +

@@ -149,23 +149,19 @@ int run_convert(Args args) {
                 "movenet-singlepose (MoveNet Thunder or Lightning, the same four heads)");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (tfjs.empty() || out.empty()) {
-    std::fprintf(stderr, "error: --tfjs and --out are required (see mocap model convert --help)\n");
-    return 2;
+    return cli::usage_error("--tfjs and --out are required (see mocap model convert --help)");
   }
   if (Status s = check_size(size_px); !s.ok()) {
-    std::fprintf(stderr, "error: %s\n", s.error().message().c_str());
-    return 2;
+    return cli::usage_error(s.error().message());
   }
 
   Result<nn::TfjsImportOptions> import_options = cut_options(cut);
   if (!import_options.ok()) {
-    std::fprintf(stderr, "error: %s\n", import_options.error().message().c_str());
-    return 2;
+    return cli::usage_error(import_options.error().message());
   }
   Result<nn::Model> model = nn::import_tfjs(tfjs, *import_options);
   if (!model.ok()) {
-    std::fprintf(stderr, "error: %s\n", model.error().message().c_str());
-    return 1;
+    return cli::fail(model.error().message());
   }
   std::printf("imported %s\n", tfjs.c_str());
   print_model(*model, size_px);
@@ -174,8 +170,7 @@ int run_convert(Args args) {
           out, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
           Durability::kDurable);
       !s.ok()) {
-    std::fprintf(stderr, "error: %s\n", s.error().message().c_str());
-    return 1;
+    return cli::fail(s.error().message());
   }
   std::printf("wrote %s: %s bytes, format version %" PRIu32 ", CRC-32 0x%08" PRIx32 "\n",
               out.c_str(), with_commas(static_cast<long long>(bytes.size())).c_str(),
@@ -196,18 +191,15 @@ int run_info(Args args) {
                     std::to_string(kDefaultInputSize_px) + ")");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (Status s = check_size(size_px); !s.ok()) {
-    std::fprintf(stderr, "error: %s\n", s.error().message().c_str());
-    return 2;
+    return cli::usage_error(s.error().message());
   }
   Result<std::vector<std::uint8_t>> bytes = nn::read_file_bytes(file);
   if (!bytes.ok()) {
-    std::fprintf(stderr, "error: %s\n", bytes.error().message().c_str());
-    return 1;
+    return cli::fail(bytes.error().message());
   }
   Result<nn::Model> model = nn::parse_model_bytes(*bytes, file);
   if (!model.ok()) {
-    std::fprintf(stderr, "error: %s\n", model.error().message().c_str());
-    return 1;
+    return cli::fail(model.error().message());
   }
   std::printf("%s: %s bytes, format version %" PRIu32 ", CRC-32 0x%08" PRIx32 " (ok)\n",
               file.c_str(), with_commas(static_cast<long long>(bytes->size())).c_str(),

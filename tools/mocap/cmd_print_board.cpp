@@ -18,11 +18,6 @@
 namespace mocap::tools {
 namespace {
 
-int fail(const Error& e) {
-  std::fprintf(stderr, "error: %s\n", e.message().c_str());
-  return 1;
-}
-
 constexpr double kMetresPerInch = 0.0254;
 
 // A one-page PDF: the grey image as a Flate-compressed image XObject filling a page of
@@ -85,28 +80,29 @@ int run_print_board(Args args) {
   p.option("--dpi", &dpi, "N", "dots per inch (default 300)");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   if (board_arg.empty() || out.empty()) {
-    return fail(Error(ErrorCode::kInvalidArgument, "--board and --out are required"));
+    return cli::fail(Error(ErrorCode::kInvalidArgument, "--board and --out are required"));
   }
   const bool pdf = out.size() > 4 && out.substr(out.size() - 4) == ".pdf";
   const bool png = out.size() > 4 && out.substr(out.size() - 4) == ".png";
   if (!pdf && !png) {
-    return fail(Error(ErrorCode::kInvalidArgument, "--out " + out + ": give a .pdf or a .png"));
+    return cli::fail(
+        Error(ErrorCode::kInvalidArgument, "--out " + out + ": give a .pdf or a .png"));
   }
   if (dpi < 72 || dpi > 2400) {
-    return fail(Error(ErrorCode::kInvalidArgument, "--dpi must be 72 to 2400"));
+    return cli::fail(Error(ErrorCode::kInvalidArgument, "--dpi must be 72 to 2400"));
   }
   auto board = boardcal::board_from_argument(board_arg);
-  if (!board.ok()) return fail(board.error());
+  if (!board.ok()) return cli::fail(board.error());
   const int px_per_square = static_cast<int>(std::lround(board->square_m / kMetresPerInch * dpi));
   char caption[256];
   std::snprintf(caption, sizeof caption, "%s  square %.1f mm: print at 100 %%, measure it",
                 board->to_spec().c_str(), board->square_m * 1000);
   auto img = boardcal::render_board(*board, px_per_square, px_per_square / 2, caption);
-  if (!img.ok()) return fail(img.error());
+  if (!img.ok()) return cli::fail(img.error());
   Status written = Status::Ok();
   if (pdf) {
     auto bytes = pdf_page(*img, dpi);
-    if (!bytes.ok()) return fail(bytes.error());
+    if (!bytes.ok()) return cli::fail(bytes.error());
     written = io::write_text_file(out, *bytes);
   } else {
     image::ImageRgb8 rgb;
@@ -116,7 +112,7 @@ int run_print_board(Args args) {
     for (std::uint8_t g : img->gray) rgb.rgb.insert(rgb.rgb.end(), 3, g);
     written = image::save_png(rgb, out);
   }
-  if (!written.ok()) return fail(written.error());
+  if (!written.ok()) return cli::fail(written.error());
   std::printf("%s: %s, %dx%d px at %d dpi (%.1f x %.1f cm); square %.1f mm\n", out.c_str(),
               board->to_spec().c_str(), img->width_px, img->height_px, dpi,
               img->width_px * 2.54 / dpi, img->height_px * 2.54 / dpi, board->square_m * 1000);

@@ -29,11 +29,6 @@
 namespace mocap::tools {
 namespace {
 
-int fail(const Error& e) {
-  std::fprintf(stderr, "error: %s\n", e.message().c_str());
-  return 1;
-}
-
 constexpr const char* kHelp =
     "Runs a recorded multi-view capture through the real-time pipeline, as `mocapd --replay`\n"
     "does (same source, detector, engine and threads; every frame processed): the N videos\n"
@@ -197,9 +192,9 @@ int run_replay(Args args) {
   p.flag("--no-fit", &no_fit, "triangulated joints only (no skeleton fitting)");
   smoothing.add_to(p);
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (data.empty()) return fail(Error(ErrorCode::kInvalidArgument, "--data DIR is required"));
+  if (data.empty()) return cli::fail(Error(ErrorCode::kInvalidArgument, "--data DIR is required"));
   auto request = gpu::parse_backend_request(backend);
-  if (!request.ok()) return fail(request.error().with_context("--backend"));
+  if (!request.ok()) return cli::fail(request.error().with_context("--backend"));
 
   ReplayPartsOptions o;
   o.source.dir = data;
@@ -208,15 +203,15 @@ int run_replay(Args args) {
   o.cnn.device = device;
   o.cnn.input_size_px = size;
   auto fit = input_fit.get();
-  if (!fit.ok()) return fail(fit.error());
+  if (!fit.ok()) return cli::fail(fit.error());
   o.cnn.input_fit = *fit;
-  if (Status s = crops.apply(o.cnn); !s.ok()) return fail(s.error());
+  if (Status s = crops.apply(o.cnn); !s.ok()) return cli::fail(s.error());
   o.assoc.fit.enabled = !no_fit;
   auto smooth = smoothing.get();
-  if (!smooth.ok()) return fail(smooth.error());
+  if (!smooth.ok()) return cli::fail(smooth.error());
   o.assoc.fit.smoothing = *smooth;
   auto parts = open_replay(o);
-  if (!parts.ok()) return fail(parts.error());
+  if (!parts.ok()) return cli::fail(parts.error());
   const int views = parts->source->view_count();
   std::printf("replay: %s, %d views, %lld frames, %s\n", data.c_str(), views,
               static_cast<long long>(parts->source->frame_count()),
@@ -228,12 +223,12 @@ int run_replay(Args args) {
   std::unique_ptr<pipeline::MessageFileSink> file;
   if (!skeletons_out.empty()) {
     auto f = pipeline::MessageFileSink::open(skeletons_out, realtime_offset_ns());
-    if (!f.ok()) return fail(f.error());
+    if (!f.ok()) return cli::fail(f.error());
     file = std::move(*f);
   }
   eval::ReplayStats stats(parts->cameras);
   auto quality = eval::QualityMeter::create(parts->cameras, coco17_topology(), {});
-  if (!quality.ok()) return fail(quality.error());
+  if (!quality.ok()) return cli::fail(quality.error());
   pipeline::CallbackSink report("report", [&](const pipeline::PipelineFrame& f) {
     stats.add(f);
     if (f.result) quality->add(f.detections, *f.result);
@@ -246,11 +241,11 @@ int run_replay(Args args) {
   po.drop_policy = replay_drop_policy(o.source);
   po.max_frames = frames;
   auto pipe = pipeline::Pipeline::create(parts->pipeline_parts(sinks), po);
-  if (!pipe.ok()) return fail(pipe.error());
-  if (Status s = (*pipe)->start(); !s.ok()) return fail(s.error());
+  if (!pipe.ok()) return cli::fail(pipe.error());
+  if (Status s = (*pipe)->start(); !s.ok()) return cli::fail(s.error());
   (*pipe)->wait();
   const pipeline::PipelineMetrics m = (*pipe)->metrics();
-  if (!m.error.empty()) return fail(Error(ErrorCode::kInternal, m.error));
+  if (!m.error.empty()) return cli::fail(Error(ErrorCode::kInternal, m.error));
 
   const eval::ReplaySummary& sum = stats.finish();
   print_summary(sum, views);
@@ -265,7 +260,7 @@ int run_replay(Args args) {
   print_quality(q);
   if (!quality_out.empty()) {
     if (Status s = io::write_text_file(quality_out, q.to_json() + "\n"); !s.ok())
-      return fail(s.error());
+      return cli::fail(s.error());
     std::printf("quality written to %s\n", quality_out.c_str());
   }
   std::printf("%s\n", q.summary_line().c_str());

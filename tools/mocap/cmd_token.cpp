@@ -20,8 +20,7 @@ int run_token(Args args) {
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   auto t = net::read_token(std::filesystem::path(state_dir) / "token");
   if (!t.ok()) {
-    std::fprintf(stderr, "error: %s\n", t.error().message().c_str());
-    return 1;
+    return cli::fail(t.error().message());
   }
   std::printf("%s\n", t->c_str());
   return 0;
