@@ -8,9 +8,7 @@ namespace mocap::assoc {
 
 namespace {
 
-Error invalid(const std::string& what) {
-  return Error(ErrorCode::kInvalidArgument, "crop merge: " + what);
-}
+constexpr std::string_view kStage = "crop merge";
 
 void add_row(AffinityMatrix& m) {
   m.values.resize(m.values.size() + static_cast<std::size_t>(m.cols), 0.f);
@@ -62,11 +60,13 @@ int add_candidate(ViewDetections& view, CropClaims& claims, const SkeletonTopolo
 }  // namespace
 
 Status CropMergeOptions::validate() const {
-  if (!(min_score > 0.f && min_score <= 1.f)) return invalid("min_score must be in (0, 1]");
+  if (!(min_score > 0.f && min_score <= 1.f))
+    return invalid_argument(kStage, "min_score must be in (0, 1]");
   if (!(new_candidate_min_score >= min_score && new_candidate_min_score <= 1.f)) {
-    return invalid("new_candidate_min_score must be in [min_score, 1]");
+    return invalid_argument(kStage, "new_candidate_min_score must be in [min_score, 1]");
   }
-  if (!(match_radius > 0 && match_radius <= 1)) return invalid("match_radius must be in (0, 1]");
+  if (!(match_radius > 0 && match_radius <= 1))
+    return invalid_argument(kStage, "match_radius must be in (0, 1]");
   return Status::Ok();
 }
 
@@ -84,11 +84,12 @@ Result<CropMergeStats> merge_crop(ViewDetections& view, CropClaims& claims,
   const auto J = static_cast<std::size_t>(topology.joint_count());
   if (joints.size() != J || view.candidates.size() != J || claims.size() != J ||
       view.affinities.size() != static_cast<std::size_t>(topology.limb_count()) || !(side_px > 0)) {
-    return invalid("a crop of " + std::to_string(joints.size()) + " joints into a view of " +
-                   std::to_string(view.candidates.size()) + " joint types and " +
-                   std::to_string(view.affinities.size()) + " limbs (topology " + topology.name() +
-                   ": " + std::to_string(J) + ", " + std::to_string(topology.limb_count()) +
-                   "), side " + std::to_string(side_px) + " px");
+    return invalid_argument(
+        kStage, "a crop of " + std::to_string(joints.size()) + " joints into a view of " +
+                    std::to_string(view.candidates.size()) + " joint types and " +
+                    std::to_string(view.affinities.size()) + " limbs (topology " + topology.name() +
+                    ": " + std::to_string(J) + ", " + std::to_string(topology.limb_count()) +
+                    "), side " + std::to_string(side_px) + " px");
   }
   CropMergeStats stats;
   std::vector<int> index(J, -1);

@@ -8,9 +8,7 @@ namespace mocap::assoc {
 
 namespace {
 
-Error invalid(const std::string& what) {
-  return Error(ErrorCode::kInvalidArgument, "crop plan: " + what);
-}
+constexpr std::string_view kStage = "crop plan";
 
 constexpr int kMaxCropsLimit = 64;
 
@@ -78,16 +76,17 @@ std::optional<Scored> crop_in_view(const std::vector<Eigen::Vector3d>& joints, c
 }  // namespace
 
 Status CropPlanOptions::validate() const {
-  if (!(margin >= 0 && margin <= 2)) return invalid("margin must be in [0, 2]");
+  if (!(margin >= 0 && margin <= 2)) return invalid_argument(kStage, "margin must be in [0, 2]");
   if (!(min_side_px > 0) || !std::isfinite(min_side_px)) {
-    return invalid("min_side_px must be > 0");
+    return invalid_argument(kStage, "min_side_px must be > 0");
   }
   if (!(min_inside_fraction > 0 && min_inside_fraction <= 1)) {
-    return invalid("min_inside_fraction must be in (0, 1]");
+    return invalid_argument(kStage, "min_inside_fraction must be in (0, 1]");
   }
-  if (min_observed_joints < 1) return invalid("min_observed_joints must be >= 1");
+  if (min_observed_joints < 1) return invalid_argument(kStage, "min_observed_joints must be >= 1");
   if (max_crops < 1 || max_crops > kMaxCropsLimit) {
-    return invalid("max_crops " + std::to_string(max_crops) + " must be in [1, 64]");
+    return invalid_argument(kStage,
+                            "max_crops " + std::to_string(max_crops) + " must be in [1, 64]");
   }
   return Status::Ok();
 }

@@ -16,9 +16,7 @@ constexpr int kMinCameras = 3;
 // Centres within this fraction of their spread of a line fix no rotation about it.
 constexpr double kMinNonCollinearity = 1e-3;
 
-Error invalid(const std::string& what) {
-  return Error(ErrorCode::kInvalidArgument, "calibration compare: " + what);
-}
+constexpr std::string_view kStage = "calibration compare";
 
 // The centres as columns, in the reference's camera order.
 Eigen::Matrix3Xd centres(const Calibration& c, const std::vector<std::size_t>& order) {
@@ -71,23 +69,28 @@ Result<CalibrationComparison> compare_calibrations(const Calibration& reference,
   std::vector<std::size_t> order;  // file index of each reference camera
   for (const std::string& id : reference.view_ids) {
     const std::optional<std::size_t> i = file.index_of(id);
-    if (!i) return invalid("view '" + id + "' of the reference is missing from the file");
+    if (!i)
+      return invalid_argument(kStage,
+                              "view '" + id + "' of the reference is missing from the file");
     order.push_back(*i);
   }
   if (file.size() != reference.size()) {
-    return invalid("the file has " + std::to_string(file.size()) + " views, the reference " +
-                   std::to_string(reference.size()) + " (the same view ids are needed)");
+    return invalid_argument(
+        kStage, "the file has " + std::to_string(file.size()) + " views, the reference " +
+                    std::to_string(reference.size()) + " (the same view ids are needed)");
   }
   if (static_cast<int>(reference.size()) < kMinCameras) {
-    return invalid(std::to_string(reference.size()) +
-                   " cameras: at least 3 are needed to align two calibrations by their centres");
+    return invalid_argument(
+        kStage, std::to_string(reference.size()) +
+                    " cameras: at least 3 are needed to align two calibrations by their centres");
   }
   std::vector<std::size_t> identity(reference.size());
   for (std::size_t i = 0; i < identity.size(); ++i) identity[i] = i;
   const Eigen::Matrix3Xd ref = centres(reference, identity);
   const Eigen::Matrix3Xd got = centres(file, order);
   if (!spans_a_plane(ref) || !spans_a_plane(got)) {
-    return invalid("the camera centres lie on one line: their alignment leaves a rotation free");
+    return invalid_argument(
+        kStage, "the camera centres lie on one line: their alignment leaves a rotation free");
   }
   const Eigen::Matrix4d T = Eigen::umeyama(got, ref, true);
   const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();

@@ -14,9 +14,7 @@ namespace mocap::calib {
 
 namespace {
 
-Error invalid(const std::string& field, const std::string& range) {
-  return Error(ErrorCode::kInvalidArgument, "people2d options: " + field + " must be in " + range);
-}
+constexpr std::string_view kStage = "people2d options";
 
 struct Edge {
   float affinity;
@@ -88,17 +86,20 @@ int Person2D::detected_joints() const {
 }
 
 Status People2DOptions::validate() const {
-  if (!(min_affinity >= 0 && min_affinity <= 1)) return invalid("min_affinity", "[0, 1]");
-  if (!(min_joint_score >= 0 && min_joint_score <= 1)) return invalid("min_joint_score", "[0, 1]");
+  if (!(min_affinity >= 0 && min_affinity <= 1))
+    return invalid_argument(kStage, "min_affinity must be in [0, 1]");
+  if (!(min_joint_score >= 0 && min_joint_score <= 1))
+    return invalid_argument(kStage, "min_joint_score must be in [0, 1]");
   if (min_person_joints < 2 || min_person_joints > 1000) {
-    return invalid("min_person_joints", "[2, 1000]");
+    return invalid_argument(kStage, "min_person_joints must be in [2, 1000]");
   }
-  if (!(max_track_step > 0 && max_track_step <= 10)) return invalid("max_track_step", "(0, 10]");
+  if (!(max_track_step > 0 && max_track_step <= 10))
+    return invalid_argument(kStage, "max_track_step must be in (0, 10]");
   if (max_track_gap_frames < 1 || max_track_gap_frames > 1000) {
-    return invalid("max_track_gap_frames", "[1, 1000]");
+    return invalid_argument(kStage, "max_track_gap_frames must be in [1, 1000]");
   }
   if (min_tracklet_frames < 1 || min_tracklet_frames > 100000) {
-    return invalid("min_tracklet_frames", "[1, 100000]");
+    return invalid_argument(kStage, "min_tracklet_frames must be in [1, 100000]");
   }
   return {};
 }

@@ -22,9 +22,7 @@ namespace mocap::calib {
 
 namespace {
 
-Error invalid(const std::string& what) {
-  return Error(ErrorCode::kInvalidArgument, "self-calibration: " + what);
-}
+constexpr std::string_view kStage = "self-calibration";
 
 SelfCalibrationResult refuse(CalibrationQuality q, std::string why) {
   q.ok = false;
@@ -129,22 +127,26 @@ void fill_views(const Hypothesis& h, CalibrationQuality& q) {
 }  // namespace
 
 Status SelfCalibrationOptions::validate() const {
-  if (max_frames < 10 || max_frames > 100000) return invalid("max_frames must be in [10, 100000]");
-  if (min_frames < 2 || min_frames > 100000) return invalid("min_frames must be in [2, 100000]");
+  if (max_frames < 10 || max_frames > 100000)
+    return invalid_argument(kStage, "max_frames must be in [10, 100000]");
+  if (min_frames < 2 || min_frames > 100000)
+    return invalid_argument(kStage, "min_frames must be in [2, 100000]");
   if (!(person_height_m == 0 || (person_height_m >= 0.5 && person_height_m <= 2.5))) {
-    return invalid("the performer's height must be in [0.5, 2.5] m (or 0 for the prior)");
+    return invalid_argument(kStage,
+                            "the performer's height must be in [0.5, 2.5] m (or 0 for the prior)");
   }
-  if (!(min_motion >= 0 && min_motion < 1)) return invalid("min_motion must be in [0, 1)");
+  if (!(min_motion >= 0 && min_motion < 1))
+    return invalid_argument(kStage, "min_motion must be in [0, 1)");
   if (!(min_point_thickness >= 0 && min_point_thickness < 1)) {
-    return invalid("min_point_thickness must be in [0, 1)");
+    return invalid_argument(kStage, "min_point_thickness must be in [0, 1)");
   }
   if (!(min_focal_determinacy >= 1 && min_focal_determinacy <= 10)) {
-    return invalid("min_focal_determinacy must be in [1, 10]");
+    return invalid_argument(kStage, "min_focal_determinacy must be in [1, 10]");
   }
   if (!(ambiguous_rotation_deg > 0 && ambiguous_rotation_deg <= 180) ||
       !(ambiguous_fit_margin >= 0 && ambiguous_fit_margin <= 10)) {
-    return invalid(
-        "ambiguous_rotation_deg must be in (0, 180] and ambiguous_fit_margin in [0, 10]");
+    return invalid_argument(
+        kStage, "ambiguous_rotation_deg must be in (0, 180] and ambiguous_fit_margin in [0, 10]");
   }
   return hypotheses.validate();
 }
@@ -337,12 +339,12 @@ Result<SelfCalibrationResult> self_calibrate(const KeypointCollector& keypoints,
   if (Status s = keypoints.options().validate(); !s.ok()) return s.error();
   const std::size_t views = keypoints.view_ids().size();
   if (priors.size() != views) {
-    return invalid("got " + std::to_string(priors.size()) + " camera priors for " +
-                   std::to_string(views) + " views");
+    return invalid_argument(kStage, "got " + std::to_string(priors.size()) + " camera priors for " +
+                                        std::to_string(views) + " views");
   }
   for (const CameraPrior& p : priors) {
     if (p.width_px <= 0 || p.height_px <= 0)
-      return invalid("view " + p.view_id + " has no image size");
+      return invalid_argument(kStage, "view " + p.view_id + " has no image size");
   }
   CalibrationQuality q;
   q.frames = keypoints.frame_count();

@@ -38,4 +38,12 @@ Error Error::with_context(std::string_view context) const {
   return Error(code_, std::move(m));
 }
 
+Error invalid_argument(std::string_view stage, std::string_view what) {
+  if (stage.empty()) return Error(ErrorCode::kInvalidArgument, std::string(what));
+  std::string m(stage);
+  m += ": ";
+  m += what;
+  return Error(ErrorCode::kInvalidArgument, std::move(m));
+}
+
 }  // namespace mocap

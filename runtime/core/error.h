@@ -41,6 +41,11 @@ class Error {
   std::string message_;
 };
 
+// The one way to refuse an out-of-range option or argument: Error(kInvalidArgument) whose message
+// is "<stage>: <what>" ("crop plan: max_crops must be in [1, 64]"), or just <what> when the stage
+// is empty (the message already names it).
+Error invalid_argument(std::string_view stage, std::string_view what);
+
 // Result<T>: a value or an Error. Accessing the wrong alternative is a programmer bug (assert).
 template <typename T>
 class [[nodiscard]] Result {

@@ -12,9 +12,7 @@ namespace mocap::gpu {
 
 namespace {
 
-Error invalid(const std::string& what) {
-  return Error(ErrorCode::kInvalidArgument, "crop refiner: " + what);
-}
+constexpr std::string_view kStage = "crop refiner";
 
 constexpr int kMaxCrops = 16;
 constexpr int kMaxCropInputPx = 1024;
@@ -26,11 +24,13 @@ constexpr const char* kHeads[4] = {nn::kMoveNetKeypointHeatmap, nn::kMoveNetCent
 Status CropRefinerOptions::validate() const {
   if (input_size_px < nn::kMoveNetInputMultiplePx || input_size_px > kMaxCropInputPx ||
       input_size_px % nn::kMoveNetInputMultiplePx != 0) {
-    return invalid("input size " + std::to_string(input_size_px) +
-                   " px must be a multiple of 32 in [32, 1024] (Thunder 256, Lightning 192)");
+    return invalid_argument(
+        kStage, "input size " + std::to_string(input_size_px) +
+                    " px must be a multiple of 32 in [32, 1024] (Thunder 256, Lightning 192)");
   }
   if (max_crops < 1 || max_crops > kMaxCrops) {
-    return invalid("max_crops " + std::to_string(max_crops) + " must be in [1, 16]");
+    return invalid_argument(kStage,
+                            "max_crops " + std::to_string(max_crops) + " must be in [1, 16]");
   }
   return Status::Ok();
 }
@@ -42,9 +42,10 @@ Result<std::unique_ptr<CropRefiner>> CropRefiner::create(const nn::Model& model,
                                                          Context* ctx) {
   if (Status s = options.validate(); !s.ok()) return s.error();
   if (!nn::is_movenet(model)) {
-    return invalid("model '" + model.name +
-                   "' lacks MoveNet's four heads (convert movenet-thunder.json with --cut "
-                   "movenet-singlepose)");
+    return invalid_argument(
+        kStage, "model '" + model.name +
+                    "' lacks MoveNet's four heads (convert movenet-thunder.json with --cut "
+                    "movenet-singlepose)");
   }
   std::unique_ptr<CropRefiner> r(new CropRefiner());
   r->options_ = options;
@@ -55,7 +56,7 @@ Result<std::unique_ptr<CropRefiner>> CropRefiner::create(const nn::Model& model,
   }
   r->model_ = model;
   if (options.backend == PoseBackend::kCpu) return r;
-  if (ctx == nullptr) return invalid("the Vulkan backend needs a Context");
+  if (ctx == nullptr) return invalid_argument(kStage, "the Vulkan backend needs a Context");
   r->ctx_ = ctx;
   if (auto b = r->batch(1); !b.ok()) return b.error();  // the model runs at this size
   return r;
@@ -89,9 +90,10 @@ Result<std::vector<CropPose>> CropRefiner::run(std::span<const nn::FrameView> fr
     if (c.frame < 0 || c.frame >= static_cast<int>(frames.size()) || !(c.side_px > 0) ||
         !std::isfinite(c.side_px) || !std::isfinite(c.center_x_px) ||
         !std::isfinite(c.center_y_px)) {
-      return invalid("crop " + std::to_string(i) + ": frame " + std::to_string(c.frame) + " of " +
-                     std::to_string(frames.size()) + ", side " + std::to_string(c.side_px) +
-                     " px (needs a frame in range, a finite centre and a side > 0)");
+      return invalid_argument(
+          kStage, "crop " + std::to_string(i) + ": frame " + std::to_string(c.frame) + " of " +
+                      std::to_string(frames.size()) + ", side " + std::to_string(c.side_px) +
+                      " px (needs a frame in range, a finite centre and a side > 0)");
     }
     const nn::FrameView& f = frames[static_cast<std::size_t>(c.frame)];
     const int S = options_.input_size_px;

@@ -12,9 +12,7 @@ namespace mocap::gpu {
 
 namespace {
 
-Error invalid(const std::string& what) {
-  return Error(ErrorCode::kInvalidArgument, std::string("pose detector: ") + what);
-}
+constexpr std::string_view kStage = "pose detector";
 
 constexpr const char* kHeadNames[4] = {"heatmap", "offsets", "displacement_fwd",
                                        "displacement_bwd"};
@@ -35,14 +33,15 @@ std::vector<nn::LimbEdge> identity_limb_edges(const SkeletonTopology& topology) 
 Status PoseDetectorOptions::validate() const {
   for (int v : {input_size_px, width_px()}) {
     if (v < kMinInputSizePx || v > kMaxInputSizePx) {
-      return invalid("input size " + std::to_string(width_px()) + "x" +
-                     std::to_string(input_size_px) + " px: each side must be in [" +
-                     std::to_string(kMinInputSizePx) + ", " + std::to_string(kMaxInputSizePx) +
-                     "]");
+      return invalid_argument(
+          kStage, "input size " + std::to_string(width_px()) + "x" + std::to_string(input_size_px) +
+                      " px: each side must be in [" + std::to_string(kMinInputSizePx) + ", " +
+                      std::to_string(kMaxInputSizePx) + "]");
     }
   }
   if (max_views < 1 || max_views > 16) {
-    return invalid(std::string("max_views ") + std::to_string(max_views) + " must be in [1, 16]");
+    return invalid_argument(
+        kStage, std::string("max_views ") + std::to_string(max_views) + " must be in [1, 16]");
   }
   if (Status s = movenet.validate(); !s.ok()) return s;
   return post.validate();
@@ -61,9 +60,10 @@ Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& mode
   const int W = options.width_px();
   if (d->movenet_) {
     if (H % nn::kMoveNetInputMultiplePx != 0 || W % nn::kMoveNetInputMultiplePx != 0) {
-      return invalid("model '" + model.name + "' is MoveNet: input " + std::to_string(W) + "x" +
-                     std::to_string(H) + " px: each side must be a multiple of " +
-                     std::to_string(nn::kMoveNetInputMultiplePx) + " (256, 320, 384, ...)");
+      return invalid_argument(
+          kStage, "model '" + model.name + "' is MoveNet: input " + std::to_string(W) + "x" +
+                      std::to_string(H) + " px: each side must be a multiple of " +
+                      std::to_string(nn::kMoveNetInputMultiplePx) + " (256, 320, 384, ...)");
     }
     d->limb_edges_ = identity_limb_edges(coco17_topology());
   } else {
@@ -75,7 +75,7 @@ Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& mode
     d->model_ = model;
     return d;
   }
-  if (ctx == nullptr) return invalid("the Vulkan backend needs a Context");
+  if (ctx == nullptr) return invalid_argument(kStage, "the Vulkan backend needs a Context");
   NetworkOptions no;
   no.batch = options.max_views;
   no.height_px = H;
@@ -109,10 +109,11 @@ Status PoseDetector::find_heads(const nn::Model& model) {
       }
     }
     if (!found) {
-      return invalid("model '" + model.name + "' has no output named '" + names[h] +
-                     "' (PoseNet needs heatmap, offsets, displacement_fwd, displacement_bwd; "
-                     "MoveNet keypoint_heatmap, center_heatmap, keypoint_regression, "
-                     "keypoint_offsets)");
+      return invalid_argument(
+          kStage, "model '" + model.name + "' has no output named '" + names[h] +
+                      "' (PoseNet needs heatmap, offsets, displacement_fwd, displacement_bwd; "
+                      "MoveNet keypoint_heatmap, center_heatmap, keypoint_regression, "
+                      "keypoint_offsets)");
     }
   }
   return Status::Ok();
@@ -123,18 +124,19 @@ Status PoseDetector::check_vulkan_heads(const nn::Model& model) const {
   if (movenet_) {
     if (hs.c != kCocoJoints || hs.h * nn::kMoveNetOutputStridePx != options_.input_size_px ||
         hs.w * nn::kMoveNetOutputStridePx != options_.width_px()) {
-      return invalid("model '" + model.name + "': keypoint heatmap " + std::to_string(hs.h) + "x" +
-                     std::to_string(hs.w) + "x" + std::to_string(hs.c) +
-                     " (MoveNet: 17 joints at output stride 4)");
+      return invalid_argument(kStage, "model '" + model.name + "': keypoint heatmap " +
+                                          std::to_string(hs.h) + "x" + std::to_string(hs.w) + "x" +
+                                          std::to_string(hs.c) +
+                                          " (MoveNet: 17 joints at output stride 4)");
     }
     return Status::Ok();
   }
   const nn::Shape fs = net_->output_shape(heads_[2]);
   const auto& edges = nn::posenet_displacement_edges();
   if (hs.c != kCocoJoints || fs.c != 2 * static_cast<int>(edges.size())) {
-    return invalid("model '" + model.name + "': heatmap has " + std::to_string(hs.c) +
-                   " channels and displacements " + std::to_string(fs.c) +
-                   " (PoseNet COCO-17: 17 and 32)");
+    return invalid_argument(kStage, "model '" + model.name + "': heatmap has " +
+                                        std::to_string(hs.c) + " channels and displacements " +
+                                        std::to_string(fs.c) + " (PoseNet COCO-17: 17 and 32)");
   }
   return Status::Ok();
 }
@@ -211,12 +213,13 @@ Result<DetectionSet> PoseDetector::detect(std::span<const nn::FrameView> frames,
                                           std::int64_t timestamp_ns) {
   if (frames.empty() || static_cast<int>(frames.size()) > options_.max_views ||
       view_ids.size() != frames.size()) {
-    return invalid(std::to_string(frames.size()) + " frames and " +
-                   std::to_string(view_ids.size()) + " view ids; need 1 to " +
-                   std::to_string(options_.max_views) + " frames, one id each");
+    return invalid_argument(kStage, std::to_string(frames.size()) + " frames and " +
+                                        std::to_string(view_ids.size()) + " view ids; need 1 to " +
+                                        std::to_string(options_.max_views) +
+                                        " frames, one id each");
   }
   if (std::set<int>(view_ids.begin(), view_ids.end()).size() != view_ids.size()) {
-    return invalid("view ids must be unique");
+    return invalid_argument(kStage, "view ids must be unique");
   }
   const auto t0 = monotonic_ns();
   std::vector<nn::Letterbox> boxes;
@@ -248,7 +251,8 @@ Result<DetectionSet> PoseDetector::detect(const FrameSet& frame_set) {
   std::vector<int> ids;
   for (const Frame& f : frame_set.frames) {
     if (!f.buffer) {
-      return invalid("view " + std::to_string(f.view_id) + ": frame has no buffer");
+      return invalid_argument(kStage,
+                              "view " + std::to_string(f.view_id) + ": frame has no buffer");
     }
     frames.push_back(nn::frame_view(f));
     ids.push_back(f.view_id);

@@ -65,23 +65,21 @@ std::string num(float v) {
   return s.str();
 }
 
-Error invalid(std::string message) {
-  return Error(ErrorCode::kInvalidArgument, std::move(message));
-}
-
 Status validate_view(const std::string& frame, const SkeletonTopology& topo,
                      const ViewDetections& view) {
   // Location strings are built only for the error message (this runs on every frame).
   const auto at_view = [&] { return frame + ", view " + std::to_string(view.view_id); };
   if (static_cast<int>(view.candidates.size()) != topo.joint_count()) {
-    return invalid(at_view() + ": " + std::to_string(view.candidates.size()) +
-                   " candidate lists, expected " + std::to_string(topo.joint_count()) +
-                   " (one per joint of topology " + topo.name() + ")");
+    return invalid_argument("", at_view() + ": " + std::to_string(view.candidates.size()) +
+                                    " candidate lists, expected " +
+                                    std::to_string(topo.joint_count()) +
+                                    " (one per joint of topology " + topo.name() + ")");
   }
   if (static_cast<int>(view.affinities.size()) != topo.limb_count()) {
-    return invalid(at_view() + ": " + std::to_string(view.affinities.size()) +
-                   " affinity matrices, expected " + std::to_string(topo.limb_count()) +
-                   " (one per limb of topology " + topo.name() + ")");
+    return invalid_argument("", at_view() + ": " + std::to_string(view.affinities.size()) +
+                                    " affinity matrices, expected " +
+                                    std::to_string(topo.limb_count()) +
+                                    " (one per limb of topology " + topo.name() + ")");
   }
   for (int j = 0; j < topo.joint_count(); ++j) {
     const auto& list = view.candidates[static_cast<size_t>(j)];
@@ -93,11 +91,11 @@ Status validate_view(const std::string& frame, const SkeletonTopology& topo,
                "), candidate " + std::to_string(c);
       };
       if (!std::isfinite(cand.x_px) || !std::isfinite(cand.y_px)) {
-        return invalid(cw() + ": coordinates (" + num(cand.x_px) + ", " + num(cand.y_px) +
-                       ") are not finite");
+        return invalid_argument("", cw() + ": coordinates (" + num(cand.x_px) + ", " +
+                                        num(cand.y_px) + ") are not finite");
       }
       if (!in_unit_range(cand.score)) {
-        return invalid(cw() + ": score " + num(cand.score) + " is outside [0, 1]");
+        return invalid_argument("", cw() + ": score " + num(cand.score) + " is outside [0, 1]");
       }
     }
   }
@@ -108,29 +106,33 @@ Status validate_view(const std::string& frame, const SkeletonTopology& topo,
     };
     if (limb.joint_a < 0 || limb.joint_a >= topo.joint_count() || limb.joint_b < 0 ||
         limb.joint_b >= topo.joint_count()) {
-      return invalid(lw() + ": topology " + topo.name() + " limb joins a joint index out of range");
+      return invalid_argument(
+          "", lw() + ": topology " + topo.name() + " limb joins a joint index out of range");
     }
     const AffinityMatrix& m = view.affinities[static_cast<size_t>(l)];
     const size_t rows = view.candidates[static_cast<size_t>(limb.joint_a)].size();
     const size_t cols = view.candidates[static_cast<size_t>(limb.joint_b)].size();
     if (m.rows < 0 || m.cols < 0 || static_cast<size_t>(m.rows) != rows ||
         static_cast<size_t>(m.cols) != cols) {
-      return invalid(lw() + ": affinity matrix is " + std::to_string(m.rows) + "x" +
-                     std::to_string(m.cols) + ", expected " + std::to_string(rows) + "x" +
-                     std::to_string(cols) + " from the candidate counts");
+      return invalid_argument("", lw() + ": affinity matrix is " + std::to_string(m.rows) + "x" +
+                                      std::to_string(m.cols) + ", expected " +
+                                      std::to_string(rows) + "x" + std::to_string(cols) +
+                                      " from the candidate counts");
     }
     if (m.values.size() != rows * cols) {
-      return invalid(lw() + ": affinity matrix " + std::to_string(rows) + "x" +
-                     std::to_string(cols) + " holds " + std::to_string(m.values.size()) +
-                     " values, expected " + std::to_string(rows * cols));
+      return invalid_argument("", lw() + ": affinity matrix " + std::to_string(rows) + "x" +
+                                      std::to_string(cols) + " holds " +
+                                      std::to_string(m.values.size()) + " values, expected " +
+                                      std::to_string(rows * cols));
     }
     if (all_in_unit_range(m.values)) continue;
     for (int r = 0; r < m.rows; ++r) {
       for (int c = 0; c < m.cols; ++c) {
         const float v = m.at(r, c);
         if (!in_unit_range(v)) {
-          return invalid(lw() + ": affinity at (" + std::to_string(r) + ", " + std::to_string(c) +
-                         ") is " + num(v) + ", outside [0, 1]");
+          return invalid_argument("", lw() + ": affinity at (" + std::to_string(r) + ", " +
+                                          std::to_string(c) + ") is " + num(v) +
+                                          ", outside [0, 1]");
         }
       }
     }
@@ -143,14 +145,14 @@ Status validate_view(const std::string& frame, const SkeletonTopology& topo,
 Status DetectionSet::validate() const {
   std::string frame = "frame ";
   frame += std::to_string(frame_id);
-  if (topology == nullptr) return invalid(frame + ": detection set has no topology");
+  if (topology == nullptr) return invalid_argument("", frame + ": detection set has no topology");
   // Duplicate view ids: a pairwise scan (a rig has a handful of views; this runs every frame).
   for (size_t i = 0; i < views.size(); ++i) {
     for (size_t k = 0; k < i; ++k) {
       if (views[k].view_id == views[i].view_id) {
-        return invalid(frame + ", view " + std::to_string(views[i].view_id) +
-                       ": view id appears twice (entries " + std::to_string(k) + " and " +
-                       std::to_string(i) + ")");
+        return invalid_argument("", frame + ", view " + std::to_string(views[i].view_id) +
+                                        ": view id appears twice (entries " + std::to_string(k) +
+                                        " and " + std::to_string(i) + ")");
       }
     }
   }

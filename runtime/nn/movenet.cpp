@@ -8,9 +8,7 @@ namespace mocap::nn {
 
 namespace {
 
-Error invalid(const std::string& what) {
-  return Error(ErrorCode::kInvalidArgument, "MoveNet: " + what);
-}
+constexpr std::string_view kStage = "MoveNet";
 
 constexpr int kMaxCenterWindowCells = 15;
 constexpr int kMaxCenters = 64;
@@ -111,9 +109,10 @@ Status check_movenet_heads(const Tensor& heatmap, const Tensor& center, const Te
       !offsets.well_formed() || !same_grid(center.shape) || !same_grid(regression.shape) ||
       !same_grid(offsets.shape) || center.shape.c != 1 || regression.shape.c != 2 * hs.c ||
       offsets.shape.c != 2 * hs.c) {
-    return invalid("heads heatmap " + hs.text() + ", centre " + center.shape.text() +
-                   ", regression " + regression.shape.text() + " and offsets " +
-                   offsets.shape.text() + " must be [N,H,W,J], [N,H,W,1], [N,H,W,2J] twice");
+    return invalid_argument(
+        kStage, "heads heatmap " + hs.text() + ", centre " + center.shape.text() + ", regression " +
+                    regression.shape.text() + " and offsets " + offsets.shape.text() +
+                    " must be [N,H,W,J], [N,H,W,1], [N,H,W,2J] twice");
   }
   return Status::Ok();
 }
@@ -121,20 +120,22 @@ Status check_movenet_heads(const Tensor& heatmap, const Tensor& center, const Te
 Status MoveNetOptions::validate() const {
   if (Status s = peaks.validate(); !s.ok()) return s;
   if (!(center_score_threshold > 0.f && center_score_threshold < 1.f)) {
-    return invalid("center_score_threshold " + std::to_string(center_score_threshold) +
-                   " must be in (0, 1)");
+    return invalid_argument(
+        kStage,
+        "center_score_threshold " + std::to_string(center_score_threshold) + " must be in (0, 1)");
   }
   if (center_window_cells < 1 || center_window_cells > kMaxCenterWindowCells ||
       center_window_cells % 2 == 0) {
-    return invalid("center_window_cells " + std::to_string(center_window_cells) +
-                   " must be odd, in [1, " + std::to_string(kMaxCenterWindowCells) + "]");
+    return invalid_argument(kStage, "center_window_cells " + std::to_string(center_window_cells) +
+                                        " must be odd, in [1, " +
+                                        std::to_string(kMaxCenterWindowCells) + "]");
   }
   if (max_centers < 1 || max_centers > kMaxCenters) {
-    return invalid("max_centers " + std::to_string(max_centers) + " must be in [1, " +
-                   std::to_string(kMaxCenters) + "]");
+    return invalid_argument(kStage, "max_centers " + std::to_string(max_centers) +
+                                        " must be in [1, " + std::to_string(kMaxCenters) + "]");
   }
   if (!(affinity_sigma_cells > 0.f) || !std::isfinite(affinity_sigma_cells)) {
-    return invalid("affinity_sigma_cells must be > 0");
+    return invalid_argument(kStage, "affinity_sigma_cells must be > 0");
   }
   return Status::Ok();
 }
@@ -143,8 +144,8 @@ Result<std::vector<MoveNetCenter>> movenet_centers_cpu(const Tensor& center, int
                                                        const MoveNetOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
   if (!center.well_formed() || center.shape.c != 1 || n < 0 || n >= center.shape.n) {
-    return invalid("centre heatmap " + center.shape.text() + " must be [N,H,W,1], item " +
-                   std::to_string(n) + " in it");
+    return invalid_argument(kStage, "centre heatmap " + center.shape.text() +
+                                        " must be [N,H,W,1], item " + std::to_string(n) + " in it");
   }
   const double p = static_cast<double>(options.center_score_threshold);
   const auto threshold = static_cast<float>(std::log(p / (1.0 - p)));
@@ -190,10 +191,10 @@ Result<std::vector<MoveNetView>> movenet_postprocess_cpu(
     return s.error();
   }
   if (topology.joint_count() != heatmap.shape.c || input_size_px <= 0) {
-    return invalid("topology " + topology.name() + " has " +
-                   std::to_string(topology.joint_count()) + " joints, the heatmap " +
-                   std::to_string(heatmap.shape.c) + " (input " + std::to_string(input_size_px) +
-                   " px)");
+    return invalid_argument(kStage, "topology " + topology.name() + " has " +
+                                        std::to_string(topology.joint_count()) +
+                                        " joints, the heatmap " + std::to_string(heatmap.shape.c) +
+                                        " (input " + std::to_string(input_size_px) + " px)");
   }
   const float stride_px = static_cast<float>(input_size_px) / static_cast<float>(heatmap.shape.h);
   PostprocessOptions po = options.peaks;

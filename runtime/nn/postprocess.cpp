@@ -6,36 +6,33 @@
 
 namespace mocap::nn {
 
-namespace {
-
-Error invalid(const std::string& what) { return Error(ErrorCode::kInvalidArgument, what); }
-
-}  // namespace
+namespace {}  // namespace
 
 Status PostprocessOptions::validate() const {
   if (!(score_threshold > 0.f && score_threshold < 1.f)) {
-    return invalid(std::string("post-processing: score_threshold ") +
-                   std::to_string(score_threshold) + " must be in (0, 1)");
+    return invalid_argument("", std::string("post-processing: score_threshold ") +
+                                    std::to_string(score_threshold) + " must be in (0, 1)");
   }
   if (max_candidates_per_joint < 1 || max_candidates_per_joint > 64) {
-    return invalid("post-processing: max_candidates_per_joint " +
-                   std::to_string(max_candidates_per_joint) + " must be in [1, 64]");
+    return invalid_argument("", "post-processing: max_candidates_per_joint " +
+                                    std::to_string(max_candidates_per_joint) +
+                                    " must be in [1, 64]");
   }
   if (!(output_stride_px > 0.f) || !std::isfinite(output_stride_px)) {
-    return invalid("post-processing: output_stride_px must be > 0");
+    return invalid_argument("", "post-processing: output_stride_px must be > 0");
   }
   if (!(affinity_sigma_strides > 0.f) || !std::isfinite(affinity_sigma_strides)) {
-    return invalid("post-processing: affinity_sigma_strides must be > 0");
+    return invalid_argument("", "post-processing: affinity_sigma_strides must be > 0");
   }
   if (paf_samples < 2 || paf_samples > 64) {
-    return invalid(std::string("post-processing: paf_samples ") + std::to_string(paf_samples) +
-                   " must be in [2, 64]");
+    return invalid_argument("", std::string("post-processing: paf_samples ") +
+                                    std::to_string(paf_samples) + " must be in [2, 64]");
   }
   if (!std::isfinite(paf_min_dot) || paf_min_dot < -1.f || paf_min_dot > 1.f) {
-    return invalid("post-processing: paf_min_dot must be in [-1, 1]");
+    return invalid_argument("", "post-processing: paf_min_dot must be in [-1, 1]");
   }
   if (!(paf_min_fraction >= 0.f && paf_min_fraction <= 1.f)) {
-    return invalid("post-processing: paf_min_fraction must be in [0, 1]");
+    return invalid_argument("", "post-processing: paf_min_fraction must be in [0, 1]");
   }
   return Status::Ok();
 }
@@ -51,8 +48,8 @@ Result<std::vector<PeakSet>> find_peaks_cpu(const Tensor& heatmap, const Tensor&
   const Shape& hs = heatmap.shape;
   if (!heatmap.well_formed() || !offsets.well_formed() || offsets.shape.n != hs.n ||
       offsets.shape.h != hs.h || offsets.shape.w != hs.w || offsets.shape.c != 2 * hs.c) {
-    return invalid(std::string("peaks: heatmap ") + hs.text() + " and offsets " +
-                   offsets.shape.text() + " must be [N,H,W,J] and [N,H,W,2J]");
+    return invalid_argument("", std::string("peaks: heatmap ") + hs.text() + " and offsets " +
+                                    offsets.shape.text() + " must be [N,H,W,J] and [N,H,W,2J]");
   }
   const int J = hs.c;
   const float thr = options.threshold_logit();
@@ -138,9 +135,9 @@ Result<std::vector<LimbEdge>> map_displacement_edges(const SkeletonTopology& top
       if (p == b && c == a) found = {static_cast<int>(e), true};
     }
     if (found.edge < 0) {
-      return invalid(std::string("topology ") + topology.name() + ", limb " + std::to_string(l) +
-                     " (" + topology.limb_name(l) +
-                     "): no PoseNet displacement edge joins these joints");
+      return invalid_argument("", std::string("topology ") + topology.name() + ", limb " +
+                                      std::to_string(l) + " (" + topology.limb_name(l) +
+                                      "): no PoseNet displacement edge joins these joints");
     }
     out.push_back(found);
   }
@@ -154,8 +151,9 @@ Result<AffinityMatrix> displacement_affinity_cpu(const std::vector<PeakCandidate
   if (Status s = options.validate(); !s.ok()) return s.error();
   if (!fwd.well_formed() || !(fwd.shape == bwd.shape) || fwd.shape.c % 2 != 0 || n < 0 ||
       n >= fwd.shape.n || edge < 0 || edge >= fwd.shape.c / 2) {
-    return invalid(std::string("displacement affinity: fwd ") + fwd.shape.text() + " and bwd " +
-                   bwd.shape.text() + " must be equal [N,H,W,2E] with n < N, edge < E");
+    return invalid_argument("", std::string("displacement affinity: fwd ") + fwd.shape.text() +
+                                    " and bwd " + bwd.shape.text() +
+                                    " must be equal [N,H,W,2E] with n < N, edge < E");
   }
   const int E = fwd.shape.c / 2;
   const int W = fwd.shape.w;
@@ -165,11 +163,13 @@ Result<AffinityMatrix> displacement_affinity_cpu(const std::vector<PeakCandidate
   AffinityMatrix m(static_cast<int>(parents.size()), static_cast<int>(children.size()));
   for (int i = 0; i < m.rows; ++i) {
     const PeakCandidate& p = parents[static_cast<std::size_t>(i)];
-    if (p.cell < 0 || p.cell >= cells) return invalid("displacement affinity: bad parent cell");
+    if (p.cell < 0 || p.cell >= cells)
+      return invalid_argument("", "displacement affinity: bad parent cell");
     const float* fp = fwd.pixel(n, p.cell / W, p.cell % W);
     for (int j = 0; j < m.cols; ++j) {
       const PeakCandidate& c = children[static_cast<std::size_t>(j)];
-      if (c.cell < 0 || c.cell >= cells) return invalid("displacement affinity: bad child cell");
+      if (c.cell < 0 || c.cell >= cells)
+        return invalid_argument("", "displacement affinity: bad child cell");
       const float* bp = bwd.pixel(n, c.cell / W, c.cell % W);
       const float fy = p.y_net_px + fp[edge] - c.y_net_px;
       const float fx = p.x_net_px + fp[E + edge] - c.x_net_px;
@@ -189,9 +189,10 @@ Result<PafScores> paf_affinity_cpu(const std::vector<PeakCandidate>& a,
   if (Status s = options.validate(); !s.ok()) return s.error();
   if (!paf.well_formed() || n < 0 || n >= paf.shape.n || channel_x < 0 ||
       channel_x >= paf.shape.c || channel_y < 0 || channel_y >= paf.shape.c) {
-    return invalid(std::string("PAF affinity: field ") + paf.shape.text() + ", batch item " +
-                   std::to_string(n) + ", channels " + std::to_string(channel_x) + "/" +
-                   std::to_string(channel_y) + " out of range");
+    return invalid_argument("", std::string("PAF affinity: field ") + paf.shape.text() +
+                                    ", batch item " + std::to_string(n) + ", channels " +
+                                    std::to_string(channel_x) + "/" + std::to_string(channel_y) +
+                                    " out of range");
   }
   const int K = options.paf_samples;
   const float inv_stride = 1.f / options.output_stride_px;
@@ -239,10 +240,10 @@ Result<std::vector<PoseNetView>> posenet_postprocess_cpu(const Tensor& heatmap,
   const Shape& hs = heatmap.shape;
   if (!(fwd.shape == bwd.shape) || fwd.shape.n != hs.n || fwd.shape.h != hs.h ||
       fwd.shape.w != hs.w || fwd.shape.c != 2 * static_cast<int>(edges.size())) {
-    return invalid(std::string("PoseNet post-processing: displacements ") + fwd.shape.text() +
-                   " / " + bwd.shape.text() +
-                   " must be [N,H,W,2E] with the heatmap's N,H,W and E = " +
-                   std::to_string(edges.size()) + " edges");
+    return invalid_argument("", std::string("PoseNet post-processing: displacements ") +
+                                    fwd.shape.text() + " / " + bwd.shape.text() +
+                                    " must be [N,H,W,2E] with the heatmap's N,H,W and E = " +
+                                    std::to_string(edges.size()) + " edges");
   }
   std::vector<PoseNetView> out(peaks->size());
   for (std::size_t n = 0; n < out.size(); ++n) {
@@ -250,8 +251,9 @@ Result<std::vector<PoseNetView>> posenet_postprocess_cpu(const Tensor& heatmap,
     for (std::size_t e = 0; e < edges.size(); ++e) {
       const DisplacementEdge& de = edges[e];
       if (de.parent < 0 || de.parent >= hs.c || de.child < 0 || de.child >= hs.c) {
-        return invalid(std::string("PoseNet post-processing: edge ") + std::to_string(e) +
-                       std::string(" joins a joint outside the heatmap's ") + std::to_string(hs.c));
+        return invalid_argument(
+            "", std::string("PoseNet post-processing: edge ") + std::to_string(e) +
+                    std::string(" joins a joint outside the heatmap's ") + std::to_string(hs.c));
       }
       auto m =
           displacement_affinity_cpu(out[n].peaks.joints[static_cast<std::size_t>(de.parent)],

@@ -8,9 +8,7 @@ namespace mocap::nn {
 
 namespace {
 
-Error invalid(const std::string& what) {
-  return Error(ErrorCode::kInvalidArgument, "frame pre-processing: " + what);
-}
+constexpr std::string_view kStage = "frame pre-processing";
 
 std::string dims(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
 
@@ -107,39 +105,44 @@ Status validate_frame(const FrameView& frame) {
   constexpr int kMaxSidePx = 16384;
   if (frame.width_px <= 0 || frame.height_px <= 0 || frame.width_px > kMaxSidePx ||
       frame.height_px > kMaxSidePx) {
-    return invalid(name + " frame of " + dims(frame.width_px, frame.height_px) +
-                   std::string(" px: width and height must be in [1, ") +
-                   std::to_string(kMaxSidePx) + "]");
+    return invalid_argument(kStage, name + " frame of " + dims(frame.width_px, frame.height_px) +
+                                        std::string(" px: width and height must be in [1, ") +
+                                        std::to_string(kMaxSidePx) + "]");
   }
   if ((f == PixelFormat::kYUYV || f == PixelFormat::kNV12) && frame.width_px % 2 != 0) {
-    return invalid(name + " frame of " + dims(frame.width_px, frame.height_px) +
-                   " px: the width must be even (chroma is shared by pixel pairs)");
+    return invalid_argument(kStage,
+                            name + " frame of " + dims(frame.width_px, frame.height_px) +
+                                " px: the width must be even (chroma is shared by pixel pairs)");
   }
   if (f == PixelFormat::kNV12 && frame.height_px % 2 != 0) {
-    return invalid(std::string("NV12 frame of ") + dims(frame.width_px, frame.height_px) +
-                   " px: the height must be even (chroma rows are shared by row pairs)");
+    return invalid_argument(
+        kStage, std::string("NV12 frame of ") + dims(frame.width_px, frame.height_px) +
+                    " px: the height must be even (chroma rows are shared by row pairs)");
   }
   const int packed = packed_stride(f, frame.width_px);
   const int stride = frame_stride_bytes(frame);
   if (stride < packed) {
-    return invalid(name + " frame of " + dims(frame.width_px, frame.height_px) + " px: stride " +
-                   std::to_string(stride) + " bytes is smaller than a row (" +
-                   std::to_string(packed) + " bytes)");
+    return invalid_argument(kStage, name + " frame of " + dims(frame.width_px, frame.height_px) +
+                                        " px: stride " + std::to_string(stride) +
+                                        " bytes is smaller than a row (" + std::to_string(packed) +
+                                        " bytes)");
   }
   std::size_t needed = uz(static_cast<long>(stride) * (frame.height_px - 1) + packed);
   if (f == PixelFormat::kNV12) {
     const std::size_t uv = frame_uv_offset_bytes(frame);
     if (uv < needed) {
-      return invalid(std::string("NV12 frame: the UV plane offset ") + std::to_string(uv) +
-                     std::string(" bytes overlaps the Y plane (") + std::to_string(needed) +
-                     " bytes)");
+      return invalid_argument(kStage, std::string("NV12 frame: the UV plane offset ") +
+                                          std::to_string(uv) +
+                                          std::string(" bytes overlaps the Y plane (") +
+                                          std::to_string(needed) + " bytes)");
     }
     needed = uv + uz(static_cast<long>(stride) * (frame.height_px / 2 - 1) + packed);
   }
   if (frame.bytes.size() < needed) {
-    return invalid(name + " frame of " + dims(frame.width_px, frame.height_px) + " px, stride " +
-                   std::to_string(stride) + ": needs " + std::to_string(needed) + " bytes, got " +
-                   std::to_string(frame.bytes.size()));
+    return invalid_argument(kStage, name + " frame of " + dims(frame.width_px, frame.height_px) +
+                                        " px, stride " + std::to_string(stride) + ": needs " +
+                                        std::to_string(needed) + " bytes, got " +
+                                        std::to_string(frame.bytes.size()));
   }
   return Status::Ok();
 }
@@ -164,12 +167,12 @@ Result<Letterbox> resample_frame(const FrameView& frame, const LetterboxGrid& g,
   if (Status st = validate_frame(frame); !st.ok()) return st.error();
   if (!(g.box.scale > 0) || !std::isfinite(g.box.scale) || !std::isfinite(g.box.offset_x_px) ||
       !std::isfinite(g.box.offset_y_px)) {
-    return invalid("the mapping into the network input needs a finite scale > 0");
+    return invalid_argument(kStage, "the mapping into the network input needs a finite scale > 0");
   }
   const Shape& s = out.shape;
   if (s.c != 3 || s.h <= 0 || s.w <= 0 || n < 0 || n >= s.n ||
       static_cast<long>(out.data.size()) != s.elements()) {
-    return invalid("output must be [N, H, W, 3] with n < N");
+    return invalid_argument(kStage, "output must be [N, H, W, 3] with n < N");
   }
   const int width_px = frame.width_px;
   const int height_px = frame.height_px;

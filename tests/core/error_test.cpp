@@ -39,5 +39,13 @@ TEST(Status, DefaultIsOk) {
   EXPECT_EQ(f.error().code(), ErrorCode::kIo);
 }
 
+TEST(Error, InvalidArgumentNamesTheStage) {
+  const Error e = invalid_argument("crop plan", "max_crops must be in [1, 64]");
+  EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+  EXPECT_EQ(e.message(), "crop plan: max_crops must be in [1, 64]");
+  EXPECT_EQ(invalid_argument("", "view 2: score 1.5 is outside [0, 1]").message(),
+            "view 2: score 1.5 is outside [0, 1]");
+}
+
 }  // namespace
 }  // namespace mocap
