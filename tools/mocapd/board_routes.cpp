@@ -94,10 +94,10 @@ net::HttpReply Daemon::start_board_capture(const net::HttpRequest& req) {
                        "this node is part of a scale-out stage: calibrate the stage's "
                        "cameras with `mocap calibrate board` and give every node the file");
   }
-  if (source_kind_ != "cameras" && source_kind_ != "replay") {
+  if (!box::has_images(source_kind_)) {
     return error_reply(409, "a board calibration needs camera images, and this box's source is " +
-                                source_kind_ +
-                                (source_kind_ == "simulator"
+                                std::string(to_string(source_kind_)) +
+                                (source_kind_ == box::SourceKind::kSimulator
                                      ? " (it draws no images): plug in cameras and restart mocapd"
                                      : ": calibrate on the node that has the cameras"));
   }
@@ -118,7 +118,8 @@ net::HttpReply Daemon::start_board_capture(const net::HttpRequest& req) {
   if (floor) o.floor_samples = static_cast<int>(*floor);
   // Cameras without a shared trigger do not see a moving board at one instant.
   o.calibration.still_px =
-      still ? *still : (source_kind_ == "cameras" && !external_trigger_ ? 6.0 : 0.0);
+      still ? *still
+            : (source_kind_ == box::SourceKind::kCameras && !external_trigger_ ? 6.0 : 0.0);
   std::vector<std::string> ids;
   for (std::size_t v = 0; v < camera_names_.size(); ++v) ids.push_back(camera_names_[v]);
   auto cap = boardcal::BoardCapture::create(*board, std::move(ids), o);
@@ -168,54 +169,16 @@ net::HttpReply Daemon::save_board_calibration() {
   {
     std::lock_guard<std::mutex> lock(board_mu_);
     board_saved_to_ = path.string();
-    board_adoption_ =
-        BoardAdoption{result->calibration, path.string(), boardcal::board_report_json(*result)};
   }
+  // Swapped in at the next frame (a self-calibration in progress is set aside).
+  lifecycle_->offer_board_calibration(result->calibration, path.string(),
+                                      boardcal::board_report_json(*result));
   MOCAP_LOG(Daemon, Info) << "board calibration saved to " << path.string()
                           << (had ? " (the previous one kept as " + path.string() + ".bak)" : "")
                           << ": " << result->reprojection_px << " px";
   json reply = {{"saved", path.string()}, {"reprojection_px", result->reprojection_px}};
   if (had) reply["backup"] = path.string() + ".bak";
   return json_reply(200, reply);
-}
-
-// On the association thread, at the frame after a save: the board calibration drives the
-// engine; a self-calibration in progress is set aside (it would replace it).
-void Daemon::adopt_board_calibration() {
-  std::optional<BoardAdoption> a;
-  {
-    std::lock_guard<std::mutex> lock(board_mu_);
-    a.swap(board_adoption_);
-  }
-  if (!a) return;
-  const Calibration& cal = a->calibration;
-  auto eng = assoc::Engine::create(*calibration_topology_, cal.cameras, calibration_assoc_options_);
-  std::lock_guard<std::mutex> lock(state_mu_);
-  if (!eng.ok()) {
-    problems_.push_back("the board calibration was saved but cannot drive the engine: " +
-                        eng.error().message());
-    MOCAP_LOG(Daemon, Error) << problems_.back();
-    return;
-  }
-  problems_.erase(std::remove_if(problems_.begin(), problems_.end(),
-                                 [](const std::string& p) {
-                                   return p.find("calibrating from the people") !=
-                                              std::string::npos ||
-                                          p.find("have no calibration") != std::string::npos ||
-                                          p.find("no calibration yet") != std::string::npos;
-                                 }),
-                  problems_.end());
-  // A self-calibration's worker may be mid-solve: kept until the daemon goes, not waited for.
-  if (calibrator_) retired_calibrators_.push_back(std::move(calibrator_));
-  recalibrating_ = false;
-  calibration_state_ = CalibrationState::kOk;
-  calibration_file_ = a->file;
-  self_calibration_report_.clear();
-  board_report_ = a->report;
-  swap_in(cal, std::move(*eng));
-  start_calibration_check();
-  MOCAP_LOG(Daemon, Info) << "board calibration adopted: skeletons from now on, calibration "
-                          << calibration_file_;
 }
 
 }  // namespace mocap::daemon

@@ -80,7 +80,7 @@ std::string calibration_fix(const DaemonConfig& c) {
          " or pass --calibration FILE, then restart mocapd";
 }
 
-pipeline::DropPolicy drop_policy(const DaemonConfig& c, const std::string& source_kind) {
+pipeline::DropPolicy drop_policy(const DaemonConfig& c, box::SourceKind source_kind) {
   switch (c.drop_policy) {
     case DropPolicyChoice::kBlock:
       return pipeline::DropPolicy::kBlock;
@@ -89,27 +89,11 @@ pipeline::DropPolicy drop_policy(const DaemonConfig& c, const std::string& sourc
     case DropPolicyChoice::kAuto:
       break;
   }
-  const bool replay_full_speed = source_kind == "replay" && !c.replay_realtime;
+  const bool replay_full_speed = source_kind == box::SourceKind::kReplay && !c.replay_realtime;
   return replay_full_speed ? pipeline::DropPolicy::kBlock : pipeline::DropPolicy::kDropOldest;
 }
 
 }  // namespace
-
-std::string_view to_string(CalibrationState state) {
-  switch (state) {
-    case CalibrationState::kOk:
-      return "ok";
-    case CalibrationState::kMissing:
-      return "missing";
-    case CalibrationState::kInvalid:
-      return "invalid";
-    case CalibrationState::kMismatch:
-      return "mismatch";
-    case CalibrationState::kCalibrating:
-      return "calibrating";
-  }
-  return "?";
-}
 
 Daemon::~Daemon() {
   stop();
@@ -127,6 +111,14 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
   d->config_ = config;
   d->hooks_ = std::move(hooks);
   d->unix_offset_ns_ = realtime_offset_ns();
+  box::CalibrationLifecycleOptions lo;
+  lo.self_calibrate = config.self_calibrate;
+  // A recording's calibration is not checked: a replay gives the same skeletons every time.
+  lo.calibration_check = config.calibration_check && config.replay.empty();
+  lo.self_calibration_frames = config.self_calibration_frames;
+  lo.state_file = fs::path(config.state_dir) / "calibration.json";
+  if (Status s = lo.validate(); !s.ok()) return s.error();
+  d->lifecycle_ = std::make_unique<box::CalibrationLifecycle>(lo, d->problems_);
   const fs::path board_dir =
       config.board_dir.empty() ? tools::share_path("board") : fs::path(config.board_dir);
   Status s;
@@ -162,9 +154,8 @@ Status Daemon::open_replay() {
   o.source.calibration_optional = true;  // a fresh recording: calibrated while it plays
   auto parts = tools::open_replay(o);
   if (!parts.ok()) return parts.error().with_context("replay");
-  source_kind_ = "replay";
-  calibration_topology_ = &coco17_topology();
-  calibration_assoc_options_ = o.assoc;
+  source_kind_ = box::SourceKind::kReplay;
+  lifecycle_->set_recipe(coco17_topology(), o.assoc);
   for (std::size_t v = 0; v < parts->cameras.size(); ++v) {
     const std::string& name = parts->cameras[v].name();
     camera_names_.push_back(name.empty() ? std::to_string(v) : name);
@@ -174,15 +165,17 @@ Status Daemon::open_replay() {
   if (!parts->calibrated) {
     // Like cameras without a calibration: 2D detections, and the box calibrates itself from
     // the people (or from a board: "Calibrate with a board").
-    calibration_state_ = CalibrationState::kMissing;
-    problems_.push_back("the " + std::to_string(parts->cameras.size()) + " cameras of recording " +
-                        config_.replay +
-                        " have no calibration (no calibration.json): streaming "
-                        "2D detections only; use \"Calibrate with a board\" on the web page, or "
-                        "let the box calibrate itself from the people");
-    MOCAP_LOG(Daemon, Warn) << problems_.back();
+    lifecycle_->set_uncalibrated(CalibrationState::kMissing, "");
+    const std::string subject =
+        "the " + std::to_string(parts->cameras.size()) + " cameras of recording " + config_.replay;
+    add_problem(box::ProblemCode::kCalibrationMissing,
+                subject +
+                    " have no calibration (no calibration.json): streaming 2D detections only; use "
+                    "\"Calibrate with a board\" on the web page, or let the box calibrate itself "
+                    "from the people");
     if (!config_.crops.empty() && config_.crops != "auto" && config_.crops != "off") {
-      problems_.push_back("crops " + config_.crops + " are off: they need calibrated cameras");
+      add_problem(box::ProblemCode::kCropsOff,
+                  "crops " + config_.crops + " are off: they need calibrated cameras");
     }
     std::vector<int> ids;
     std::vector<calib::CameraPrior> priors;
@@ -191,13 +184,12 @@ Status Daemon::open_replay() {
       priors.push_back({camera_names_[v], parts->cameras[v].width_px(),
                         parts->cameras[v].height_px(), std::nullopt});
     }
-    start_self_calibration(coco17_topology(), ids, priors, o.assoc);
+    lifecycle_->start_self_calibration(ids, priors, subject);
     return {};
   }
-  calibration_state_ = CalibrationState::kOk;
-  calibration_file_ = (fs::path(config_.replay) / "calibration.json").string();
-  cameras_ = std::move(parts->cameras);
-  engine_ = std::move(parts->engine);
+  lifecycle_->adopt_engine(Calibration{std::move(parts->cameras), camera_names_},
+                           (fs::path(config_.replay) / "calibration.json").string(),
+                           std::move(parts->engine));
   return {};
 }
 
@@ -241,23 +233,22 @@ Status Daemon::open_simulator(double rate_hz) {
   frame_rate_hz_ = rate_hz;
   auto src = sim::SimulatorSource::open(so);
   if (!src.ok()) return src.error().with_context("simulator");
-  calibration_state_ = CalibrationState::kOk;
-  calibration_file_ = "(the simulator's virtual rig)";
-  source_kind_ = "simulator";
+  source_kind_ = box::SourceKind::kSimulator;
   gpu_backend_ = "none";
   gpu_description_ = "not used: the simulator gives detections";
-  problems_.push_back("no camera found: streaming the built-in simulator (" +
-                      std::to_string(so.people) + " simulated people, " + std::to_string(so.views) +
-                      " virtual cameras); plug in cameras and restart mocapd");
-  MOCAP_LOG(Daemon, Warn) << problems_.back();
+  add_problem(box::ProblemCode::kNoCamera,
+              "no camera found: streaming the built-in simulator (" + std::to_string(so.people) +
+                  " simulated people, " + std::to_string(so.views) +
+                  " virtual cameras); plug in cameras and restart mocapd",
+              "plug in cameras and restart mocapd");
   const Calibration calibration = (*src)->calibration();
   const SkeletonTopology& topology = (*src)->topology();
   for (const Camera& cam : calibration.cameras) camera_names_.push_back(cam.name());
   pending_source_ = std::move(*src);
   if (!config_.sim_calibrated) {
     // The box calibrates itself from the simulated people, as it would with real cameras.
-    calibration_state_ = CalibrationState::kMissing;
-    calibration_file_.clear();
+    lifecycle_->set_recipe(topology, assoc::AssociationOptions{});
+    lifecycle_->set_uncalibrated(CalibrationState::kMissing, "");
     std::vector<int> ids;
     std::vector<calib::CameraPrior> priors;
     for (std::size_t v = 0; v < calibration.size(); ++v) {
@@ -265,17 +256,19 @@ Status Daemon::open_simulator(double rate_hz) {
       priors.push_back({calibration.view_ids[v], calibration.cameras[v].width_px(),
                         calibration.cameras[v].height_px(), std::nullopt});
     }
-    start_self_calibration(topology, ids, priors, assoc::AssociationOptions{});
+    lifecycle_->start_self_calibration(ids, priors, "");
     return {};
   }
-  return make_engine(topology, calibration, assoc::AssociationOptions{});
+  return make_engine(topology, calibration, assoc::AssociationOptions{},
+                     "(the simulator's virtual rig)");
 }
 
 // The calibration named, else the state folder's, else the board's. A named one that cannot be
 // used is an error (set in `error`); a found one that cannot is a problem with its fix, and the
 // cameras stream 2D detections.
 std::optional<Calibration> Daemon::choose_calibration(hal::Discovery& disc,
-                                                      const fs::path& board_dir, Status& error) {
+                                                      const fs::path& board_dir, Status& error,
+                                                      std::string& file) {
   std::vector<std::pair<fs::path, bool>> candidates;  // path, named explicitly
   if (!config_.calibration.empty()) {
     candidates.emplace_back(config_.calibration, true);
@@ -291,12 +284,14 @@ std::optional<Calibration> Daemon::choose_calibration(hal::Discovery& disc,
     std::error_code ec;
     if (!explicit_ && !fs::exists(path, ec)) continue;
     Result<Calibration> c = load_calibration(path);
-    calibration_file_ = path.string();
+    file = path.string();
     if (!c.ok()) {
       if (explicit_) error = c.error();
-      calibration_state_ = CalibrationState::kInvalid;
-      problems_.push_back("calibration " + c.error().message() + ": cameras " + ids +
-                          " stream 2D detections only; fix it: " + fix);
+      lifecycle_->set_uncalibrated(CalibrationState::kInvalid, file);
+      add_problem(box::ProblemCode::kCalibrationInvalid,
+                  "calibration " + c.error().message() + ": cameras " + ids +
+                      " stream 2D detections only; fix it: " + fix,
+                  fix);
       return std::nullopt;
     }
     std::string how;
@@ -305,24 +300,24 @@ std::optional<Calibration> Daemon::choose_calibration(hal::Discovery& disc,
                             std::to_string(disc.cameras.size()) + " cameras were found (" + ids +
                             ")";
       if (explicit_) error = Error(ErrorCode::kInvalidArgument, m);
-      calibration_state_ = CalibrationState::kMismatch;
-      problems_.push_back(m + ": streaming 2D detections only; " + fix);
+      lifecycle_->set_uncalibrated(CalibrationState::kMismatch, file);
+      add_problem(box::ProblemCode::kCalibrationMismatch,
+                  m + ": streaming 2D detections only; " + fix, fix);
       return std::nullopt;
     }
     MOCAP_LOG(Daemon, Info) << "calibration " << path.string() << ": cameras matched " << how;
-    calibration_state_ = CalibrationState::kOk;
     return std::move(*c);
   }
-  problems_.push_back("cameras " + ids + " have no calibration: streaming 2D detections only; " +
-                      fix);
+  add_problem(box::ProblemCode::kCalibrationMissing,
+              "cameras " + ids + " have no calibration: streaming 2D detections only; " + fix, fix);
   return std::nullopt;
 }
 
 Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, double rate_hz) {
   Status error;
-  std::optional<Calibration> calibration = choose_calibration(disc, board_dir, error);
+  std::string file;
+  std::optional<Calibration> calibration = choose_calibration(disc, board_dir, error, file);
   if (!error.ok()) return error;
-  for (const auto& p : problems_) MOCAP_LOG(Daemon, Warn) << p;
   hal::RigSourceOptions ro;
   ro.frame_rate_hz = rate_hz;
   ro.external_trigger = disc.board.trigger.mode != hal::SyncMode::kSoftware;
@@ -334,17 +329,17 @@ Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, dou
   auto src = hal::RigSource::open(disc.cameras, ro);
   if (!src.ok() && calibration && config_.calibration.empty()) {
     // The found calibration asks for sizes the cameras cannot give: it is not theirs.
-    calibration_state_ = CalibrationState::kMismatch;
-    problems_.push_back("calibration " + calibration_file_ + " does not fit the cameras (" +
-                        src.error().message() + "): streaming 2D detections only; " +
-                        calibration_fix(config_));
-    MOCAP_LOG(Daemon, Warn) << problems_.back();
+    lifecycle_->set_uncalibrated(CalibrationState::kMismatch, file);
+    add_problem(box::ProblemCode::kCalibrationMismatch,
+                "calibration " + file + " does not fit the cameras (" + src.error().message() +
+                    "): streaming 2D detections only; " + calibration_fix(config_),
+                calibration_fix(config_));
     calibration.reset();
     ro.size_px.clear();
     src = hal::RigSource::open(disc.cameras, ro);
   }
   if (!src.ok()) return src.error();
-  source_kind_ = "cameras";
+  source_kind_ = box::SourceKind::kCameras;
   pending_source_ = std::move(*src);
   frame_rate_hz_ = rate_hz;
   for (std::size_t v = 0; v < disc.cameras.size(); ++v) {
@@ -359,199 +354,42 @@ Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, dou
     return s;
   }
   if (!calibration) {
-    calibration_topology_ = &coco17_topology();  // for a calibration adopted later
-    calibration_assoc_options_ = assoc::posenet_coco17_options();
-    if (config_.calibration.empty() && calibration_state_ == CalibrationState::kMissing) {
+    // For a calibration adopted later.
+    lifecycle_->set_recipe(coco17_topology(), assoc::posenet_coco17_options());
+    if (config_.calibration.empty() && lifecycle_->state() == CalibrationState::kMissing) {
       std::vector<int> ids;
       std::vector<calib::CameraPrior> priors;
       for (std::size_t v = 0; v < disc.cameras.size(); ++v) {
         ids.push_back(static_cast<int>(v));
         priors.push_back({std::to_string(v), 0, 0, std::nullopt});
       }
-      start_self_calibration(coco17_topology(), ids, priors, assoc::posenet_coco17_options());
+      lifecycle_->start_self_calibration(ids, priors, "cameras " + camera_ids(disc));
     }
     return {};
   }
-  return make_engine(coco17_topology(), *calibration, assoc::posenet_coco17_options());
-}
-
-// The self-calibration's schedule (config self_calibration_frames), for a first calibration and
-// a recalibration alike.
-static calib::BackgroundCalibratorOptions background_calibrator_options(
-    const DaemonConfig& config) {
-  calib::BackgroundCalibratorOptions bo;
-  bo.first_attempt_frames = config.self_calibration_frames;
-  bo.retry_frames = config.self_calibration_frames;
-  bo.max_frames = std::max(bo.max_frames, 4 * config.self_calibration_frames);
-  return bo;
-}
-
-void Daemon::start_self_calibration(const SkeletonTopology& topology, std::vector<int> view_ids,
-                                    std::vector<calib::CameraPrior> priors,
-                                    const assoc::AssociationOptions& options) {
-  if (!config_.self_calibrate) return;
-  const calib::BackgroundCalibratorOptions bo = background_calibrator_options(config_);
-  calibrator_ = std::make_unique<calib::BackgroundCalibrator>(topology, std::move(view_ids),
-                                                              std::move(priors), bo);
-  calibration_topology_ = &topology;
-  calibration_assoc_options_ = options;
-  calibration_state_ = CalibrationState::kCalibrating;
-  // The "no calibration" problem (naming the cameras) becomes what the box is doing about it.
-  const std::string doing =
-      "calibrating from the people walking in the room (2D detections meanwhile); walk around "
-      "the whole area for about a minute (progress under calibration.progress), or use "
-      "\"Calibrate with a board\" on the web page";
-  auto it = std::find_if(problems_.begin(), problems_.end(), [](const std::string& p) {
-    return p.find("have no calibration") != std::string::npos;
-  });
-  if (it != problems_.end()) {
-    *it = it->substr(0, it->find("have no calibration")) + "have no calibration: " + doing;
-    MOCAP_LOG(Daemon, Warn) << *it;
-  } else {
-    problems_.push_back("no calibration yet: " + doing);
-    MOCAP_LOG(Daemon, Warn) << problems_.back();
-  }
+  return make_engine(coco17_topology(), *calibration, assoc::posenet_coco17_options(), file);
 }
 
 // POST /calibration/recalibrate: solved again from the people walking, with each camera's
 // intrinsics kept; the box streams with its current calibration until the new one is adopted
 // (and saved). A request is taken up by the association thread at its next frame.
 net::HttpReply Daemon::request_recalibration() {
-  std::lock_guard<std::mutex> lock(state_mu_);
-  if (!config_.self_calibrate) {
-    return error_reply(409,
-                       "self-calibration is off (self_calibrate=false): calibrate with "
-                       "`mocap calibrate people` and restart mocapd");
-  }
-  if (calibration_state_ == CalibrationState::kCalibrating || recalibrating_ ||
-      recalibrate_requested_.load()) {
-    return error_reply(409, "already calibrating (progress under /health calibration)");
-  }
-  if (calibration_topology_ == nullptr || cameras_.empty() || !engine_) {
-    return error_reply(409,
-                       "there is no calibration to solve again: the cameras calibrate "
-                       "themselves once people walk in the room");
-  }
-  recalibrate_requested_.store(true);
-  MOCAP_LOG(Daemon, Info) << "recalibration requested over HTTP";
-  return json_reply(202, {{"recalibrating", true},
-                          {"what_to_do",
-                           "walk around the whole area for about a minute; the "
-                           "current calibration is used until the new one is solved"}});
+  const box::RecalibrationReply r = lifecycle_->request_recalibration();
+  if (r.answer != box::RecalibrationAnswer::kAccepted) return error_reply(409, r.text);
+  return json_reply(202, {{"recalibrating", true}, {"what_to_do", r.text}});
 }
 
-// On the association thread: a self-calibration of the calibrated cameras, fed alongside the
-// running engine.
-void Daemon::begin_recalibration() {
-  std::lock_guard<std::mutex> lock(state_mu_);
-  std::vector<int> ids;
-  std::vector<calib::CameraPrior> priors;
-  for (std::size_t v = 0; v < cameras_.size(); ++v) {
-    ids.push_back(static_cast<int>(v));
-    const std::string id =
-        v < calibration_.view_ids.size() ? calibration_.view_ids[v] : std::to_string(v);
-    priors.push_back({id, cameras_[v].width_px(), cameras_[v].height_px(), cameras_[v]});
-  }
-  const calib::BackgroundCalibratorOptions bo = background_calibrator_options(config_);
-  calibrator_ = std::make_unique<calib::BackgroundCalibrator>(
-      *calibration_topology_, std::move(ids), std::move(priors), bo);
-  recalibrating_ = true;
-  problems_.push_back(
-      "recalibrating on request, calibrating from the people walking in the room: walk around "
-      "the whole area for about a minute (progress under calibration.progress); the current "
-      "calibration is used meanwhile");
-  MOCAP_LOG(Daemon, Warn) << problems_.back();
-}
-
-void Daemon::start_calibration_check() {
-  if (!config_.calibration_check || calibration_.size() == 0) return;
-  monitor_ =
-      std::make_unique<calib::CalibrationMonitor>(calibration_, calib::CalibrationMonitorOptions{});
-}
-
-// Whether a re-solved or self-made calibration is written to <state_dir>: not over one the
-// user named, not for a recording's or the simulator's own.
+// Whether a re-solved camera is written to <state_dir>: not over one the user named, not for a
+// recording's or the simulator's own.
 bool Daemon::persists_calibration() const {
-  return config_.calibration.empty() && source_kind_ != "replay" &&
-         !(source_kind_ == "simulator" && config_.sim_calibrated);
+  return config_.calibration.empty() && source_kind_ != box::SourceKind::kReplay &&
+         !(source_kind_ == box::SourceKind::kSimulator && config_.sim_calibrated);
 }
 
-// With state_mu_ held, on the association thread: `cal` and its engine drive the pipeline from
-// the next frame. The engine used until now stays alive (this runs on that thread, after it;
-// the pipeline only reads the new pointer from the next frame).
-void Daemon::swap_in(const Calibration& cal, std::unique_ptr<assoc::Engine> engine) {
-  calibration_ = cal;
-  cameras_ = cal.cameras;
-  if (camera_views_) camera_views_->set_cameras(cameras_);
-  if (engine_) retired_engines_.push_back(std::move(engine_));
-  engine_ = std::move(engine);
-  pipeline_->set_engine(engine_.get());
-}
-
-void Daemon::adopt_resolved_camera(const calib::ResolvedCamera& r) {
-  Calibration cal = calibration_;
-  cal.cameras[r.view] = r.camera;
-  auto eng = assoc::Engine::create(*calibration_topology_, cal.cameras, calibration_assoc_options_);
-  if (!eng.ok()) {
-    MOCAP_LOG(Daemon, Error) << "camera " << cal.view_ids[r.view]
-                             << " was solved again but the engine refused it: "
-                             << eng.error().message();
-    return;
-  }
-  Status written;
-  const fs::path path = fs::path(config_.state_dir) / "calibration.json";
-  if (persists_calibration()) {
-    std::error_code ec;
-    fs::create_directories(config_.state_dir, ec);
-    written = calib::write_calibration_durably(cal, path);
-  }
-  std::lock_guard<std::mutex> lock(state_mu_);
-  swap_in(cal, std::move(*eng));
-  if (persists_calibration() && written.ok()) calibration_file_ = path.string();
-  if (!written.ok()) {
-    problems_.push_back(
-        "camera " + cal.view_ids[r.view] +
-        " was solved again but not saved (used until restart): " + written.error().message());
-  }
-  MOCAP_LOG(Daemon, Warn) << "camera " << cal.view_ids[r.view] << " moved: its pose was solved "
-                          << "again (" << r.inliers << " joints fit) and swapped in"
-                          << (persists_calibration() && written.ok() ? ", saved to " + path.string()
-                                                                     : std::string());
-}
-
-void Daemon::adopt_self_calibration(const calib::SelfCalibrationResult& result) {
-  const Calibration& cal = *result.calibration;
-  const fs::path path = fs::path(config_.state_dir) / "calibration.json";
-  std::error_code ec;
-  fs::create_directories(config_.state_dir, ec);
-  const Status written = calib::write_calibration_durably(cal, path);
-  auto eng = assoc::Engine::create(*calibration_topology_, cal.cameras, calibration_assoc_options_);
-  std::lock_guard<std::mutex> lock(state_mu_);
-  problems_.erase(std::remove_if(problems_.begin(), problems_.end(),
-                                 [](const std::string& p) {
-                                   return p.find("calibrating from the people") !=
-                                          std::string::npos;
-                                 }),
-                  problems_.end());
-  if (!eng.ok()) {
-    calibration_state_ = CalibrationState::kInvalid;
-    problems_.push_back("the self-calibration cannot drive the engine: " + eng.error().message());
-    MOCAP_LOG(Daemon, Error) << problems_.back();
-    return;
-  }
-  if (!written.ok()) {
-    problems_.push_back("self-calibrated, but the calibration is not saved (used until restart): " +
-                        written.error().message());
-    MOCAP_LOG(Daemon, Error) << problems_.back();
-  }
-  calibration_state_ = CalibrationState::kOk;
-  calibration_file_ = written.ok() ? path.string() : "(self-calibration, not saved)";
-  self_calibration_report_ = calib::quality_to_json(result.quality);
-  swap_in(cal, std::move(*eng));  // a recalibration's old engine retired
-  start_calibration_check();
-  MOCAP_LOG(Daemon, Info) << "self-calibrated (" << result.quality.median_px
-                          << " px median reprojection): skeletons from now on, calibration "
-                          << calibration_file_;
+void Daemon::add_problem(box::ProblemCode code, std::string text, std::string fix,
+                         std::string camera) {
+  MOCAP_LOG(Daemon, Warn) << text;
+  problems_.add({code, std::move(camera), std::move(text), std::move(fix)});
 }
 
 Status Daemon::open_trigger(const hal::Discovery& disc, double rate_hz) {
@@ -587,9 +425,10 @@ Status Daemon::open_cnn(int views, const std::string& preferred_gpu,
   if (!o.crop_model.empty()) {
     if (sized_views.empty()) {
       if (config_.crops != "auto") {
-        problems_.push_back("crops " + config_.crops +
-                            " are off: they need calibrated cameras (the tracked skeletons are "
-                            "projected into the views)");
+        add_problem(box::ProblemCode::kCropsOff,
+                    "crops " + config_.crops +
+                        " are off: they need calibrated cameras (the tracked skeletons are "
+                        "projected into the views)");
       }
       o.crop_model.clear();
     } else {
@@ -611,7 +450,8 @@ Status Daemon::adopt_cnn(std::unique_ptr<gpu::CnnDetector> first, const gpu::Cnn
   gpu_description_ = first->backend_description();
   gpu_backend_ = first->backend() == gpu::PoseBackend::kVulkan ? "vulkan" : "cpu";
   if (!first->fallback_reason().empty()) {
-    problems_.push_back("the CNN runs on the CPU: " + first->fallback_reason());
+    add_problem(box::ProblemCode::kCnnOnCpu,
+                "the CNN runs on the CPU: " + first->fallback_reason());
   }
   auto pending = std::make_shared<std::unique_ptr<gpu::CnnDetector>>(std::move(first));
   auto opener = [pending, options](bool cpu_only) -> Result<std::unique_ptr<pipeline::Detector>> {
@@ -629,15 +469,9 @@ Status Daemon::adopt_cnn(std::unique_ptr<gpu::CnnDetector> first, const gpu::Cnn
 }
 
 Status Daemon::make_engine(const SkeletonTopology& topology, const Calibration& calibration,
-                           const assoc::AssociationOptions& options) {
-  cameras_ = calibration.cameras;
-  calibration_ = calibration;
-  calibration_topology_ = &topology;
-  calibration_assoc_options_ = options;
-  auto eng = assoc::Engine::create(topology, cameras_, options);
-  if (!eng.ok()) return eng.error();
-  engine_ = std::move(*eng);
-  return {};
+                           const assoc::AssociationOptions& options, std::string file) {
+  lifecycle_->set_recipe(topology, options);
+  return lifecycle_->start_calibrated(calibration, std::move(file));
 }
 
 // ---------------------------------------------------------------------------- running
@@ -663,7 +497,7 @@ Status Daemon::start() {
   server_view_.store(server_.get());
   stream_sink_ = std::make_unique<pipeline::StreamSink>(*server_, unix_offset_ns_);
   camera_views_ = std::make_unique<CameraViews>(CameraViewsOptions{});
-  camera_views_->set_cameras(cameras_);
+  camera_views_->set_cameras(lifecycle_->cameras());
   views_sink_ = std::make_unique<pipeline::CallbackSink>(
       "camera views", [this](const pipeline::PipelineFrame& f) {
         camera_views_->observe(f.detections, monotonic_ns());
@@ -682,52 +516,27 @@ Status Daemon::start() {
         });
     sinks.push_back(hook_sink_.get());
   }
-  {
-    // GET /health may already read monitor_ (the server is up).
-    std::lock_guard<std::mutex> lock(state_mu_);
-    if (engine_) start_calibration_check();
-  }
-  {  // Always: a board calibration may be saved at any time.
-    calibration_sink_ = std::make_unique<pipeline::CallbackSink>(
-        "calibration", [this](const pipeline::PipelineFrame& f) {
-          adopt_board_calibration();
-          if (recalibrate_requested_.exchange(false)) begin_recalibration();
-          if (recalibrating_ && f.result) {  // solving anew; the old calibration meanwhile
-            calibrator_->add(f.detections);
-            if (auto r = calibrator_->take_result()) {
-              recalibrating_ = false;
-              adopt_self_calibration(*r);
-              return Status{};
-            }
-          }
-          if (!f.result) {
-            if (!calibrator_) return Status{};
-            calibrator_->add(f.detections);
-            if (auto r = calibrator_->take_result()) adopt_self_calibration(*r);
-            return Status{};
-          }
-          // Calibrated, and the self-calibration still refining with more frames.
-          if (calibrator_ && !recalibrating_ && calibrator_->refining()) {
-            calibrator_->add(f.detections);
-            if (auto r = calibrator_->take_result()) {
-              adopt_self_calibration(*r);
-              return Status{};
-            }
-          }
-          if (!monitor_) return Status{};
-          monitor_->add(f.detections, f.result->skeletons);
-          if (auto r = monitor_->take_resolved()) adopt_resolved_camera(*r);
-          return Status{};
-        });
-    sinks.push_back(calibration_sink_.get());
-  }
+  // A new calibration's engine drives the pipeline from the next frame (the association
+  // thread swaps it in; the page's camera tiles draw the new projections).
+  lifecycle_->set_swap_handler([this](const Calibration& cal, assoc::Engine* engine) {
+    camera_views_->set_cameras(cal.cameras);
+    pipeline_->set_engine(engine);
+  });
+  lifecycle_->set_persist_resolved_cameras(persists_calibration());
+  lifecycle_->start_check();
+  calibration_sink_ = std::make_unique<pipeline::CallbackSink>(
+      "calibration", [this](const pipeline::PipelineFrame& f) {
+        lifecycle_->on_frame(f);
+        return Status{};
+      });
+  sinks.push_back(calibration_sink_.get());
   pipeline::PipelineOptions po;
   po.queue_depth = config_.queue_depth;
   po.realtime_priority = config_.realtime_priority;
   po.max_frames = config_.max_frames;
   po.drop_policy = drop_policy(config_, source_kind_);
-  pipeline::PipelineParts parts{std::move(pending_source_), detector_.get(), engine_.get(), sinks,
-                                [this](const FrameSet& frames) {
+  pipeline::PipelineParts parts{std::move(pending_source_), detector_.get(), lifecycle_->engine(),
+                                sinks, [this](const FrameSet& frames) {
                                   const std::int64_t now_ns = monotonic_ns();
                                   camera_views_->observe_images(frames, now_ns);
                                   if (auto cap = board_capture()) cap->observe(frames, now_ns);
@@ -740,9 +549,10 @@ Status Daemon::start() {
   if (trigger_) {
     if (Status s = trigger_->start(); !s.ok()) return s;
   }
-  MOCAP_LOG(Daemon, Info) << "mocapd " << kDaemonVersion << ": source " << source_kind_
+  MOCAP_LOG(Daemon, Info) << "mocapd " << kDaemonVersion << ": source " << to_string(source_kind_)
                           << (board_name_.empty() ? "" : " (board " + board_name_ + ")") << ", CNN "
-                          << gpu_description_ << ", " << (engine_ ? "skeletons" : "2D detections")
+                          << gpu_description_ << ", "
+                          << (lifecycle_->calibrated() ? "skeletons" : "2D detections")
                           << " on tcp port " << server_->stream_port() << ", status on http://"
                           << config_.bind_address << ":" << server_->http_port() << "/health";
   return {};
@@ -765,9 +575,8 @@ std::string Daemon::access_token() {
   }
   auto fresh = net::random_token();
   const std::string token = fresh.ok() ? *fresh : std::string();
-  std::lock_guard<std::mutex> lock(state_mu_);
-  problems_.push_back(t.error().message() + "; a token for this run only: " + token);
-  MOCAP_LOG(Daemon, Error) << problems_.back();
+  add_problem(box::ProblemCode::kAccessToken,
+              t.error().message() + "; a token for this run only: " + token);
   return token;
 }
 
@@ -833,19 +642,16 @@ pipeline::PipelineMetrics Daemon::metrics() const {
 
 // ---------------------------------------------------------------------------- status
 
-bool Daemon::calibrated() const {
-  std::lock_guard<std::mutex> lock(state_mu_);
-  return engine_ != nullptr;
-}
+bool Daemon::calibrated() const { return lifecycle_->calibrated(); }
+
+std::vector<Camera> Daemon::cameras() const { return lifecycle_->cameras(); }
 
 // /health's "calibration": the state and file, the self-calibration's progress or report, the
-// continuous check per view; a moved camera adds a problem. Called with state_mu_ held.
-nlohmann::json Daemon::calibration_json(std::vector<std::string>& problems) const {
-  json c = {{"state", std::string(to_string(calibration_state_))},
-            {"file", calibration_file_},
-            {"views", cameras_.size()}};
-  if (calibrator_) {
-    const calib::CalibrationProgress cp = calibrator_->progress();
+// continuous check per view; a moved camera adds a problem.
+json Daemon::calibration_json(const box::CalibrationReport& r, std::vector<std::string>& problems) {
+  json c = {{"state", std::string(to_string(r.state))}, {"file", r.file}, {"views", r.views}};
+  if (r.progress) {
+    const calib::CalibrationProgress& cp = *r.progress;
     json views = json::object();
     for (std::size_t v = 0; v < cp.view_ids.size(); ++v) {
       views[cp.view_ids[v]] = cp.frames_with_people[v];
@@ -862,57 +668,51 @@ nlohmann::json Daemon::calibration_json(std::vector<std::string>& problems) cons
                      {"next_solve_frames", cp.next_solve_frames},
                      {"what_to_do", cp.hint}};
   }
-  if (monitor_) {
+  if (r.checks) {
     json checks = json::array();
-    for (const calib::ViewCheck& v : monitor_->checks()) {
+    for (const calib::ViewCheck& v : *r.checks) {
       checks.push_back({{"view", v.view_id},
                         {"baseline_px", v.baseline_px},
                         {"recent_px", v.recent_px},
                         {"moved", v.moved},
                         {"resolved", v.resolves}});
-      if (!v.moved) continue;
-      char buf[200];
-      std::snprintf(buf, sizeof buf,
-                    "camera %s moved (residual %.1f px, normally %.1f px): solving its pose again",
-                    v.view_id.c_str(), v.recent_px, v.baseline_px);
-      problems.push_back(buf);
     }
     c["check"] = checks;
   }
-  if (!self_calibration_report_.empty()) {
-    c["self_calibration"] = json::parse(self_calibration_report_, nullptr, false);
+  for (const box::Problem& p : r.moved) problems.push_back(p.text);
+  if (!r.self_calibration_json.empty()) {
+    c["self_calibration"] = json::parse(r.self_calibration_json, nullptr, false);
   }
-  if (!board_report_.empty()) c["board"] = json::parse(board_report_, nullptr, false);
+  if (!r.board_json.empty()) c["board"] = json::parse(r.board_json, nullptr, false);
   return c;
 }
 
 out::TakeMetadata Daemon::take_metadata() const {
-  std::lock_guard<std::mutex> lock(state_mu_);
   out::TakeMetadata m;
   m.software = std::string("mocapd ") + kDaemonVersion;
   m.frame_rate_hz = config_.frame_rate_hz;
   if (const pipeline::Pipeline* pipe = pipeline_view_.load(); pipe != nullptr) {
     if (pipe->metrics().fps > 0) m.frame_rate_hz = pipe->metrics().fps;
   }
-  if (calibration_topology_ != nullptr) m.topology = calibration_topology_->name();
-  for (const Camera& c : cameras_) {
+  if (const SkeletonTopology* t = lifecycle_->topology(); t != nullptr) m.topology = t->name();
+  for (const Camera& c : lifecycle_->cameras()) {
     m.cameras.push_back(
         {{"name", c.name()}, {"width_px", c.width_px()}, {"height_px", c.height_px()}});
   }
   std::vector<std::string> ignored;
-  m.calibration = calibration_json(ignored);
-  m.calibration["source"] = source_kind_;
+  m.calibration = calibration_json(lifecycle_->report(), ignored);
+  m.calibration["source"] = to_string(source_kind_);
   return m;
 }
 
 std::string Daemon::health_json() const {
-  std::lock_guard<std::mutex> lock(state_mu_);
   json j;
   const pipeline::Pipeline* pipe = pipeline_view_.load();
   const pipeline::PipelineMetrics m = metrics();
-  std::vector<std::string> problems = problems_;
+  const box::CalibrationReport report = lifecycle_->report();
+  std::vector<std::string> problems = box::problem_texts(report.problems);
   if (!m.error.empty()) problems.push_back("pipeline stopped: " + m.error);
-  const json calibration = calibration_json(problems);
+  const json calibration = calibration_json(report, problems);
   if (outputs_) {
     j["vmc"] = outputs_->vmc_health(problems);
     j["take"] = outputs_->take_health(problems);
@@ -925,7 +725,7 @@ std::string Daemon::health_json() const {
   j["memory"] = {{"heap_in_use_mib", heap.in_use_bytes / (1 << 20)},
                  {"heap_free_retained_mib", heap.retained_bytes / (1 << 20)}};
   json src;
-  src["kind"] = source_kind_;
+  src["kind"] = to_string(source_kind_);
   if (!board_name_.empty()) src["board"] = board_name_;
   if (pipe != nullptr) src["detail"] = json::parse(pipe->source().status_json(), nullptr, false);
   if (!notes_.empty()) src["notes"] = notes_;
@@ -954,7 +754,7 @@ std::string Daemon::health_json() const {
       if (r.on_cpu) j["gpu"]["backend"] = "cpu";
     }
   }
-  j["output"] = engine_ ? "skeletons" : "detections";
+  j["output"] = report.engine ? "skeletons" : "detections";
   json p;
   p["frames_in"] = m.frames_in;
   p["frames_out"] = m.frames_out;

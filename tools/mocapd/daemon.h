@@ -27,6 +27,9 @@
 #include <string_view>
 #include <vector>
 
+#include "runtime/box/calibration_lifecycle.h"
+#include "runtime/box/problems.h"
+#include "runtime/box/source_kind.h"
 #include "runtime/calib/self_calibration.h"
 #include "runtime/core/error.h"
 #include "runtime/geometry/calibration.h"
@@ -74,8 +77,7 @@ struct DaemonHooks {
   std::function<void(const pipeline::PipelineFrame&)> on_frame;
 };
 
-enum class CalibrationState { kOk, kMissing, kInvalid, kMismatch, kCalibrating };
-std::string_view to_string(CalibrationState state);  // "ok", "missing", ...
+using box::CalibrationState;
 
 class Daemon {
  public:
@@ -112,11 +114,11 @@ class Daemon {
   int stream_port() const;
   int http_port() const;
   pipeline::PipelineMetrics metrics() const;
-  const std::vector<std::string>& problems() const { return problems_; }
+  std::vector<std::string> problems() const { return box::problem_texts(problems_.snapshot()); }
   bool calibrated() const;
   // The calibrated views (empty when not calibrated), in the engine's view order.
-  const std::vector<Camera>& cameras() const { return cameras_; }
-  const std::string& source_kind() const { return source_kind_; }
+  std::vector<Camera> cameras() const;
+  box::SourceKind source_kind() const { return source_kind_; }
   const std::string& gpu_description() const { return gpu_description_; }
 
  private:
@@ -129,74 +131,52 @@ class Daemon {
   Status become_detector_node();
   Status adopt_cnn(std::unique_ptr<gpu::CnnDetector> first, const gpu::CnnOptions& options);
   Status open_fusion();
-  Result<Calibration> fusion_calibration(const SkeletonTopology*& topology);
+  Result<Calibration> fusion_calibration(const SkeletonTopology*& topology, std::string& file);
   Status join_stage(double rate_hz);
   Status open_cameras(hal::Discovery& disc, const std::filesystem::path& board_dir, double rate_hz);
   std::optional<Calibration> choose_calibration(hal::Discovery& disc,
                                                 const std::filesystem::path& board_dir,
-                                                Status& error);
+                                                Status& error, std::string& file);
   Status open_trigger(const hal::Discovery& disc, double rate_hz);
   // sized_views: the calibrated views (their frame size shapes the input); empty = unknown.
   Status open_cnn(int views, const std::string& preferred_gpu,
                   const std::vector<Camera>& sized_views);
   Status make_engine(const SkeletonTopology& topology, const Calibration& calibration,
-                     const assoc::AssociationOptions& options);
-  // No usable calibration: calibrate from people walking while streaming 2D detections
-  // (config self_calibrate); `priors` per view (image sizes may be 0: taken from the frames).
-  void start_self_calibration(const SkeletonTopology& topology, std::vector<int> view_ids,
-                              std::vector<calib::CameraPrior> priors,
-                              const assoc::AssociationOptions& options);
-  // On the assoc thread: the self-calibration's result written to <state_dir>/calibration.json
-  // and its engine started.
-  void adopt_self_calibration(const calib::SelfCalibrationResult& result);
-  // The continuous check of a calibrated box (config calibration_check).
-  void start_calibration_check();
-  void begin_recalibration();
-  // On the assoc thread: a camera the check solved again swapped in (and saved when
-  // persists_calibration()).
-  void adopt_resolved_camera(const calib::ResolvedCamera& r);
+                     const assoc::AssociationOptions& options, std::string file);
+  // Whether a re-solved camera is written to <state_dir>: not over a calibration the user
+  // named, not for a recording's or the simulator's own.
   bool persists_calibration() const;
-  // With state_mu_ held, on the assoc thread: `cal` and `engine` drive the pipeline from the
-  // next frame (the old engine kept alive).
-  void swap_in(const Calibration& cal, std::unique_ptr<assoc::Engine> engine);
+  // Problems are kept in the order they arose, and logged.
+  void add_problem(box::ProblemCode code, std::string text, std::string fix = {},
+                   std::string camera = {});
   // "Calibrate with a board" (board_routes.cpp).
   std::shared_ptr<boardcal::BoardCapture> board_capture() const;
   net::HttpReply start_board_capture(const net::HttpRequest& req);
   net::HttpReply save_board_calibration();
   std::filesystem::path board_calibration_path() const;
-  // On the assoc thread: a saved board calibration, if one waits, swapped in.
-  void adopt_board_calibration();
   // What a new take records about the box (Outputs::MetadataProvider).
   out::TakeMetadata take_metadata() const;
   void log_status() const;
   std::string access_token();
-  nlohmann::json calibration_json(std::vector<std::string>& problems) const;
+  // /health's "calibration" from the lifecycle's report; a moved camera adds a problem.
+  static nlohmann::json calibration_json(const box::CalibrationReport& report,
+                                         std::vector<std::string>& problems);
 
   DaemonConfig config_;
   DaemonHooks hooks_;
-  mutable std::mutex state_mu_;  // what adopt_self_calibration changes while health_json reads
-  std::string source_kind_;
+  box::SourceKind source_kind_ = box::SourceKind::kNone;
   std::string board_name_;
-  CalibrationState calibration_state_ = CalibrationState::kMissing;
-  std::string calibration_file_;
-  std::vector<std::string> problems_;  // what is degraded and how to fix it
-  std::vector<std::string> notes_;     // discovery notes (skipped nodes, ...)
+  box::ProblemList problems_;  // what is degraded and how to fix it
+  // Which calibration drives the engine, and how the box gets a better one.
+  std::unique_ptr<box::CalibrationLifecycle> lifecycle_;
+  std::vector<std::string> notes_;  // discovery notes (skipped nodes, ...)
   std::string gpu_description_;
   std::string gpu_backend_;
   std::int64_t unix_offset_ns_ = 0;
   std::int64_t started_ns_ = 0;
-  std::vector<Camera> cameras_;
   // The CNN behind a RecoveringDetector (a lost GPU is opened again, or the CPU takes over).
   std::unique_ptr<pipeline::RecoveringDetector> detector_;
   std::string crops_off_reason_;
-  std::unique_ptr<assoc::Engine> engine_;
-  std::unique_ptr<calib::BackgroundCalibrator> calibrator_;
-  std::unique_ptr<calib::CalibrationMonitor> monitor_;
-  Calibration calibration_;                                      // what the engine runs on
-  std::vector<std::unique_ptr<assoc::Engine>> retired_engines_;  // replaced, kept alive
-  const SkeletonTopology* calibration_topology_ = nullptr;       // of the self-calibration's engine
-  assoc::AssociationOptions calibration_assoc_options_;
-  std::string self_calibration_report_;  // the quality JSON of the adopted self-calibration
   std::unique_ptr<pipeline::CallbackSink> calibration_sink_;
   std::unique_ptr<pipeline::FrameSource> pending_source_;  // until start() hands it over
   std::unique_ptr<hal::TriggerMaster> trigger_;
@@ -218,19 +198,9 @@ class Daemon {
   std::unique_ptr<pipeline::Pipeline> pipeline_;
   std::atomic<const pipeline::Pipeline*> pipeline_view_{nullptr};  // for health_json()
   std::atomic<bool> stopped_{false};
-  std::atomic<bool> recalibrate_requested_{false};  // HTTP thread -> association thread
-  std::atomic<bool> recalibrating_{false};          // a self-calibration runs beside the engine
   bool external_trigger_ = false;  // the cameras share a trigger (one instant per frame set)
-  std::vector<std::unique_ptr<calib::BackgroundCalibrator>> retired_calibrators_;
-  std::string board_report_;  // the adopted board calibration's report JSON
-  struct BoardAdoption {
-    Calibration calibration;
-    std::string file;
-    std::string report;
-  };
-  mutable std::mutex board_mu_;  // the capture and a saved calibration waiting to be adopted
+  mutable std::mutex board_mu_;    // the capture and where its calibration was saved
   std::shared_ptr<boardcal::BoardCapture> board_capture_;
-  std::optional<BoardAdoption> board_adoption_;  // HTTP thread -> association thread
   std::string board_saved_to_;
 };
 

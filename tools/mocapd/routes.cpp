@@ -52,18 +52,17 @@ std::optional<int> thumbnail_view(std::string_view path) {
 }  // namespace
 
 json Daemon::scene_json() const {
-  std::lock_guard<std::mutex> lock(state_mu_);
   json j;
   j["world_up"] = "z";
-  j["calibration"] = to_string(calibration_state_);
+  j["calibration"] = to_string(lifecycle_->state());
   json cams = json::array();
-  for (const Camera& c : cameras_) cams.push_back(camera_json(c));
+  for (const Camera& c : lifecycle_->cameras()) cams.push_back(camera_json(c));
   j["cameras"] = cams;
-  if (calibration_topology_ != nullptr) {
-    j["topology"] = calibration_topology_->name();
-    j["joints"] = calibration_topology_->joint_names();
+  if (const SkeletonTopology* topology = lifecycle_->topology(); topology != nullptr) {
+    j["topology"] = topology->name();
+    j["joints"] = topology->joint_names();
     json bones = json::array();
-    for (const Limb& l : calibration_topology_->limbs()) bones.push_back({l.joint_a, l.joint_b});
+    for (const Limb& l : topology->limbs()) bones.push_back({l.joint_a, l.joint_b});
     j["bones"] = bones;
   }
   return j;
@@ -80,7 +79,7 @@ json Daemon::cameras_json() const {
   j["sync"] = {{"skew_median_ms", detail.value("skew_median_ms", 0.0)},
                {"skew_max_ms", detail.value("skew_max_ms", 0.0)}};
   // The simulator's thumbnails are drawn views, not images (camera_views.h).
-  j["thumbnails"] = source_kind_ == "simulator" ? "drawn" : "camera";
+  j["thumbnails"] = source_kind_ == box::SourceKind::kSimulator ? "drawn" : "camera";
   j["views"] = camera_views_ ? camera_views_->keypoints_json() : json::array();
   for (json& v : j["views"]) v["image"] = camera_views_->has_image(v["view"].get<int>());
   return j;

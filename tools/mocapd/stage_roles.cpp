@@ -35,15 +35,12 @@ Status Daemon::join_stage(double rate_hz) {
 
 Status Daemon::become_detector_node() {
   // Association, calibration and the outputs are the fusion node's.
-  engine_.reset();
-  calibrator_.reset();
   config_.calibration_check = false;
   config_.self_calibrate = false;
-  calibration_state_ = CalibrationState::kOk;
-  calibration_file_ = "(the fusion node's: stage " + config_.stage + ")";
+  lifecycle_->hand_over("(the fusion node's: stage " + config_.stage + ")");
   if (Status s = join_stage(frame_rate_hz_); !s.ok()) return s;
   std::vector<std::string> names = camera_names_;
-  if (source_kind_ != "simulator") {
+  if (source_kind_ != box::SourceKind::kSimulator) {
     // Camera names are unique in the stage: this node's name first.
     for (std::string& n : names) n = stage_->options().node + "/" + n;
   }
@@ -62,21 +59,21 @@ Status Daemon::become_detector_node() {
 
 // The stage calibration: the one named, else the simulated stage's ring, else the state
 // folder's. Camera names in it are the names detector nodes publish.
-Result<Calibration> Daemon::fusion_calibration(const SkeletonTopology*& topology) {
+Result<Calibration> Daemon::fusion_calibration(const SkeletonTopology*& topology,
+                                               std::string& file) {
   topology = &coco17_topology();
   if (!config_.calibration.empty()) {
-    calibration_file_ = config_.calibration;
+    file = config_.calibration;
     return load_calibration(config_.calibration);
   }
   if (config_.sim_rig_views > 0) {
     topology = &body19_topology();
-    calibration_file_ =
-        "(the simulated stage's ring of " + std::to_string(config_.sim_rig_views) + " cameras)";
+    file = "(the simulated stage's ring of " + std::to_string(config_.sim_rig_views) + " cameras)";
     return sim::simulator_ring(config_.sim_people, config_.sim_rig_views);
   }
-  const fs::path file = fs::path(config_.state_dir) / "calibration.json";
-  calibration_file_ = file.string();
-  auto c = load_calibration(file);
+  const fs::path path = fs::path(config_.state_dir) / "calibration.json";
+  file = path.string();
+  auto c = load_calibration(path);
   if (!c.ok()) {
     return Error(c.error().code(),
                  "fusion node: no stage calibration (" + c.error().message() +
@@ -88,7 +85,8 @@ Result<Calibration> Daemon::fusion_calibration(const SkeletonTopology*& topology
 
 Status Daemon::open_fusion() {
   const SkeletonTopology* topology = nullptr;
-  auto calibration = fusion_calibration(topology);
+  std::string file;
+  auto calibration = fusion_calibration(topology, file);
   if (!calibration.ok()) return calibration.error();
   frame_rate_hz_ = config_.frame_rate_hz > 0 ? config_.frame_rate_hz : 30;
   if (Status s = join_stage(frame_rate_hz_); !s.ok()) return s;
@@ -106,8 +104,7 @@ Status Daemon::open_fusion() {
   if (!src.ok()) return src.error();
   pending_source_ = std::move(*src);
   camera_names_ = fo.cameras;
-  source_kind_ = "fusion";
-  calibration_state_ = CalibrationState::kOk;
+  source_kind_ = box::SourceKind::kFusion;
   gpu_backend_ = "none";
   gpu_description_ = "not used: the detector nodes run the CNN";
   auto sp = dds::SkeletonPublisher::create(*stage_);
@@ -119,7 +116,7 @@ Status Daemon::open_fusion() {
   MOCAP_LOG(Daemon, Info) << "fusion node " << stage_->options().node << " of stage "
                           << config_.stage << ": " << fo.cameras.size() << " cameras, "
                           << frame_rate_hz_ << " Hz";
-  return make_engine(*topology, *calibration, options);
+  return make_engine(*topology, *calibration, options, file);
 }
 
 }  // namespace mocap::daemon

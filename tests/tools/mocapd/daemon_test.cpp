@@ -42,7 +42,7 @@ TEST(DaemonSimulator, StreamsTheSimulatedPeopleWhenNoCameraIsAttached) {
   DaemonConfig c = sim_config(dir);
   auto d = Daemon::create(c);
   ASSERT_TRUE(d.ok()) << d.error().message();
-  EXPECT_EQ((*d)->source_kind(), "simulator");
+  EXPECT_EQ((*d)->source_kind(), box::SourceKind::kSimulator);
   EXPECT_TRUE((*d)->calibrated());
   ASSERT_TRUE((*d)->start().ok());
 

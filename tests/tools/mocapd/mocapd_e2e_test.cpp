@@ -88,7 +88,7 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
   };
   auto d = Daemon::create(c, hooks);
   ASSERT_TRUE(d.ok()) << d.error().message();
-  ASSERT_EQ((*d)->source_kind(), "replay");
+  ASSERT_EQ((*d)->source_kind(), box::SourceKind::kReplay);
   ASSERT_TRUE((*d)->calibrated());
   // The client connects before the first frame can be out (the CNN takes far longer than a
   // loopback connect), so it must see every frame.
