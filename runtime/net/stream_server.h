@@ -33,6 +33,7 @@
 #include <string>
 #include <string_view>
 
+#include "runtime/core/box_defaults.h"
 #include "runtime/core/error.h"
 #include "runtime/net/access.h"
 #include "runtime/net/http.h"
@@ -40,14 +41,10 @@
 
 namespace mocap::net {
 
-// Documented defaults (docs/stream-format.md).
-inline constexpr int kDefaultStreamPort = 9870;
-inline constexpr int kDefaultHttpPort = 9871;
-
 struct StreamServerOptions {
   std::string bind_address = "0.0.0.0";  // IPv4 address to listen on
-  int stream_port = kDefaultStreamPort;  // [0, 65535]; 0 = any free port (tests)
-  int http_port = kDefaultHttpPort;      // [0, 65535]; 0 = any free port; -1 = no HTTP server
+  int stream_port = kStreamPort;         // [0, 65535]; 0 = any free port (tests)
+  int http_port = kHttpPort;             // [0, 65535]; 0 = any free port; -1 = no HTTP server
   int max_clients = 64;                  // stream + WebSocket + HTTP connections, [1, 4096]
   std::size_t max_client_backlog_bytes = std::size_t{4} << 20;  // [4 KiB, 1 GiB]
   std::size_t max_request_bytes = 8192;  // largest HTTP request head, [256, 1 MiB]

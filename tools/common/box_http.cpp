@@ -9,6 +9,8 @@
 #include <cstdio>
 #include <cstring>
 
+#include "runtime/core/box_defaults.h"
+
 namespace mocap::tools {
 namespace {
 
@@ -61,7 +63,8 @@ Result<HttpAnswer> box_request(const std::string& box, const std::string& method
                                const std::string& target, const std::string& token) {
   const std::size_t colon = box.rfind(':');
   const std::string host = colon == std::string::npos ? box : box.substr(0, colon);
-  const std::string port = colon == std::string::npos ? "9871" : box.substr(colon + 1);
+  const std::string port =
+      colon == std::string::npos ? std::to_string(kHttpPort) : box.substr(colon + 1);
   auto fd = connect_to(host, port, box);
   if (!fd) return fd.error();
   const std::string req = method + " " + target + " HTTP/1.1\r\nHost: " + host +

@@ -13,6 +13,7 @@
 #include <cstring>
 #include <string>
 
+#include "runtime/core/box_defaults.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
 
@@ -83,14 +84,15 @@ void print_summary(const nlohmann::json& m) {
 
 int run_stream(Args args) {
   std::string host = "127.0.0.1";
-  int port = 9870, messages = 10, timeout_s = 30;
+  int port = kStreamPort, messages = 10, timeout_s = 30;
   bool raw = false;
   cli::ArgParser p("mocap stream",
                    "Read mocapd's skeleton stream (docs/stream-format.md) and print a line per "
                    "message: frame id, persons with their ids and positions (or 2D candidates "
                    "per view). Last line: messages=N.");
   p.option("--host", &host, "HOST", "mocapd's address (default 127.0.0.1)");
-  p.option("--port", &port, "PORT", "its stream_port (default 9870)");
+  p.option("--port", &port, "PORT",
+           "its stream_port (default " + std::to_string(kStreamPort) + ")");
   p.option("--messages", &messages, "N", "stop after N messages (default 10; 0 = never)");
   p.option("--timeout", &timeout_s, "S",
            "give up when mocapd does not accept or nothing arrives for S seconds (default 30)");

@@ -11,6 +11,7 @@
 #include <string>
 #include <string_view>
 
+#include "runtime/core/box_defaults.h"
 #include "runtime/core/error.h"
 #include "runtime/net/token_file.h"
 #include "tools/common/box_http.h"
@@ -34,16 +35,18 @@ constexpr const char* kUsage =
 
 // Where `mocap take` finds the box and its access token (start and stop need it).
 struct BoxArgs {
-  std::string box = "127.0.0.1:9871";
-  std::string token;                         // --token; else MOCAP_TOKEN; else the token file
-  std::string state_dir = "/var/lib/mocap";  // on the box itself: <state_dir>/token
+  std::string box = local_box_address();
+  std::string token;                  // --token; else MOCAP_TOKEN; else the token file
+  std::string state_dir = kStateDir;  // on the box itself: <state_dir>/token
 
   void add_to(cli::ArgParser& p) {
-    p.option("--box", &box, "HOST[:PORT]", "mocapd's HTTP address (default 127.0.0.1:9871)");
+    p.option("--box", &box, "HOST[:PORT]",
+             "mocapd's HTTP address (default " + local_box_address() + ")");
     p.option("--token", &token, "TOKEN",
              "the box's access token (default: $MOCAP_TOKEN, else <state-dir>/token when this "
              "is the box)");
-    p.option("--state-dir", &state_dir, "DIR", "mocapd's state folder (default /var/lib/mocap)");
+    p.option("--state-dir", &state_dir, "DIR",
+             std::string("mocapd's state folder (default ") + kStateDir + ")");
   }
   // The token to send; empty when none is known (the box answers 401 with the fix).
   std::string resolve_token() const {

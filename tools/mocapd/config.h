@@ -12,13 +12,13 @@
 #include <string_view>
 #include <vector>
 
+#include "runtime/core/box_defaults.h"
 #include "runtime/core/error.h"
 #include "runtime/gpu/cnn_options.h"
 
 namespace mocap::daemon {
 
 inline constexpr const char* kDaemonVersion = "0.2.0";
-inline constexpr const char* kDefaultStateDir = "/var/lib/mocap";
 
 // When a stage queue is full: kAuto blocks for a replay at full speed (every frame processed)
 // and drops the oldest frame otherwise (live: latency stays bounded).
@@ -32,8 +32,8 @@ enum class Role { kStandalone, kDetector, kFusion };
 struct DaemonConfig {
   // Network
   std::string bind_address = "0.0.0.0";
-  int stream_port = 9870;
-  int http_port = 9871;
+  int stream_port = kStreamPort;
+  int http_port = kHttpPort;
   int max_clients = 64;
   int client_backlog_kib = 4096;
   bool token_for_reading = false;  // GET needs the access token too (<state_dir>/token)
@@ -44,7 +44,7 @@ struct DaemonConfig {
   std::string board;        // board name; empty = auto (first board whose cameras are found)
   std::string board_dir;    // empty = the installed boards, else the source tree's board/
   std::string calibration;  // empty = <state_dir>/calibration.json, then the board's
-  std::string state_dir = kDefaultStateDir;
+  std::string state_dir = kStateDir;
   std::string dev_dir = "/dev";
   int max_cameras = 8;
   double frame_rate_hz = 0;  // 0 = the board's
