@@ -40,11 +40,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-json latency_json(const LatencyStats& s) {
-  return json{
-      {"median_ms", s.median_ms}, {"p99_ms", s.p99_ms}, {"max_ms", s.max_ms}, {"samples", s.count}};
-}
-
 // Puts the cameras in calibration order: by name when every calibrated view names a found
 // camera (its id or its name), else in discovery order. false when the counts differ.
 bool match_calibration(const Calibration& calib, std::vector<hal::FoundCamera>& cams,
@@ -646,47 +641,6 @@ bool Daemon::calibrated() const { return lifecycle_->calibrated(); }
 
 std::vector<Camera> Daemon::cameras() const { return lifecycle_->cameras(); }
 
-// /health's "calibration": the state and file, the self-calibration's progress or report, the
-// continuous check per view; a moved camera adds a problem.
-json Daemon::calibration_json(const box::CalibrationReport& r, std::vector<std::string>& problems) {
-  json c = {{"state", std::string(to_string(r.state))}, {"file", r.file}, {"views", r.views}};
-  if (r.progress) {
-    const calib::CalibrationProgress& cp = *r.progress;
-    json views = json::object();
-    for (std::size_t v = 0; v < cp.view_ids.size(); ++v) {
-      views[cp.view_ids[v]] = cp.frames_with_people[v];
-    }
-    c["progress"] = {{"state", cp.state},
-                     {"frames", cp.frames},
-                     {"frames_with_people", views},
-                     {"attempts", cp.attempts},
-                     {"last_refusal", cp.last_refusal},
-                     {"refinements", cp.refinements},
-                     {"last_change_deg", cp.last_change_deg},
-                     {"last_change_m", cp.last_change_m},
-                     {"solving", cp.solving},
-                     {"next_solve_frames", cp.next_solve_frames},
-                     {"what_to_do", cp.hint}};
-  }
-  if (r.checks) {
-    json checks = json::array();
-    for (const calib::ViewCheck& v : *r.checks) {
-      checks.push_back({{"view", v.view_id},
-                        {"baseline_px", v.baseline_px},
-                        {"recent_px", v.recent_px},
-                        {"moved", v.moved},
-                        {"resolved", v.resolves}});
-    }
-    c["check"] = checks;
-  }
-  for (const box::Problem& p : r.moved) problems.push_back(p.text);
-  if (!r.self_calibration_json.empty()) {
-    c["self_calibration"] = json::parse(r.self_calibration_json, nullptr, false);
-  }
-  if (!r.board_json.empty()) c["board"] = json::parse(r.board_json, nullptr, false);
-  return c;
-}
-
 out::TakeMetadata Daemon::take_metadata() const {
   out::TakeMetadata m;
   m.software = std::string("mocapd ") + kDaemonVersion;
@@ -699,95 +653,61 @@ out::TakeMetadata Daemon::take_metadata() const {
     m.cameras.push_back(
         {{"name", c.name()}, {"width_px", c.width_px()}, {"height_px", c.height_px()}});
   }
-  std::vector<std::string> ignored;
-  m.calibration = calibration_json(lifecycle_->report(), ignored);
+  m.calibration = box::calibration_json(lifecycle_->report());
   m.calibration["source"] = to_string(source_kind_);
   return m;
 }
 
-std::string Daemon::health_json() const {
-  json j;
+// Everything /health and /metrics say, at one instant (the calibration and its problems read
+// together).
+box::BoxStatus Daemon::status() const {
+  box::BoxStatus b;
   const pipeline::Pipeline* pipe = pipeline_view_.load();
-  const pipeline::PipelineMetrics m = metrics();
-  const box::CalibrationReport report = lifecycle_->report();
-  std::vector<std::string> problems = box::problem_texts(report.problems);
-  if (!m.error.empty()) problems.push_back("pipeline stopped: " + m.error);
-  const json calibration = calibration_json(report, problems);
+  b.pipeline = metrics();
+  b.calibration = lifecycle_->report();
+  b.problems = box::problem_texts(b.calibration.problems);
+  if (!b.pipeline.error.empty()) b.problems.push_back("pipeline stopped: " + b.pipeline.error);
+  for (const box::Problem& p : b.calibration.moved) b.problems.push_back(p.text);
   if (outputs_) {
-    j["vmc"] = outputs_->vmc_health(problems);
-    j["take"] = outputs_->take_health(problems);
+    b.vmc = outputs_->vmc_health(b.problems);
+    b.take = outputs_->take_health(b.problems);
   }
-  j["status"] = !m.error.empty() ? "failed" : (problems.empty() ? "ok" : "degraded");
-  j["problems"] = problems;
-  j["version"] = kDaemonVersion;
-  j["uptime_s"] = static_cast<double>(monotonic_ns() - started_ns_) * 1e-9;
+  b.version = kDaemonVersion;
+  b.uptime_s = static_cast<double>(monotonic_ns() - started_ns_) * 1e-9;
   const HeapFigures heap = heap_figures();
-  j["memory"] = {{"heap_in_use_mib", heap.in_use_bytes / (1 << 20)},
-                 {"heap_free_retained_mib", heap.retained_bytes / (1 << 20)}};
-  json src;
-  src["kind"] = to_string(source_kind_);
-  if (!board_name_.empty()) src["board"] = board_name_;
-  if (pipe != nullptr) src["detail"] = json::parse(pipe->source().status_json(), nullptr, false);
-  if (!notes_.empty()) src["notes"] = notes_;
-  j["source"] = src;
+  b.heap_in_use_bytes = heap.in_use_bytes;
+  b.heap_retained_bytes = heap.retained_bytes;
+  b.source = source_kind_;
+  b.board = board_name_;
+  if (pipe != nullptr) b.source_detail = json::parse(pipe->source().status_json(), nullptr, false);
+  b.notes = notes_;
+  b.role = config_.role == Role::kFusion     ? box::Role::kFusion
+           : config_.role == Role::kDetector ? box::Role::kDetector
+                                             : box::Role::kStandalone;
   // Scale-out: a detector's publishing, or the fusion node's nodes and cameras.
-  j["role"] = config_.role == Role::kFusion     ? "fusion"
-              : config_.role == Role::kDetector ? "detector"
-                                                : "standalone";
   if (publisher_) {
-    j["stage"] = json::parse(publisher_->status_json(), nullptr, false);
+    b.stage = json::parse(publisher_->status_json(), nullptr, false);
   } else if (config_.role == Role::kFusion && pipe != nullptr) {
-    j["stage"] = src["detail"];
+    b.stage = b.source_detail;
   }
-  j["calibration"] = calibration;
-  j["gpu"] = {{"backend", gpu_backend_}, {"device", gpu_description_}};
+  b.gpu.backend = gpu_backend_;
+  b.gpu.device = gpu_description_;
   if (detector_) {
-    // The network(s) and their input, the 3D-guided crops when on, or why auto left them off;
-    // devices lost and what took over.
-    j["gpu"]["detector"] = detector_->description();
-    if (!crops_off_reason_.empty()) j["gpu"]["crops"] = crops_off_reason_;
-    const pipeline::DetectorRecoveryStats r = detector_->stats();
-    if (r.devices_lost > 0) {
-      j["gpu"]["devices_lost"] = r.devices_lost;
-      j["gpu"]["reopened"] = r.reopened;
-      j["gpu"]["last_device_error"] = r.last_error;
-      if (r.on_cpu) j["gpu"]["backend"] = "cpu";
-    }
+    b.gpu.detector = detector_->description();
+    b.gpu.crops_off = crops_off_reason_;
+    b.gpu.recovery = detector_->stats();
   }
-  j["output"] = report.engine ? "skeletons" : "detections";
-  json p;
-  p["frames_in"] = m.frames_in;
-  p["frames_out"] = m.frames_out;
-  p["fps"] = m.fps;
-  p["dropped"] = {{"cnn_queue", m.dropped_cnn_queue}, {"assoc_queue", m.dropped_assoc_queue}};
-  p["errors"] = m.errors;
-  p["realtime_scheduling"] = m.realtime;
-  p["latency"] = {{"source", latency_json(m.source)},
-                  {"cnn_wait", latency_json(m.cnn_wait)},
-                  {"cnn", latency_json(m.cnn)},
-                  {"assoc_wait", latency_json(m.assoc_wait)},
-                  {"assoc", latency_json(m.assoc)},
-                  {"publish", latency_json(m.sink)},
-                  {"end_to_end", latency_json(m.end_to_end)}};
-  j["pipeline"] = p;
-  j["persons"] = m.persons;
   if (const net::StreamServer* srv = server_view_.load(); srv != nullptr) {
     // stats() does not take the lock publish() holds; safe from the server thread.
-    const net::ServerStats s = srv->stats();
-    j["stream"] = {{"port", srv->stream_port()},       {"http_port", srv->http_port()},
-                   {"clients", s.stream_clients},      {"websocket_clients", s.websocket_clients},
-                   {"dropped_slow", s.dropped_slow},   {"dropped_bad_input", s.dropped_bad_input},
-                   {"rejected_full", s.rejected_full}, {"messages", s.messages_published},
-                   {"backlog_bytes", s.backlog_bytes}};
+    b.stream = box::StreamStatus{srv->stream_port(), srv->http_port(), srv->stats()};
   }
   if (trigger_) {
     const hal::TriggerMasterStats t = trigger_->stats();
-    j["trigger"] = {{"pulses", t.pulses},
-                    {"median_late_ns", t.median_late_ns},
-                    {"max_late_ns", t.max_late_ns},
-                    {"realtime", t.realtime}};
+    b.trigger = box::TriggerStatus{t.pulses, t.median_late_ns, t.max_late_ns, t.realtime};
   }
-  return j.dump();
+  return b;
 }
+
+std::string Daemon::health_json() const { return box::health_json(status()).dump(); }
 
 }  // namespace mocap::daemon

@@ -27,6 +27,7 @@
 #include <string_view>
 #include <vector>
 
+#include "runtime/box/box_status.h"
 #include "runtime/box/calibration_lifecycle.h"
 #include "runtime/box/problems.h"
 #include "runtime/box/source_kind.h"
@@ -95,6 +96,8 @@ class Daemon {
   int run(const std::function<bool()>& should_stop);
   void stop();
 
+  // Everything /health and /metrics say, at one instant.
+  box::BoxStatus status() const;
   // GET /health's JSON.
   std::string health_json() const;
   // GET /scene: the topology and the calibrated cameras, for the page's 3D view.
@@ -158,9 +161,6 @@ class Daemon {
   out::TakeMetadata take_metadata() const;
   void log_status() const;
   std::string access_token();
-  // /health's "calibration" from the lifecycle's report; a moved camera adds a problem.
-  static nlohmann::json calibration_json(const box::CalibrationReport& report,
-                                         std::vector<std::string>& problems);
 
   DaemonConfig config_;
   DaemonHooks hooks_;

@@ -9,7 +9,6 @@
 #include "tools/mocapd/camera_views.h"
 #include "tools/mocapd/daemon.h"
 #include "tools/mocapd/json_reply.h"
-#include "tools/mocapd/metrics.h"
 
 namespace mocap::daemon {
 
@@ -96,12 +95,9 @@ std::optional<net::HttpReply> Daemon::handle_http(const net::HttpRequest& req) {
     if (req.path == "/scene") return json_reply(200, scene_json());
     if (req.path == "/cameras") return json_reply(200, cameras_json());
     if (req.path == "/metrics") {
-      const json health = json::parse(health_json(), nullptr, false);
-      const net::StreamServer* srv = server_view_.load();
-      const net::ServerStats stats = srv != nullptr ? srv->stats() : net::ServerStats{};
       net::HttpReply r;
-      r.content_type = kPrometheusContentType;
-      r.body = prometheus_text(health, metrics(), srv != nullptr ? &stats : nullptr);
+      r.content_type = box::kPrometheusContentType;
+      r.body = box::prometheus_text(status());
       return r;
     }
     const int view = *thumbnail_view(req.path);

@@ -1,10 +1,10 @@
-#include "tools/mocapd/metrics.h"
+#include "runtime/box/box_status.h"
 
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 
-namespace mocap::daemon {
+namespace mocap::box {
 
 namespace {
 
@@ -136,35 +136,29 @@ void camera_metrics(Exposition& e, const json& detail) {
            num(detail, "skew_max_ms") / 1000.0);
 }
 
-void box_metrics(Exposition& e, const json& health) {
-  const json& src = health.value("source", json::object());
-  const json& gpu = health.value("gpu", json::object());
+void box_metrics(Exposition& e, const BoxStatus& s) {
   e.family("mocap_info", "gauge", "The box: version, source, GPU backend (always 1).");
   e.sample("mocap_info", 1,
-           label("version", health.value("version", "")) + "," +
-               label("source", src.value("kind", "")) + "," +
-               label("gpu", gpu.value("backend", "")));
-  e.single("mocap_uptime_seconds", "gauge", "Seconds since mocapd started.",
-           num(health, "uptime_s"));
+           label("version", s.version) + "," + label("source", std::string(to_string(s.source))) +
+               "," + label("gpu", s.gpu.in_use()));
+  e.single("mocap_uptime_seconds", "gauge", "Seconds since mocapd started.", s.uptime_s);
   e.single("mocap_problems", "gauge", "Problems /health names (0 when the status is ok).",
-           static_cast<double>(health.value("problems", json::array()).size()));
-  const json& mem = health.value("memory", json::object());
+           static_cast<double>(s.problems.size()));
   e.single("mocap_heap_in_use_bytes", "gauge", "Bytes allocated and not freed.",
-           num(mem, "heap_in_use_mib") * (1 << 20));
+           s.heap_in_use_bytes);
   e.single("mocap_heap_free_retained_bytes", "gauge",
-           "Bytes the allocator holds free (resident, reusable).",
-           num(mem, "heap_free_retained_mib") * (1 << 20));
-  const json& cal = health.value("calibration", json::object());
+           "Bytes the allocator holds free (resident, reusable).", s.heap_retained_bytes);
   e.family("mocap_calibration_state", "gauge", "1 for the calibration's current state.");
-  for (const char* s : {"ok", "missing", "invalid", "mismatch", "calibrating"}) {
-    e.sample("mocap_calibration_state", cal.value("state", "") == s ? 1 : 0, label("state", s));
+  for (const CalibrationState state : kCalibrationStates) {
+    e.sample("mocap_calibration_state", s.calibration.state == state ? 1 : 0,
+             label("state", std::string(to_string(state))));
   }
-  const json& take = health.value("take", json::object());
+  const json& take = s.take.is_object() ? s.take : json::object();
   const bool recording = take.contains("recording") && take["recording"].is_string();
   e.single("mocap_take_recording", "gauge", "1 while a take is being recorded.", recording ? 1 : 0);
   e.single("mocap_take_frames", "gauge", "Frames in the current take.",
            recording ? num(take.value("current", json::object()), "frames") : 0);
-  const json& vmc = health.value("vmc", json::object());
+  const json& vmc = s.vmc.is_object() ? s.vmc : json::object();
   if (vmc.value("enabled", false)) {
     e.single("mocap_vmc_datagrams_total", "counter", "VMC (OSC/UDP) datagrams sent.",
              num(vmc, "datagrams"));
@@ -193,15 +187,13 @@ std::string prometheus_label(const std::string& value) {
   return out;
 }
 
-std::string prometheus_text(const json& health, const pipeline::PipelineMetrics& pipeline,
-                            const net::ServerStats* server) {
+std::string prometheus_text(const BoxStatus& s) {
   Exposition e;
-  box_metrics(e, health);
-  pipeline_metrics(e, pipeline);
-  if (server != nullptr) server_metrics(e, *server);
-  const json& src = health.value("source", json::object());
-  camera_metrics(e, src.value("detail", json::object()));
+  box_metrics(e, s);
+  pipeline_metrics(e, s.pipeline);
+  if (s.stream) server_metrics(e, s.stream->stats);
+  camera_metrics(e, s.source_detail.is_object() ? s.source_detail : json::object());
   return e.text();
 }
 
-}  // namespace mocap::daemon
+}  // namespace mocap::box
