@@ -651,25 +651,33 @@ TakeInfo describe_take(const fs::path& dir) {
   const fs::path meta = dir / kTakeMetadataFile;
   std::error_code ec;
   if (!fs::exists(meta, ec)) {
-    info.status = "unreadable";
+    info.status = TakeStatus::kUnreadable;
     info.reason = meta.string() + ": missing: not a take folder (or its start was cut off)";
     return info;
   }
   Result<json> j = read_take_json(meta);
   if (!j.ok()) {
-    info.status = "unreadable";
+    info.status = TakeStatus::kUnreadable;
     info.reason = j.error().message();
     return info;
   }
   info.metadata = *j;
-  info.status = str_field(*j, "status");
   info.reason = str_field(*j, "reason");
+  const std::string said = str_field(*j, "status");
+  const std::optional<TakeStatus> status = parse_written_take_status(said);
+  if (!status) {
+    info.status = TakeStatus::kUnreadable;
+    info.reason = meta.string() + ": status \"" + said +
+                  "\" is not recording, complete or stopped: the file was edited or is damaged";
+    return info;
+  }
+  info.status = *status;
   const std::int64_t frames = int_field(*j, "frames");
   info.frames = frames > 0 ? static_cast<std::uint64_t>(frames) : 0;
   info.started_unix_ns = int_field(*j, "started_unix_ns");
   const fs::path stream = dir / kTakeStreamFile;
-  if (info.status == "recording" && !being_recorded(stream)) {
-    info.status = "interrupted";
+  if (info.status == TakeStatus::kRecording && !being_recorded(stream)) {
+    info.status = TakeStatus::kInterrupted;
     info.reason =
         "the recording was cut off (crash or power loss): readable up to its last "
         "complete line";

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "runtime/core/error.h"
+#include "runtime/out/take_status.h"
 
 namespace mocap::out {
 
@@ -66,8 +67,8 @@ Result<nlohmann::json> parse_take_json(std::string_view text, const std::filesys
 Result<std::uint64_t> complete_lines_bytes(const std::filesystem::path& ndjson);
 
 struct TakeInfo {
-  std::string name;          // the folder name
-  std::string status;        // "recording", "complete", "stopped", "interrupted" or "unreadable"
+  std::string name;  // the folder name
+  TakeStatus status = TakeStatus::kUnreadable;
   std::string reason;        // why stopped / interrupted / unreadable; empty otherwise
   std::uint64_t frames = 0;  // interrupted: counted from skeletons.ndjson's complete lines
   std::int64_t started_unix_ns = 0;

@@ -137,7 +137,7 @@ Result<std::unique_ptr<TakeWriter>> TakeWriter::start(const fs::path& takes_dir,
   }
   ::flock(fd, LOCK_EX | LOCK_NB);  // tells list_takes that the take is being recorded
   std::unique_ptr<TakeWriter> w(new TakeWriter(*dir, meta, started_unix_ns, fd));
-  const std::string text = dump_json(w->take_json("recording", 0));
+  const std::string text = dump_json(w->take_json(TakeStatus::kRecording, 0));
   if (Status s = write_file_atomically(*dir / kTakeMetadataFile, text, Durability::kDurable);
       !s.ok()) {
     w->finished_ = true;  // nothing to finish: the take is removed
@@ -158,11 +158,11 @@ TakeWriter::~TakeWriter() {
   if (!finished_) (void)finish(wall_clock_unix_ns());
 }
 
-nlohmann::json TakeWriter::take_json(const char* status, std::int64_t stopped_unix_ns) const {
+nlohmann::json TakeWriter::take_json(TakeStatus status, std::int64_t stopped_unix_ns) const {
   nlohmann::json j = nlohmann::json::object();
   j["schema"] = kTakeSchema;
   j["name"] = meta_.name;
-  j["status"] = status;
+  j["status"] = to_string(status);
   j["reason"] = reason_;
   j["started_unix_ns"] = started_unix_ns_;
   j["stopped_unix_ns"] = nullptr;
@@ -227,7 +227,7 @@ Status TakeWriter::stop(int error_number, const char* what) {
   ::close(fd_);
   fd_ = -1;
   (void)write_file_atomically(dir_ / kTakeMetadataFile,
-                              dump_json(take_json("stopped", wall_clock_unix_ns())),
+                              dump_json(take_json(TakeStatus::kStopped, wall_clock_unix_ns())),
                               Durability::kDurable);
   return stop_status_;
 }
@@ -245,7 +245,7 @@ Status TakeWriter::finish(std::int64_t stopped_unix_ns) {
       fd_ = -1;
     }
   }
-  const char* status = stopped_ ? "stopped" : "complete";
+  const TakeStatus status = stopped_ ? TakeStatus::kStopped : TakeStatus::kComplete;
   finish_status_ =
       write_file_atomically(dir_ / kTakeMetadataFile, dump_json(take_json(status, stopped_unix_ns)),
                             Durability::kDurable);

@@ -40,6 +40,7 @@
 #include <string_view>
 
 #include "runtime/core/error.h"
+#include "runtime/out/take_status.h"
 
 namespace mocap::out {
 
@@ -94,7 +95,7 @@ class TakeWriter {
   Status write_line(std::string_view message);
   Status sync_if_due(std::int64_t now_ns);
   Status stop(int error_number, const char* what);
-  nlohmann::json take_json(const char* status, std::int64_t stopped_unix_ns) const;
+  nlohmann::json take_json(TakeStatus status, std::int64_t stopped_unix_ns) const;
 
   std::filesystem::path dir_;
   TakeMetadata meta_;

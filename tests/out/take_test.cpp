@@ -491,20 +491,20 @@ TEST(TakeList, CompleteInterruptedLiveAndUnreadable) {
   ASSERT_EQ(list->size(), 5u);
   // Unreadable ones have no start time: first, by name.
   EXPECT_EQ((*list)[0].name, "d_garbage");
-  EXPECT_EQ((*list)[0].status, "unreadable");
+  EXPECT_EQ((*list)[0].status, TakeStatus::kUnreadable);
   EXPECT_NE((*list)[0].reason.find("not valid JSON"), std::string::npos) << (*list)[0].reason;
   EXPECT_EQ((*list)[1].name, "e_empty");
-  EXPECT_EQ((*list)[1].status, "unreadable");
+  EXPECT_EQ((*list)[1].status, TakeStatus::kUnreadable);
   EXPECT_NE((*list)[1].reason.find("take.json: missing"), std::string::npos);
   EXPECT_EQ((*list)[2].name, "a_killed");
-  EXPECT_EQ((*list)[2].status, "interrupted");
+  EXPECT_EQ((*list)[2].status, TakeStatus::kInterrupted);
   EXPECT_EQ((*list)[2].frames, 4u);
   EXPECT_EQ((*list)[3].name, "b_complete");
-  EXPECT_EQ((*list)[3].status, "complete");
+  EXPECT_EQ((*list)[3].status, TakeStatus::kComplete);
   EXPECT_EQ((*list)[3].frames, 4u);  // 3 skeletons + 1 detections message
   EXPECT_EQ((*list)[3].metadata["software"], "mocapd 0.2.0");
   EXPECT_EQ((*list)[4].name, "c_live");
-  EXPECT_EQ((*list)[4].status, "recording");
+  EXPECT_EQ((*list)[4].status, TakeStatus::kRecording);
   // The killed take reads back completely.
   auto killed = read_take(takes / "a_killed");
   ASSERT_TRUE(killed.ok()) << killed.error().to_string();
@@ -556,7 +556,7 @@ TEST(Take, FullDiskStopsTheTakeWithTheReason) {
   auto list = list_takes(tmp.path());
   ASSERT_TRUE(list.ok());
   ASSERT_EQ(list->size(), 1u);
-  EXPECT_EQ((*list)[0].status, "stopped");
+  EXPECT_EQ((*list)[0].status, TakeStatus::kStopped);
   EXPECT_EQ((*list)[0].reason, reason);
 }
 
@@ -660,6 +660,25 @@ TEST(Animation, FromARecordedTake) {
   ASSERT_EQ(anim->persons.size(), 1u);
   // The stream's 0.1 mm rounding: the poses' hips within a millimetre.
   EXPECT_LT((anim->persons[0].poses[11].hips_m - hips_at(0, 11)).norm(), 1e-3);
+}
+
+TEST(TakeReader, AStatusNoWriterWritesIsUnreadableAndNamed) {
+  testing::TestTempDir tmp("take_edited");
+  const fs::path takes = tmp.path() / "takes";
+  record_take(takes, "edited", 2, kStartUnix_ns);
+  nlohmann::json meta = read_json(takes / "edited" / "take.json");
+  ASSERT_EQ(meta["status"], "complete");
+  meta["status"] = "paused";
+  write_text(takes / "edited" / "take.json", meta.dump());
+  auto list = list_takes(takes);
+  ASSERT_TRUE(list.ok()) << list.error().to_string();
+  ASSERT_EQ(list->size(), 1u);
+  EXPECT_EQ((*list)[0].status, TakeStatus::kUnreadable);
+  EXPECT_NE((*list)[0].reason.find("status \"paused\" is not recording, complete or stopped"),
+            std::string::npos)
+      << (*list)[0].reason;
+  EXPECT_EQ(parse_written_take_status("interrupted"), std::nullopt);  // only a reader says so
+  EXPECT_EQ(parse_written_take_status("stopped"), TakeStatus::kStopped);
 }
 
 }  // namespace

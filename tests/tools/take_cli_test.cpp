@@ -66,7 +66,7 @@ TEST(TakeCli, SigkillMidTakeLeavesAReadableInterruptedTake) {
   auto list = out::list_takes(state / "takes");
   ASSERT_TRUE(list.ok()) << list.error().message();
   ASSERT_EQ(list->size(), 1u);
-  EXPECT_EQ((*list)[0].status, "interrupted");
+  EXPECT_EQ((*list)[0].status, out::TakeStatus::kInterrupted);
   r = testing::run_process(
       {kBin + "/mocap", "export", "bvh", "--take", (state / "takes" / "walk").string(), "--out",
        (dir.path() / "bvh").string()},

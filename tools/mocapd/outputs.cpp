@@ -30,12 +30,13 @@ std::string default_take_name() {
 }
 
 json take_json(const out::TakeWriter& t) {
-  return {{"name", t.dir().filename().string()},
-          {"dir", t.dir().string()},
-          {"frames", t.frames()},
-          {"bytes", t.bytes()},
-          {"status", t.stopped() ? "stopped" : "recording"},
-          {"reason", t.stop_reason()}};
+  return {
+      {"name", t.dir().filename().string()},
+      {"dir", t.dir().string()},
+      {"frames", t.frames()},
+      {"bytes", t.bytes()},
+      {"status", to_string(t.stopped() ? out::TakeStatus::kStopped : out::TakeStatus::kRecording)},
+      {"reason", t.stop_reason()}};
 }
 
 }  // namespace
@@ -107,7 +108,7 @@ std::optional<net::HttpReply> Outputs::handle(const net::HttpRequest& req) {
     for (const out::TakeInfo& t : *takes) {
       const std::filesystem::path dir = std::filesystem::path(takes_dir_) / t.name;
       list.push_back({{"name", t.name},
-                      {"status", t.status},
+                      {"status", to_string(t.status)},
                       {"reason", t.reason},
                       {"frames", t.frames},
                       {"started_unix_ns", t.started_unix_ns},
@@ -194,7 +195,7 @@ net::HttpReply Outputs::stop_take() {
   const bool was_stopped = take_->stopped();
   const Status s = take_->finish(unix_now_ns());
   json j = take_json(*take_);
-  j["status"] = was_stopped ? "stopped" : "complete";
+  j["status"] = to_string(was_stopped ? out::TakeStatus::kStopped : out::TakeStatus::kComplete);
   if (!s.ok()) j["finish_error"] = s.error().message();
   last_take_ = j;
   MOCAP_LOG(Outputs, Info) << "take " << take_->dir().string() << " ended: " << take_->frames()
