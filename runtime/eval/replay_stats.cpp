@@ -65,40 +65,16 @@ void ReplayStats::add(const pipeline::PipelineFrame& frame) {
   ++s_.frames_with_result;
   const auto& persons = frame.result->skeletons.persons;
   ++s_.persons_histogram[static_cast<int>(persons.size())];
-  for (const PersonSkeleton& p : persons) {
-    const Eigen::Vector3d c = person_center(p);
-    auto [it, fresh] = s_.tracks.try_emplace(p.person_id);
-    TrackSummary& t = it->second;
-    if (fresh) {
-      t.id = p.person_id;
-      t.first_frame = f;
-      t.first_center_m = c;
-      t.mean_center_m = Eigen::Vector3d::Zero();
-    }
-    t.last_frame = f;
-    t.last_center_m = c;
-    t.mean_center_m += c;
-    ++t.frames;
-  }
+  for (const PersonSkeleton& p : persons) book_.add(f, p.person_id, person_center(p));
   reprojection_errors(frame.detections, *frame.result, cameras_, s_.reprojection);
 }
 
 const ReplaySummary& ReplayStats::finish() {
+  s_.tracks = book_.tracks();
   for (auto& [id, t] : s_.tracks) {
     if (t.frames > 0) t.mean_center_m /= t.frames;
   }
-  s_.id_switches.clear();
-  for (const auto& [a_id, a] : s_.tracks) {
-    if (a.frames < kLongTrackFrames || a.last_frame >= s_.frames - 1) continue;  // ran to the end
-    for (const auto& [b_id, b] : s_.tracks) {
-      if (b_id == a_id || b.first_frame <= a.first_frame) continue;
-      const int gap = b.first_frame - a.last_frame;
-      if (gap < -kSwitchMaxGapFrames || gap > kSwitchMaxGapFrames) continue;
-      const double d = (b.first_center_m - a.last_center_m).norm();
-      if (d > kSwitchMaxDistM) continue;
-      s_.id_switches.push_back(IdSwitch{a_id, b_id, b.first_frame, d});
-    }
-  }
+  s_.id_switches = book_.switches(s_.frames - 1);
   return s_;
 }
 

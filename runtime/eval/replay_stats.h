@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "runtime/assoc/engine.h"
+#include "runtime/eval/id_switches.h"
 #include "runtime/geometry/camera.h"
 #include "runtime/msg/messages.h"
 #include "runtime/pipeline/stages.h"
@@ -31,37 +32,13 @@ void reprojection_errors(const DetectionSet& detections, const assoc::FrameResul
 // Mean of a person's joints with confidence >= min_confidence (all joints when none).
 Eigen::Vector3d person_center(const PersonSkeleton& person, float min_confidence = 0.2f);
 
-struct TrackSummary {
-  int id = -1;
-  int first_frame = -1;
-  int last_frame = -1;
-  int frames = 0;                  // frames the id was output
-  Eigen::Vector3d first_center_m;  // person_center() in the first and last frame
-  Eigen::Vector3d last_center_m;
-  Eigen::Vector3d mean_center_m;  // over all its frames
-};
-
-// A track that ends (while the recording goes on) and a track that starts within
-// kSwitchMaxGapFrames frames after it, where the new one's first centre is within
-// kSwitchMaxDistM of the old one's last centre: the same person under a new id.
-struct IdSwitch {
-  int from_id = -1;
-  int to_id = -1;
-  int frame = -1;  // first frame of to_id
-  double distance_m = 0;
-};
-inline constexpr int kSwitchMaxGapFrames = 15;
-inline constexpr double kSwitchMaxDistM = 0.5;
-// Tracks shorter than this are not "long" (a flicker of a few frames is not a switch source).
-inline constexpr int kLongTrackFrames = 10;
-
 struct ReplaySummary {
   int frames = 0;
   int frames_with_result = 0;                       // calibrated: the engine gave a result
   std::vector<double> source_ms, cnn_ms, assoc_ms;  // per frame, the pipeline's stage names
   std::map<int, int> persons_histogram;             // persons in a frame -> frames
   std::map<int, TrackSummary> tracks;               // by id
-  std::vector<IdSwitch> id_switches;                // among long tracks
+  std::vector<IdSwitch> id_switches;                // among long tracks (id_switches.h)
   std::vector<ReprojectionSample> reprojection;     // all (person, joint, view) evidence
   std::vector<double> reprojection_px() const;      // the errors alone
 };
@@ -77,6 +54,7 @@ class ReplayStats {
 
  private:
   std::vector<Camera> cameras_;
+  TrackBook book_;
   ReplaySummary s_;
 };
 

@@ -91,16 +91,17 @@ void print_summary(const eval::ReplaySummary& sum, int views) {
   std::printf(" (persons:frames)\n");
   std::printf("track ids: %zu\n", sum.tracks.size());
   for (const auto& [id, t] : sum.tracks) {
-    std::printf("  id %d: frames %d-%d, output in %d (%.0f%%), mean centre (%.2f, %.2f, %.2f) m\n",
-                id, t.first_frame, t.last_frame, t.frames,
-                100.0 * t.frames / std::max(1, sum.frames), t.mean_center_m.x(),
-                t.mean_center_m.y(), t.mean_center_m.z());
+    std::printf(
+        "  id %d: frames %lld-%lld, output in %d (%.0f%%), mean centre (%.2f, %.2f, %.2f) m\n", id,
+        static_cast<long long>(t.first_frame), static_cast<long long>(t.last_frame), t.frames,
+        100.0 * t.frames / std::max(1, sum.frames), t.mean_center_m.x(), t.mean_center_m.y(),
+        t.mean_center_m.z());
   }
   std::printf("id switches (long tracks, >= %d frames): %zu\n", eval::kLongTrackFrames,
               sum.id_switches.size());
   for (const eval::IdSwitch& w : sum.id_switches) {
-    std::printf("  id %d -> id %d at frame %d (%.2f m apart)\n", w.from_id, w.to_id, w.frame,
-                w.distance_m);
+    std::printf("  id %d -> id %d at frame %lld (%.2f m apart)\n", w.from_id, w.to_id,
+                static_cast<long long>(w.frame), w.distance_m);
   }
 }
 

@@ -9,10 +9,9 @@
 // started every --take-every-min minutes and stopped --take-s later.
 //
 // Lost messages: gaps in the frame ids a connected reader receives (a replay that loops keeps
-// counting frame ids, and mocapd blocks rather than drops on a replay at full speed). An id
-// switch: a person whose id is new in a frame while a person of the previous frame, now gone,
-// stood within 0.3 m of it (the same person under a new id; the jump back to the clip's first
-// frame at each loop is not one). Exit status 0 when nothing was lost, no id switched, no HTTP
+// counting frame ids, and mocapd blocks rather than drops on a replay at full speed). Id
+// switches: the one rule of `mocap replay` and the e2e tests (runtime/eval/id_switches.h) over
+// the steady reader's frame ids. Exit status 0 when nothing was lost, no id switched, no HTTP
 // request failed, mocapd lived, the fds did not grow and (runs of 30 min or more) the RSS drifted
 // at most 2 MiB/h after the warm-up; 1 otherwise; 2 for bad arguments.
 #include <fcntl.h>
@@ -39,6 +38,7 @@
 #include <thread>
 #include <vector>
 
+#include "runtime/eval/id_switches.h"
 #include "runtime/net/token_file.h"
 #include "tools/common/box_http.h"
 #include "tools/common/cli.h"
@@ -130,11 +130,13 @@ pid_t spawn_mocapd(const std::vector<std::string>& argv, const fs::path& log) {
 struct StreamTally {
   std::mutex mu;
   std::uint64_t messages = 0;
-  std::uint64_t lost = 0;         // frame-id gaps of connected readers
-  std::uint64_t id_switches = 0;  // the steady reader's
-  std::uint64_t clients = 0;      // connections made
+  std::uint64_t lost = 0;     // frame-id gaps of connected readers
+  std::uint64_t clients = 0;  // connections made
   std::uint64_t connect_failures = 0;
-  std::set<int> ids;
+  eval::TrackBook tracks;        // the steady reader's persons, by id
+  std::int64_t last_frame = -1;  // the steady reader's latest frame id
+  std::uint64_t id_switches() const { return tracks.switches(last_frame).size(); }
+  std::size_t ids() const { return tracks.tracks().size(); }
 };
 
 // A person's mean joint position (metres; joints without a position left out).
@@ -150,27 +152,6 @@ bool centre_of(const json& person, double c[3]) {
   }
   for (int k = 0; k < 3 && n > 0; ++k) c[k] /= n;
   return n > 0;
-}
-
-// Id switches between two consecutive skeleton messages (above).
-int id_switches(const json& prev, const json& cur) {
-  std::set<int> cur_ids, prev_ids;
-  for (const json& p : cur.at("persons")) cur_ids.insert(p.at("id").get<int>());
-  for (const json& p : prev.at("persons")) prev_ids.insert(p.at("id").get<int>());
-  int switches = 0;
-  for (const json& p : cur.at("persons")) {
-    double a[3];
-    if (prev_ids.contains(p.at("id").get<int>()) || !centre_of(p, a)) continue;
-    for (const json& q : prev.at("persons")) {
-      double b[3];
-      if (cur_ids.contains(q.at("id").get<int>()) || !centre_of(q, b)) continue;
-      if (std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]) < 0.3) {
-        ++switches;
-        break;
-      }
-    }
-  }
-  return switches;
 }
 
 class StreamReader {
@@ -227,16 +208,17 @@ class MessageCounter {
     if (last_frame_ >= 0 && frame > last_frame_ + 1) tally_.lost += frame - last_frame_ - 1;
     last_frame_ = frame;
     if (!track_ids_) return;
-    for (const json& p : m.at("persons")) tally_.ids.insert(p.at("id").get<int>());
-    if (!prev_.is_null()) tally_.id_switches += id_switches(prev_, m);
-    prev_ = std::move(m);
+    tally_.last_frame = frame;
+    for (const json& p : m.at("persons")) {
+      double c[3];
+      if (centre_of(p, c)) tally_.tracks.add(frame, p.at("id").get<int>(), {c[0], c[1], c[2]});
+    }
   }
 
  private:
   StreamTally& tally_;
   bool track_ids_;
   std::int64_t last_frame_ = -1;
-  json prev_;
 };
 
 void steady_reader(int port, const std::atomic<bool>& stop, StreamTally& tally) {
@@ -386,9 +368,9 @@ void print_minute(int minute, const ProcessSample& p, StreamTally& st, HttpTally
     std::lock_guard<std::mutex> lock(st.mu);
     messages = st.messages;
     lost = st.lost;
-    switches = st.id_switches;
+    switches = st.id_switches();
     clients = st.clients;
-    ids = st.ids.size();
+    ids = st.ids();
   }
   std::uint64_t loops = 0;
   try {
@@ -439,7 +421,7 @@ int summarise(const std::vector<Minute>& minutes, bool alive, StreamTally& st, H
   std::printf("stream: %llu messages to %llu clients, %llu lost, %llu id switches, %zu ids\n",
               static_cast<unsigned long long>(st.messages),
               static_cast<unsigned long long>(st.clients), static_cast<unsigned long long>(st.lost),
-              static_cast<unsigned long long>(st.id_switches), st.ids.size());
+              static_cast<unsigned long long>(st.id_switches()), st.ids());
   std::printf("http: %llu requests, %llu errors; %llu takes (%llu frames)\n",
               static_cast<unsigned long long>(ht.requests.load()),
               static_cast<unsigned long long>(ht.errors.load()),
@@ -449,7 +431,7 @@ int summarise(const std::vector<Minute>& minutes, bool alive, StreamTally& st, H
   std::vector<std::string> failed;
   if (!alive) failed.push_back("mocapd died (its log is kept)");
   if (st.lost > 0) failed.push_back("stream messages lost");
-  if (st.id_switches > 0) failed.push_back("person ids switched");
+  if (st.id_switches() > 0) failed.push_back("person ids switched");
   if (ht.errors > 0) failed.push_back("HTTP requests failed");
   if (st.connect_failures > 0) failed.push_back("stream connections refused");
   if (fds_last > fds_first + 2) failed.push_back("open fds grew");
