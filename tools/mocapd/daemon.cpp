@@ -16,6 +16,7 @@
 #include "hal/gpio/trigger_line.h"
 #include "hal/rig_source.h"
 #include "runtime/assoc/options.h"
+#include "runtime/box/camera_views.h"
 #include "runtime/calib/background.h"
 #include "runtime/calib/monitor.h"
 #include "runtime/core/clock.h"
@@ -29,7 +30,6 @@
 #include "tools/common/crop_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
-#include "tools/mocapd/camera_views.h"
 #include "tools/mocapd/json_reply.h"
 
 MOCAP_LOG_CATEGORY(Daemon);
@@ -491,7 +491,7 @@ Status Daemon::start() {
   server_ = std::move(*srv);
   server_view_.store(server_.get());
   stream_sink_ = std::make_unique<pipeline::StreamSink>(*server_, unix_offset_ns_);
-  camera_views_ = std::make_unique<CameraViews>(CameraViewsOptions{});
+  camera_views_ = std::make_unique<box::CameraViews>(box::CameraViewsOptions{});
   camera_views_->set_cameras(lifecycle_->cameras());
   views_sink_ = std::make_unique<pipeline::CallbackSink>(
       "camera views", [this](const pipeline::PipelineFrame& f) {

@@ -63,6 +63,10 @@ namespace mocap::boardcal {
 class BoardCapture;
 }
 
+namespace mocap::box {
+class CameraViews;
+}
+
 namespace mocap::dds {
 class Stage;
 class DetectionPublisher;
@@ -70,8 +74,6 @@ class SkeletonPublisher;
 }  // namespace mocap::dds
 
 namespace mocap::daemon {
-
-class CameraViews;
 
 // Test and bench hooks: called on the association thread after a frame was published.
 struct DaemonHooks {
@@ -184,8 +186,8 @@ class Daemon {
   std::atomic<const net::StreamServer*> server_view_{nullptr};  // for health_json()
   std::unique_ptr<pipeline::StreamSink> stream_sink_;
   std::unique_ptr<pipeline::CallbackSink> hook_sink_;
-  std::unique_ptr<Outputs> outputs_;           // VMC and takes
-  std::unique_ptr<CameraViews> camera_views_;  // the page's camera tiles
+  std::unique_ptr<Outputs> outputs_;                // VMC and takes
+  std::unique_ptr<box::CameraViews> camera_views_;  // the page's camera tiles
   std::unique_ptr<pipeline::CallbackSink> views_sink_;
   WebAssets web_;
   std::string token_;

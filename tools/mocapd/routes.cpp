@@ -5,8 +5,8 @@
 // (runtime/net/access.h): an action got here with the box's token.
 #include <charconv>
 
+#include "runtime/box/camera_views.h"
 #include "runtime/net/stream_server.h"
-#include "tools/mocapd/camera_views.h"
 #include "tools/mocapd/daemon.h"
 #include "tools/mocapd/json_reply.h"
 

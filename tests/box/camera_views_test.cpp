@@ -1,8 +1,8 @@
-// The page's camera thumbnails from real frames (tools/mocapd/camera_views.h): RGB24, YUYV and
+// The page's camera thumbnails from real frames (runtime/box/camera_views.h): RGB24, YUYV and
 // MJPEG frames become 320-pixel-wide JPEGs with the picture's colours where they were; a
 // format without a thumbnail (GREY) leaves the view without one; refreshes come at most every
 // interval; and the cost on the CNN thread of taking a 1080p frame, as a printed median.
-#include "tools/mocapd/camera_views.h"
+#include "runtime/box/camera_views.h"
 
 #include <gtest/gtest.h>
 
@@ -18,7 +18,7 @@
 #include "runtime/image/image.h"
 #include "tests/support/frames.h"
 
-namespace mocap::daemon {
+namespace mocap::box {
 namespace {
 
 // Left half red, right half blue, as packed RGB24.
@@ -163,4 +163,4 @@ TEST(CameraViews, RefreshesAtMostEveryIntervalAndPrintsTheCnnThreadCost) {
 }
 
 }  // namespace
-}  // namespace mocap::daemon
+}  // namespace mocap::box

@@ -26,7 +26,7 @@
 #include "runtime/image/image.h"
 #include "runtime/msg/messages.h"
 
-namespace mocap::daemon {
+namespace mocap::box {
 
 struct CameraViewsOptions {
   double interval_s = 0.5;  // per camera, (0, 60]
@@ -93,4 +93,4 @@ class CameraViews {
   std::thread worker_;
 };
 
-}  // namespace mocap::daemon
+}  // namespace mocap::box

@@ -1,4 +1,4 @@
-#include "tools/mocapd/camera_views.h"
+#include "runtime/box/camera_views.h"
 
 #include <algorithm>
 #include <chrono>
@@ -8,7 +8,7 @@
 #include "runtime/image/image.h"
 #include "runtime/nn/preprocess.h"
 
-namespace mocap::daemon {
+namespace mocap::box {
 
 namespace {
 
@@ -330,4 +330,4 @@ CameraViewsStats CameraViews::stats() const {
   return stats_;
 }
 
-}  // namespace mocap::daemon
+}  // namespace mocap::box
