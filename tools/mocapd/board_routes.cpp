@@ -21,12 +21,15 @@
 #include "runtime/calib/background.h"
 #include "runtime/calib/monitor.h"
 #include "runtime/core/log.h"
+#include "runtime/net/json_reply.h"
 #include "tools/mocapd/daemon.h"
-#include "tools/mocapd/json_reply.h"
 
 MOCAP_DECLARE_LOG_CATEGORY(Daemon);
 
 namespace mocap::daemon {
+
+using net::error_reply;
+using net::json_reply;
 
 namespace {
 

@@ -22,6 +22,7 @@
 #include "runtime/core/clock.h"
 #include "runtime/core/log.h"
 #include "runtime/gpu/cnn_detector.h"
+#include "runtime/net/json_reply.h"
 #include "runtime/net/stream_server.h"
 #include "runtime/net/token_file.h"
 #include "runtime/sim/simulator_source.h"
@@ -30,11 +31,13 @@
 #include "tools/common/crop_args.h"
 #include "tools/common/paths.h"
 #include "tools/common/replay_parts.h"
-#include "tools/mocapd/json_reply.h"
 
 MOCAP_LOG_CATEGORY(Daemon);
 
 namespace mocap::daemon {
+
+using net::error_reply;
+using net::json_reply;
 namespace {
 
 namespace fs = std::filesystem;
@@ -124,8 +127,13 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
     if (s.ok() && config.role == Role::kDetector) s = d->become_detector_node();
   }
   if (!s.ok()) return s.error();
-  auto outputs =
-      Outputs::create(config, d->unix_offset_ns_, [raw = d.get()] { return raw->take_metadata(); });
+  box::OutputsOptions oo;
+  oo.takes_dir = (fs::path(config.state_dir) / "takes").string();
+  oo.vmc_targets = config.vmc_targets;
+  oo.vmc_slots = config.vmc_slots;
+  oo.vmc_slot_release_s = config.vmc_slot_release_s;
+  auto outputs = box::Outputs::create(oo, d->unix_offset_ns_,
+                                      [raw = d.get()] { return raw->take_metadata(); });
   if (!outputs.ok()) return outputs.error();
   d->outputs_ = std::move(*outputs);
   return d;

@@ -29,6 +29,7 @@
 
 #include "runtime/box/box_status.h"
 #include "runtime/box/calibration_lifecycle.h"
+#include "runtime/box/outputs.h"
 #include "runtime/box/problems.h"
 #include "runtime/box/source_kind.h"
 #include "runtime/calib/self_calibration.h"
@@ -38,7 +39,6 @@
 #include "runtime/pipeline/recovering_detector.h"
 #include "runtime/pipeline/sinks.h"
 #include "tools/mocapd/config.h"
-#include "tools/mocapd/outputs.h"
 #include "tools/mocapd/web.h"
 
 namespace mocap::net {
@@ -186,7 +186,7 @@ class Daemon {
   std::atomic<const net::StreamServer*> server_view_{nullptr};  // for health_json()
   std::unique_ptr<pipeline::StreamSink> stream_sink_;
   std::unique_ptr<pipeline::CallbackSink> hook_sink_;
-  std::unique_ptr<Outputs> outputs_;                // VMC and takes
+  std::unique_ptr<box::Outputs> outputs_;           // VMC and takes
   std::unique_ptr<box::CameraViews> camera_views_;  // the page's camera tiles
   std::unique_ptr<pipeline::CallbackSink> views_sink_;
   WebAssets web_;

@@ -1,16 +1,19 @@
 // mocapd's HTTP routes besides the stream and /health (docs/web.md): the page and its files,
 // GET /scene (topology and cameras for the 3D view), GET /cameras (per camera state and 2D
 // keypoints), GET /cameras/<n>/thumbnail.jpg, GET /metrics (Prometheus), POST /token/check,
-// and the take routes (tools/mocapd/outputs.h). Access control happened before these run
+// and the take routes (runtime/box/outputs.h). Access control happened before these run
 // (runtime/net/access.h): an action got here with the box's token.
 #include <charconv>
 
 #include "runtime/box/camera_views.h"
+#include "runtime/net/json_reply.h"
 #include "runtime/net/stream_server.h"
 #include "tools/mocapd/daemon.h"
-#include "tools/mocapd/json_reply.h"
 
 namespace mocap::daemon {
+
+using net::error_reply;
+using net::json_reply;
 
 namespace {
 

@@ -1,15 +1,18 @@
-#include "tools/mocapd/outputs.h"
+#include "runtime/box/outputs.h"
 
 #include <cctype>
 #include <ctime>
 #include <filesystem>
 
+#include "runtime/box/take_exports.h"
 #include "runtime/core/clock.h"
 #include "runtime/core/log.h"
-#include "tools/mocapd/json_reply.h"
-#include "tools/mocapd/take_exports.h"
+#include "runtime/net/json_reply.h"
 
-namespace mocap::daemon {
+namespace mocap::box {
+
+using net::error_reply;
+using net::json_reply;
 
 MOCAP_LOG_CATEGORY(Outputs);
 
@@ -41,11 +44,18 @@ json take_json(const out::TakeWriter& t) {
 
 }  // namespace
 
-Result<std::unique_ptr<Outputs>> Outputs::create(const DaemonConfig& config,
+Status OutputsOptions::validate() const {
+  if (takes_dir.empty())
+    return invalid_argument("outputs", "takes_dir (<state_dir>/takes) is empty");
+  return {};
+}
+
+Result<std::unique_ptr<Outputs>> Outputs::create(const OutputsOptions& config,
                                                  std::int64_t unix_offset_ns,
                                                  MetadataProvider metadata) {
+  if (Status s = config.validate(); !s.ok()) return s.error();
   std::unique_ptr<Outputs> o(new Outputs());
-  o->takes_dir_ = (std::filesystem::path(config.state_dir) / "takes").string();
+  o->takes_dir_ = config.takes_dir;
   o->unix_offset_ns_ = unix_offset_ns;
   o->metadata_ = std::move(metadata);
   o->exports_ = std::make_unique<TakeExports>();
@@ -248,4 +258,4 @@ json Outputs::vmc_health(std::vector<std::string>& problems) const {
           {"persons_without_slot", s.persons_without_slot}};
 }
 
-}  // namespace mocap::daemon
+}  // namespace mocap::box

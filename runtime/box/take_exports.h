@@ -16,7 +16,7 @@
 
 #include "runtime/core/error.h"
 
-namespace mocap::daemon {
+namespace mocap::box {
 
 class TakeExports {
  public:
@@ -47,4 +47,4 @@ class TakeExports {
   std::thread worker_;
 };
 
-}  // namespace mocap::daemon
+}  // namespace mocap::box

@@ -8,7 +8,7 @@
 //   GET  /takes                   200 {"recording": NAME|null, "takes": [{..., "files"}]}
 //   GET  /takes/NAME/FILE         the file (skeletons.ndjson, take.json, exports: one BVH per
 //                                 person and a .glb, written when the take ends)
-//   POST /takes/NAME/export       202: writes the exports again (tools/mocapd/take_exports.h)
+//   POST /takes/NAME/export       202: writes the exports again (runtime/box/take_exports.h)
 //
 // Both are pipeline sinks on the association thread that never stop the pipeline: a VMC send
 // error is counted, a take that cannot write (disk full, read-only) stops with its reason in
@@ -32,11 +32,18 @@
 #include "runtime/out/take_writer.h"
 #include "runtime/out/vmc_sender.h"
 #include "runtime/pipeline/sinks.h"
-#include "tools/mocapd/config.h"
 
-namespace mocap::daemon {
+namespace mocap::box {
 
 class TakeExports;
+
+struct OutputsOptions {
+  std::string takes_dir;          // <state_dir>/takes
+  std::string vmc_targets;        // HOST:PORT[,HOST:PORT...]; empty = no VMC (out/vmc_targets.h)
+  int vmc_slots = 4;              // people sent to each target, one port each
+  double vmc_slot_release_s = 2;  // a person's port is given away after this long unseen
+  Status validate() const;
+};
 
 class Outputs {
  public:
@@ -45,7 +52,7 @@ class Outputs {
 
   // Validates the VMC options and resolves the targets (an unresolved one is a problem in
   // health(), not an error).
-  static Result<std::unique_ptr<Outputs>> create(const DaemonConfig& config,
+  static Result<std::unique_ptr<Outputs>> create(const OutputsOptions& options,
                                                  std::int64_t unix_offset_ns,
                                                  MetadataProvider metadata);
   ~Outputs();
@@ -84,4 +91,4 @@ class Outputs {
   std::unique_ptr<TakeExports> exports_;   // BVH and glTF of ended takes, in the background
 };
 
-}  // namespace mocap::daemon
+}  // namespace mocap::box

@@ -1,4 +1,4 @@
-#include "tools/mocapd/take_exports.h"
+#include "runtime/box/take_exports.h"
 
 #include <algorithm>
 #include <fstream>
@@ -9,7 +9,7 @@
 
 MOCAP_LOG_CATEGORY(Exports)
 
-namespace mocap::daemon {
+namespace mocap::box {
 
 namespace fs = std::filesystem;
 
@@ -114,4 +114,4 @@ fs::path TakeExports::file_path(const fs::path& take_dir, const std::string& fil
   return top ? take_dir / file : take_dir / "exports" / file;
 }
 
-}  // namespace mocap::daemon
+}  // namespace mocap::box

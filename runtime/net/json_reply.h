@@ -1,0 +1,24 @@
+// A JSON answer of an HTTP route (mocapd's routes, the box's take routes and actions).
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+
+#include "runtime/net/http.h"
+
+namespace mocap::net {
+
+inline HttpReply json_reply(int status, const nlohmann::json& body) {
+  HttpReply r;
+  r.status = status;
+  r.body = body.dump();
+  return r;
+}
+
+// {"error": message}: what went wrong and the fix.
+inline HttpReply error_reply(int status, const std::string& message) {
+  return json_reply(status, nlohmann::json{{"error", message}});
+}
+
+}  // namespace mocap::net
