@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "runtime/boardcal/board_steps.h"
 #include "runtime/core/stats.h"
 #include "runtime/image/image.h"
 
@@ -242,6 +243,7 @@ void BoardCapture::detect_sample(std::vector<Image>& images, std::uint64_t frame
     if (obs[c].size() < 4) continue;
     seen = true;
     ++cam.frames_seen;
+    if (detail::usable_view(board_, obs[c], options_.calibration.min_corners)) ++cam.usable_views;
     for (const Eigen::Vector2d& p : obs[c].px) {
       const int gx =
           std::clamp(static_cast<int>(p.x() * cols / std::max(1, cam.width_px)), 0, cols - 1);
@@ -359,9 +361,10 @@ std::string BoardCapture::what_to_do() const {
   const int cells = o.grid_cols * o.grid_rows;
   for (const CameraState& c : cameras_) {
     const int covered = covered_cells(c.grid);
-    if (c.frames_seen < o.min_frames) {
-      return "show the board to camera " + c.view_id + " (" + std::to_string(c.frames_seen) +
-             " of " + std::to_string(o.min_frames) + " frames so far)";
+    if (c.usable_views < o.min_frames) {
+      return "show the board to camera " + c.view_id + ", whole and closer (" +
+             std::to_string(c.usable_views) + " of " + std::to_string(o.min_frames) +
+             " usable views so far)";
     }
     if (covered < o.warn_coverage * cells) {
       return "camera " + c.view_id + " has seen the board in " + std::to_string(covered) + " of " +
@@ -396,9 +399,10 @@ json BoardCapture::status_json() const {
                     {"width_px", c.width_px},
                     {"height_px", c.height_px},
                     {"frames_seen", c.frames_seen},
+                    {"usable_views", c.usable_views},
                     {"coverage", round_to(coverage, 0.001)},
                     {"grid", {{"cols", o.grid_cols}, {"rows", o.grid_rows}, {"corners", c.grid}}},
-                    {"ready", c.frames_seen >= o.min_frames && coverage >= o.min_coverage},
+                    {"ready", c.usable_views >= o.min_frames && coverage >= o.min_coverage},
                     {"last", {{"frame_id", c.last_frame_id}, {"corners_px", px}}}});
   }
   j["cameras"] = cams;

@@ -106,6 +106,9 @@ TEST(BoardCaptureTest, CollectsCoverageAndSolvesInTheBackground) {
     SCOPED_TRACE("camera " + c["view_id"].get<std::string>());
     EXPECT_EQ(c["width_px"], kW);
     EXPECT_GE(c["frames_seen"].get<int>(), 18);
+    // "ready" counts the views the solve can use (a glimpse of a few corners is not one).
+    EXPECT_GE(c["usable_views"].get<int>(), 5);
+    EXPECT_LE(c["usable_views"].get<int>(), c["frames_seen"].get<int>());
     EXPECT_GT(c["coverage"].get<double>(), 0.2);
     EXPECT_TRUE(c["ready"].get<bool>());
     EXPECT_EQ(c["grid"]["corners"].size(), 48u);
