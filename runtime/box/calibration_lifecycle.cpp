@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <sstream>
 #include <system_error>
 #include <utility>
 
@@ -166,11 +165,13 @@ void CalibrationLifecycle::on_frame(const pipeline::PipelineFrame& frame) {
   if (!frame.result || !monitor_) return;
   monitor_->add(frame.detections, frame.result->skeletons);
   if (auto r = monitor_->take_resolved()) {
-    Calibration cal = calibration_;
-    cal.cameras[r->view] = r->camera;
-    const std::string detail =
-        cal.view_ids[r->view] + "\n" + std::to_string(r->inliers);  // id, joints that fit
-    prepare(Origin::kResolvedCamera, std::move(cal), {}, detail);
+    Prepared p;
+    p.origin = Origin::kResolvedCamera;
+    p.calibration = calibration_;
+    p.calibration.cameras[r->view] = r->camera;
+    p.view_id = p.calibration.view_ids[r->view];
+    p.inliers = r->inliers;
+    prepare(std::move(p));
   }
 }
 
@@ -187,10 +188,12 @@ void CalibrationLifecycle::feed_calibrator(const pipeline::PipelineFrame& frame)
     std::lock_guard<std::mutex> lock(mu_);
     recalibrating_ = false;
   }
-  std::ostringstream median_px;
-  median_px << r->quality.median_px;
-  prepare(Origin::kSelfCalibration, *r->calibration, calib::quality_to_json(r->quality),
-          median_px.str());
+  Prepared p;
+  p.origin = Origin::kSelfCalibration;
+  p.calibration = *r->calibration;
+  p.report = calib::quality_to_json(r->quality);
+  p.median_px = r->quality.median_px;
+  prepare(std::move(p));
 }
 
 void CalibrationLifecycle::begin_recalibration() {
@@ -232,38 +235,32 @@ void CalibrationLifecycle::take_board_offer() {
     if (calibrator_) retired_calibrators_.push_back(std::move(calibrator_));
     recalibrating_ = false;
   }
-  prepare(Origin::kBoard, std::move(offer->calibration), std::move(offer->report),
-          std::move(offer->file));
+  Prepared p;
+  p.origin = Origin::kBoard;
+  p.calibration = std::move(offer->calibration);
+  p.report = std::move(offer->report);
+  p.file = std::move(offer->file);  // where the web page saved it
+  prepare(std::move(p));
 }
 
 // ---------------------------------------------------------------------------- engine swaps
 
-void CalibrationLifecycle::prepare(Origin origin, Calibration calibration, std::string report,
-                                   std::string detail) {
+void CalibrationLifecycle::prepare(Prepared p) {
   const SkeletonTopology* topology = topology_;
   const assoc::AssociationOptions options = assoc_options_;
-  const bool write = origin == Origin::kSelfCalibration ||
-                     (origin == Origin::kResolvedCamera && options_.persist_resolved_cameras);
+  const bool write = p.origin == Origin::kSelfCalibration ||
+                     (p.origin == Origin::kResolvedCamera && options_.persist_resolved_cameras);
   const fs::path state_file = options_.state_file;
-  preparing_.push_back(std::async(
-      std::launch::async,
-      [=, cal = std::move(calibration), report = std::move(report), detail = std::move(detail)]() {
-        Prepared p;
-        p.origin = origin;
-        p.calibration = cal;
-        p.report = report;
-        p.detail = detail;
-        if (write) {
-          std::error_code ec;
-          fs::create_directories(state_file.parent_path(), ec);
-          p.written = calib::write_calibration_durably(cal, state_file);
-          p.file = state_file.string();
-        } else if (origin == Origin::kBoard) {
-          p.file = detail;  // where the web page saved it
-        }
-        p.engine = assoc::Engine::create(*topology, cal.cameras, options);
-        return p;
-      }));
+  preparing_.push_back(std::async(std::launch::async, [=, p = std::move(p)]() mutable {
+    if (write) {
+      std::error_code ec;
+      fs::create_directories(state_file.parent_path(), ec);
+      p.written = calib::write_calibration_durably(p.calibration, state_file);
+      p.file = state_file.string();
+    }
+    p.engine = assoc::Engine::create(*topology, p.calibration.cameras, options);
+    return std::move(p);
+  }));
 }
 
 // On the association thread: what finished preparing, in the order it was asked for.
@@ -279,8 +276,7 @@ void CalibrationLifecycle::install_ready() {
 void CalibrationLifecycle::install(Prepared& p) {
   std::lock_guard<std::mutex> lock(mu_);
   if (p.origin == Origin::kResolvedCamera) {
-    const std::size_t nl = p.detail.find('\n');
-    const std::string id = p.detail.substr(0, nl);
+    const std::string& id = p.view_id;
     if (!p.engine.ok()) {
       MOCAP_LOG(Box, Error) << "camera " << id << " was solved again but the engine refused it: "
                             << p.engine.error().message();
@@ -297,8 +293,8 @@ void CalibrationLifecycle::install(Prepared& p) {
                                 "restart): " +
                                 p.written.error().message()));
     }
-    MOCAP_LOG(Box, Warn) << "camera " << id << " moved: its pose was solved again ("
-                         << p.detail.substr(nl + 1) << " joints fit) and swapped in"
+    MOCAP_LOG(Box, Warn) << "camera " << id << " moved: its pose was solved again (" << p.inliers
+                         << " joints fit) and swapped in"
                          << (saved ? ", saved to " + p.file : std::string());
     return;
   }
@@ -346,7 +342,7 @@ void CalibrationLifecycle::install(Prepared& p) {
   self_calibration_json_ = p.report;
   swap_locked(p.calibration, std::move(*p.engine));  // a recalibration's old engine retired
   start_check_locked();
-  MOCAP_LOG(Box, Info) << "self-calibrated (" << p.detail
+  MOCAP_LOG(Box, Info) << "self-calibrated (" << p.median_px
                        << " px median reprojection): skeletons from now on, calibration " << file_;
 }
 

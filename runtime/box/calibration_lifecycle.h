@@ -142,10 +142,12 @@ class CalibrationLifecycle {
     Origin origin = Origin::kSelfCalibration;
     Calibration calibration;
     Result<std::unique_ptr<assoc::Engine>> engine{std::unique_ptr<assoc::Engine>()};
-    Status written;      // the state file (self-calibration, a resolved camera when persisted)
-    std::string file;    // where it is kept (written, or the board's file)
-    std::string report;  // the self-calibration's quality or the board's report (JSON)
-    std::string detail;  // a resolved camera: its view id and how many joints fit
+    Status written;        // the state file (self-calibration, a resolved camera when persisted)
+    std::string file;      // where it is kept (written, or the board's file)
+    std::string report;    // the self-calibration's quality or the board's report (JSON)
+    double median_px = 0;  // a self-calibration's median reprojection
+    std::string view_id;   // a resolved camera's view id and how many joints fit it
+    int inliers = 0;
   };
   struct BoardOffer {
     Calibration calibration;
@@ -158,7 +160,8 @@ class CalibrationLifecycle {
   void feed_calibrator(const pipeline::PipelineFrame& frame);
   void take_board_offer();
   // Makes the engine (and writes the file) on a worker; installed by install_ready().
-  void prepare(Origin origin, Calibration calibration, std::string report, std::string detail);
+  // `p`: the origin, the calibration and what install() reports about it.
+  void prepare(Prepared p);
   void install_ready();
   void install(Prepared& p);
   void swap_locked(const Calibration& calibration, std::unique_ptr<assoc::Engine> engine);

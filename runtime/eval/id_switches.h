@@ -41,7 +41,6 @@ class TrackBook {
  public:
   void add(std::int64_t frame, int id, const Eigen::Vector3d& center_m);
   const std::map<int, TrackSummary>& tracks() const { return tracks_; }
-  std::map<int, TrackSummary>& tracks() { return tracks_; }
   // The switches among the tracks so far; a track seen in `last_frame` (the run's last) has
   // not ended.
   std::vector<IdSwitch> switches(std::int64_t last_frame) const;
