@@ -18,8 +18,6 @@
 
 #include "runtime/assoc/engine.h"
 #include "runtime/boardcal/board_capture.h"
-#include "runtime/calib/background.h"
-#include "runtime/calib/monitor.h"
 #include "runtime/core/log.h"
 #include "runtime/net/json_reply.h"
 #include "tools/mocapd/daemon.h"

@@ -17,8 +17,6 @@
 #include "hal/rig_source.h"
 #include "runtime/assoc/options.h"
 #include "runtime/box/camera_views.h"
-#include "runtime/calib/background.h"
-#include "runtime/calib/monitor.h"
 #include "runtime/core/clock.h"
 #include "runtime/core/log.h"
 #include "runtime/gpu/cnn_detector.h"

@@ -52,13 +52,6 @@ namespace mocap::hal {
 class TriggerMaster;
 struct Discovery;
 }  // namespace mocap::hal
-namespace mocap::calib {
-class BackgroundCalibrator;
-class CalibrationMonitor;
-struct ResolvedCamera;
-struct SelfCalibrationResult;
-}  // namespace mocap::calib
-
 namespace mocap::boardcal {
 class BoardCapture;
 }

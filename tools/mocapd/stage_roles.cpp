@@ -2,8 +2,6 @@
 // detections over DDS; the fusion node's source is every detector's views, grouped by frame.
 #include <filesystem>
 
-#include "runtime/calib/background.h"
-#include "runtime/calib/monitor.h"
 #include "runtime/core/log.h"
 #include "runtime/dds/detection_publisher.h"
 #include "runtime/dds/fusion_source.h"
