@@ -62,10 +62,8 @@ Result<std::unique_ptr<Outputs>> Outputs::create(const OutputsOptions& config,
   if (!config.vmc_targets.empty()) {
     auto targets = out::parse_vmc_targets(config.vmc_targets);
     if (!targets) return targets.error();
-    out::VmcOptions vo;
+    out::VmcOptions vo = config.vmc;
     vo.targets = std::move(*targets);
-    vo.slots = config.vmc_slots;
-    vo.slot_release_s = config.vmc_slot_release_s;
     auto v = out::VmcSender::create(vo);
     if (!v) return v.error();
     o->vmc_ = std::move(*v);

@@ -38,10 +38,9 @@ namespace mocap::box {
 class TakeExports;
 
 struct OutputsOptions {
-  std::string takes_dir;          // <state_dir>/takes
-  std::string vmc_targets;        // HOST:PORT[,HOST:PORT...]; empty = no VMC (out/vmc_targets.h)
-  int vmc_slots = 4;              // people sent to each target, one port each
-  double vmc_slot_release_s = 2;  // a person's port is given away after this long unseen
+  std::string takes_dir;    // <state_dir>/takes
+  std::string vmc_targets;  // HOST:PORT[,HOST:PORT...]; empty = no VMC (out/vmc_targets.h)
+  out::VmcOptions vmc;      // slots and their release (its targets: vmc_targets)
   Status validate() const;
 };
 

@@ -59,16 +59,6 @@ std::string host_name() {
   return buf;
 }
 
-Status StageOptions::validate() const {
-  auto bad = [](const std::string& w) { return Error(ErrorCode::kInvalidArgument, "stage: " + w); };
-  if (domain_id < 0 || domain_id > 230) return bad("dds_domain must be in [0, 230]");
-  if (stage.empty() || stage.size() > 63) return bad("stage name must have 1 to 63 characters");
-  if (node.size() > 63) return bad("node name must have at most 63 characters");
-  if (!(lease_s >= 0.1 && lease_s <= 60)) return bad("lease must be in [0.1, 60] s");
-  if (!(frame_rate_hz > 0 && frame_rate_hz <= 1000)) return bad("frame rate must be in (0, 1000]");
-  return {};
-}
-
 Result<std::unique_ptr<Stage>> Stage::join(const StageOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
   std::unique_ptr<Stage> st(new Stage());

@@ -24,6 +24,7 @@
 
 #include "runtime/core/error.h"
 #include "runtime/core/log.h"
+#include "runtime/dds/stage_options.h"
 
 namespace mocap::dds {
 
@@ -52,15 +53,6 @@ class Entity {
 
  private:
   dds_entity_t e_ = 0;
-};
-
-struct StageOptions {
-  int domain_id = 0;            // DDS domain, [0, 230]
-  std::string stage = "mocap";  // DDS partition: boxes of one stage share it
-  std::string node;             // this node's name (the host name when empty)
-  double lease_s = 1.0;         // liveliness lease: a dead node is noticed after this, [0.1, 60]
-  double frame_rate_hz = 30;    // the deadline of a camera is two periods, (0, 1000]
-  Status validate() const;
 };
 
 enum class TopicKind { kDetections, kSkeletons, kStatus, kCalibration };

@@ -13,27 +13,6 @@ std::int64_t ms_to_ns(double ms) { return static_cast<std::int64_t>(ms * 1e6); }
 
 }  // namespace
 
-Status FrameGrouperOptions::validate() const {
-  auto bad = [](const std::string& what) {
-    return Error(ErrorCode::kInvalidArgument, "fusion frame grouping: " + what);
-  };
-  if (!(frame_rate_hz > 0 && frame_rate_hz <= 1000))
-    return bad("frame_rate_hz must be in (0, 1000]");
-  if (!(max_wait_ms > 0 && max_wait_ms <= 10000)) return bad("max_wait_ms must be in (0, 10000]");
-  if (!(stall_after_ms > 0 && stall_after_ms <= 60000)) {
-    return bad("stall_after_ms must be in (0, 60000]");
-  }
-  if (max_pending_frames < 1 || max_pending_frames > 4096) {
-    return bad("max_pending_frames must be in [1, 4096]");
-  }
-  if (!(max_ahead_s > 0 && max_ahead_s <= 3600)) return bad("max_ahead_s must be in (0, 3600]");
-  return {};
-}
-
-std::int64_t FrameGrouperOptions::period_ns() const {
-  return static_cast<std::int64_t>(std::llround(1e9 / frame_rate_hz));
-}
-
 std::string_view to_string(Arrival a) {
   switch (a) {
     case Arrival::kAccepted:

@@ -20,21 +20,10 @@
 #include <vector>
 
 #include "runtime/core/error.h"
+#include "runtime/fusion/grouper_options.h"
 #include "runtime/msg/messages.h"
 
 namespace mocap::fusion {
-
-struct FrameGrouperOptions {
-  double frame_rate_hz = 30;    // the stage's capture rate, (0, 1000]
-  double max_wait_ms = 30;      // longest a frame waits for its last views, (0, 10000]
-  double stall_after_ms = 250;  // a camera not heard for this long is not waited for, (0, 60000]
-  int max_pending_frames = 64;  // frames held at once, [1, 4096]; past it the oldest is released
-  double max_ahead_s = 2;       // a view this far ahead of the last released frame is refused
-                                // (a clock gone wrong), unless nothing was released for as
-                                // long: then the stage starts over from it; (0, 3600]
-  Status validate() const;
-  std::int64_t period_ns() const;
-};
 
 // One camera's detections of one frame, as the transport received them.
 struct ViewArrival {

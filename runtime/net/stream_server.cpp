@@ -185,40 +185,6 @@ int bound_port(int fd) {
 
 }  // namespace
 
-Status StreamServerOptions::validate() const {
-  auto bad = [](std::string message) {
-    return Error(ErrorCode::kInvalidArgument, std::move(message));
-  };
-  in_addr addr{};
-  if (::inet_pton(AF_INET, bind_address.c_str(), &addr) != 1) {
-    return bad("bind_address '" + bind_address +
-               "' is not an IPv4 address (e.g. 0.0.0.0 for all interfaces, 127.0.0.1)");
-  }
-  if (stream_port < 0 || stream_port > 65535) {
-    return bad("stream_port " + std::to_string(stream_port) + " is outside [0, 65535]");
-  }
-  if (http_port < -1 || http_port > 65535) {
-    return bad("http_port " + std::to_string(http_port) +
-               " is outside [0, 65535] (-1 disables the HTTP server)");
-  }
-  if (stream_port != 0 && stream_port == http_port) {
-    return bad("stream_port and http_port are both " + std::to_string(stream_port));
-  }
-  if (max_clients < 1 || max_clients > 4096) {
-    return bad("max_clients " + std::to_string(max_clients) + " is outside [1, 4096]");
-  }
-  if (max_client_backlog_bytes < (std::size_t{4} << 10) ||
-      max_client_backlog_bytes > (std::size_t{1} << 30)) {
-    return bad("max_client_backlog_bytes " + std::to_string(max_client_backlog_bytes) +
-               " is outside [4 KiB, 1 GiB]");
-  }
-  if (max_request_bytes < 256 || max_request_bytes > (std::size_t{1} << 20)) {
-    return bad("max_request_bytes " + std::to_string(max_request_bytes) +
-               " is outside [256, 1 MiB]");
-  }
-  return Status::Ok();
-}
-
 // ----------------------------------------------------------------------------------- Impl
 
 struct StreamServer::Impl {

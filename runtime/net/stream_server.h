@@ -37,21 +37,10 @@
 #include "runtime/core/error.h"
 #include "runtime/net/access.h"
 #include "runtime/net/http.h"
+#include "runtime/net/server_options.h"
 #include "runtime/net/websocket.h"
 
 namespace mocap::net {
-
-struct StreamServerOptions {
-  std::string bind_address = "0.0.0.0";  // IPv4 address to listen on
-  int stream_port = kStreamPort;         // [0, 65535]; 0 = any free port (tests)
-  int http_port = kHttpPort;             // [0, 65535]; 0 = any free port; -1 = no HTTP server
-  int max_clients = 64;                  // stream + WebSocket + HTTP connections, [1, 4096]
-  std::size_t max_client_backlog_bytes = std::size_t{4} << 20;  // [4 KiB, 1 GiB]
-  std::size_t max_request_bytes = 8192;  // largest HTTP request head, [256, 1 MiB]
-  AccessOptions access;                  // the token (runtime/net/access.h)
-  // Ranges above; the error names the field.
-  Status validate() const;
-};
 
 struct ServerStats {
   int stream_clients = 0;     // connected now

@@ -25,11 +25,9 @@
 
 #include "runtime/core/error.h"
 #include "runtime/out/humanoid.h"
+#include "runtime/out/vmc_options.h"
 
 namespace mocap::out {
-
-// UDP payload of one unfragmented Ethernet frame: 1500 - 20 (IPv4) - 8 (UDP).
-inline constexpr std::size_t kEthernetUdpPayloadBytes = 1472;
 
 // The datagrams of one frame: bytes and where each datagram ends in them.
 struct VmcPacket {

@@ -26,27 +26,6 @@ constexpr std::size_t ix(int i) { return static_cast<std::size_t>(i); }
 
 }  // namespace
 
-Status VmcOptions::validate() const {
-  auto bad = [](const std::string& what) {
-    return Status(Error(ErrorCode::kInvalidArgument, "VMC option " + what));
-  };
-  if (slots < 1 || slots > 64) return bad("vmc_slots: must be in 1..64");
-  if (!(slot_release_s > 0 && slot_release_s <= 3600)) {
-    return bad("vmc_slot_release_s: must be in (0, 3600] s");
-  }
-  if (shape_frames < 1 || shape_frames > 10000) return bad("shape_frames: must be in 1..10000");
-  if (max_datagram_bytes < 300 || max_datagram_bytes > 65507) {
-    return bad("max_datagram_bytes: must be in 300..65507");
-  }
-  for (const VmcTarget& t : targets) {
-    if (t.base_port + slots - 1 > 65535) {
-      return bad("vmc_slots: target " + t.text() + " with " + std::to_string(slots) +
-                 " slots runs past port 65535");
-    }
-  }
-  return Status();
-}
-
 Result<std::unique_ptr<VmcSender>> VmcSender::create(const VmcOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
   std::unique_ptr<VmcSender> v(new VmcSender());

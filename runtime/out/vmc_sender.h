@@ -30,29 +30,9 @@
 #include "runtime/msg/messages.h"
 #include "runtime/out/humanoid.h"
 #include "runtime/out/vmc.h"
+#include "runtime/out/vmc_options.h"
 
 namespace mocap::out {
-
-inline constexpr int kVmcDefaultPort = 39539;  // VMC Marionettes' default receive port
-
-struct VmcTarget {
-  std::string host;
-  int base_port = kVmcDefaultPort;
-  std::string text() const { return host + ":" + std::to_string(base_port); }
-};
-
-// "HOST:PORT[,HOST:PORT...]" (PORT optional: 39539; an IPv6 address in brackets: [::1]:39539).
-// The error names the entry and what is expected.
-Result<std::vector<VmcTarget>> parse_vmc_targets(std::string_view text);
-
-struct VmcOptions {
-  std::vector<VmcTarget> targets;
-  int slots = 4;                // people per target: ports base .. base + slots - 1 (1..64)
-  double slot_release_s = 2.0;  // a slot is freed after its person is absent this long (> 0)
-  int shape_frames = 30;        // frames whose lengths make a person's rest offsets (1..10000)
-  std::size_t max_datagram_bytes = kEthernetUdpPayloadBytes;  // 300..65507
-  Status validate() const;
-};
 
 struct VmcStats {
   std::uint64_t frames = 0;                // frames sent (with at least one person)

@@ -1,11 +1,11 @@
-// parse_vmc_targets (vmc_sender.h): a source of its own, so that what only checks a target list
+// parse_vmc_targets (vmc_options.h): a source of its own, so that what only checks a target list
 // (mocapd's configuration and its fuzz target) does not link the sender.
 #include <charconv>
 #include <string>
 #include <string_view>
 #include <vector>
 
-#include "runtime/out/vmc_sender.h"
+#include "runtime/out/vmc_options.h"
 
 namespace mocap::out {
 

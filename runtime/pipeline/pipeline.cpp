@@ -36,24 +36,6 @@ struct Pipeline::Detected {
   double cnn_ms = 0;
 };
 
-Status PipelineOptions::validate() const {
-  if (queue_depth < 1 || queue_depth > 64) {
-    return Error(ErrorCode::kInvalidArgument,
-                 "pipeline queue_depth must be in [1, 64], got " + std::to_string(queue_depth));
-  }
-  if (realtime_priority < 0 || realtime_priority > 99) {
-    return Error(
-        ErrorCode::kInvalidArgument,
-        "pipeline realtime_priority must be in [0, 99], got " + std::to_string(realtime_priority));
-  }
-  if (metrics_window < 16 || metrics_window > (1 << 20)) {
-    return Error(
-        ErrorCode::kInvalidArgument,
-        "pipeline metrics_window must be in [16, 2^20], got " + std::to_string(metrics_window));
-  }
-  return {};
-}
-
 Pipeline::Pipeline(PipelineParts parts, const PipelineOptions& options)
     : parts_(std::move(parts)),
       engine_(parts_.engine),

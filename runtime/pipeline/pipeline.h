@@ -34,18 +34,10 @@
 #include "runtime/core/error.h"
 #include "runtime/pipeline/bounded_queue.h"
 #include "runtime/pipeline/metrics.h"
+#include "runtime/pipeline/pipeline_options.h"
 #include "runtime/pipeline/stages.h"
 
 namespace mocap::pipeline {
-
-struct PipelineOptions {
-  int queue_depth = 2;  // [1, 64]
-  DropPolicy drop_policy = DropPolicy::kDropOldest;
-  int realtime_priority = 0;     // SCHED_FIFO priority of the three threads, [0, 99]; 0 = normal
-  std::int64_t max_frames = -1;  // stop after this many source items; -1 = no limit
-  int metrics_window = 512;      // samples per latency statistic, [16, 2^20]
-  Status validate() const;
-};
 
 struct PipelineParts {
   std::unique_ptr<FrameSource> source;  // required

@@ -381,7 +381,7 @@ TEST(StreamServerOptions, DefaultsAreValidAndErrorsNameTheField) {
   expect_error(o, "max_clients");
   o = {};
   o.max_client_backlog_bytes = 100;
-  expect_error(o, "max_client_backlog_bytes");
+  expect_error(o, "client_backlog_kib");
   o = {};
   o.max_request_bytes = 10;
   expect_error(o, "max_request_bytes");

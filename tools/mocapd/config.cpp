@@ -21,181 +21,63 @@ namespace {
 
 using nlohmann::json;
 
-Error bad(std::string_view expected, std::string_view text) {
-  return Error(ErrorCode::kInvalidArgument,
-               "expected " + std::string(expected) + ", got '" + std::string(text) + "'");
-}
-
-template <typename I>
-OptionSpec int_opt(std::string key, std::string unit, std::string help, I DaemonConfig::*field,
-                   std::type_identity_t<I> lo, std::type_identity_t<I> hi) {
-  OptionSpec o{std::move(key),  OptionType::kInt, std::move(unit),
-               std::move(help), nullptr,          nullptr};
-  o.show = [field](const DaemonConfig& c) { return std::to_string(c.*field); };
-  o.set = [field, lo, hi](DaemonConfig& c, std::string_view t) -> Status {
-    I v = 0;
-    auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-    const std::string range =
-        "an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
-    if (ec != std::errc() || p != t.data() + t.size() || v < lo || v > hi) return bad(range, t);
-    c.*field = v;
-    return {};
-  };
-  return o;
-}
-
-OptionSpec double_opt(std::string key, std::string unit, std::string help,
-                      double DaemonConfig::*field, double lo, double hi) {
-  OptionSpec o{std::move(key), OptionType::kDouble, std::move(unit), std::move(help), nullptr,
-               nullptr};
-  o.show = [field](const DaemonConfig& c) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%g", c.*field);
-    return std::string(buf);
-  };
-  o.set = [field, lo, hi](DaemonConfig& c, std::string_view t) -> Status {
-    const std::string s(t);
-    char* end = nullptr;
-    const double v = std::strtod(s.c_str(), &end);
-    char range[96];
-    std::snprintf(range, sizeof range, "a number in [%g, %g]", lo, hi);
-    if (s.empty() || end != s.c_str() + s.size() || !std::isfinite(v) || v < lo || v > hi) {
-      return bad(range, t);
-    }
-    c.*field = v;
-    return {};
-  };
-  return o;
-}
-
-OptionSpec bool_opt(std::string key, std::string help, bool DaemonConfig::*field) {
-  OptionSpec o{std::move(key), OptionType::kBool, "", std::move(help), nullptr, nullptr};
-  o.show = [field](const DaemonConfig& c) { return std::string(c.*field ? "true" : "false"); };
-  o.set = [field](DaemonConfig& c, std::string_view t) -> Status {
-    if (t == "true" || t == "1" || t == "yes") {
-      c.*field = true;
-    } else if (t == "false" || t == "0" || t == "no") {
-      c.*field = false;
-    } else {
-      return bad("true or false", t);
-    }
-    return {};
-  };
-  return o;
-}
-
-// Any string without NUL bytes (a path, a name).
-OptionSpec string_opt(std::string key, std::string unit, std::string help,
-                      std::string DaemonConfig::*field) {
-  OptionSpec o{std::move(key), OptionType::kString, std::move(unit), std::move(help), nullptr,
-               nullptr};
-  o.show = [field](const DaemonConfig& c) { return c.*field; };
-  o.set = [field](DaemonConfig& c, std::string_view t) -> Status {
-    if (t.find('\0') != std::string_view::npos) return bad("text without NUL bytes", "\\0");
-    c.*field = std::string(t);
-    return {};
-  };
-  return o;
-}
-
-// One of `choices` (name, value) into an enum field; shown and written as its name.
-template <typename E>
-OptionSpec enum_opt(std::string key, std::string unit, std::string help, E DaemonConfig::*field,
-                    std::vector<std::pair<std::string, E>> choices) {
-  OptionSpec o{std::move(key), OptionType::kString, std::move(unit), std::move(help), nullptr,
-               nullptr};
-  o.show = [field, choices](const DaemonConfig& c) {
-    for (const auto& [name, value] : choices) {
-      if (value == c.*field) return name;
-    }
-    return std::string("?");
-  };
-  o.set = [field, choices](DaemonConfig& c, std::string_view t) -> Status {
-    std::string list;
-    for (const auto& [name, value] : choices) {
-      if (name == t) {
-        c.*field = value;
-        return {};
-      }
-      list += (list.empty() ? "" : ", ") + name;
-    }
-    return bad("one of " + list, t);
-  };
-  return o;
+void append(std::vector<OptionSpec>& v, std::vector<OptionSpec> more) {
+  for (OptionSpec& o : more) v.push_back(std::move(o));
 }
 
 std::vector<OptionSpec> make_options() {
   std::vector<OptionSpec> v;
   // Network
-  v.push_back(string_opt("bind_address", "IPv4",
-                         "address the stream and HTTP servers listen on (127.0.0.1: this machine "
-                         "only; 0.0.0.0: every network the box is on)",
-                         &DaemonConfig::bind_address));
-  v.push_back(int_opt("stream_port", "port",
-                      "TCP port of the skeleton stream (newline-delimited JSON); 0 = any free port",
-                      &DaemonConfig::stream_port, 0, 65535));
-  v.push_back(int_opt("http_port", "port",
-                      "HTTP port: GET /health (status JSON), GET /stream (WebSocket); 0 = any free "
-                      "port, -1 = off",
-                      &DaemonConfig::http_port, -1, 65535));
-  v.push_back(int_opt("max_clients", "connections",
-                      "most simultaneous stream, WebSocket and HTTP connections; more are refused",
-                      &DaemonConfig::max_clients, 1, 4096));
-  v.push_back(int_opt("client_backlog_kib", "KiB",
-                      "unsent data a client may fall behind by before it is dropped (a slow client "
-                      "never stalls the pipeline)",
-                      &DaemonConfig::client_backlog_kib, 4, 1048576));
-  v.push_back(bool_opt("token_for_reading",
-                       "reading (the page, the stream, /health, /metrics) needs the access token "
-                       "too; default: only actions (record, recalibrate) need it. The token is "
-                       "<state_dir>/token, made on the first start (`mocap token` prints it)",
-                       &DaemonConfig::token_for_reading));
+  append(v, nested(&DaemonConfig::server, net::StreamServerOptions::params(),
+                   {"bind_address", "stream_port", "http_port", "max_clients", "client_backlog_kib",
+                    "token_for_reading"}));
   // Sources
-  v.push_back(string_opt("replay", "path",
-                         "run a recording (calibration.json + videos/<view>.mp4) through the whole "
-                         "pipeline instead of cameras; exits at its end unless loop",
-                         &DaemonConfig::replay));
   v.push_back(
-      bool_opt("loop", "replay: start the recording again at its end", &DaemonConfig::loop));
-  v.push_back(bool_opt("replay_realtime",
-                       "replay: deliver frames at the recorded rate and drop what the pipeline "
-                       "cannot keep up with (as cameras would); default: every frame, as fast as "
-                       "the pipeline goes",
-                       &DaemonConfig::replay_realtime));
-  v.push_back(string_opt("board", "name",
-                         "board/<name>/board.json to use; empty = the first board whose cameras "
-                         "are found (the simulator board when none)",
-                         &DaemonConfig::board));
-  v.push_back(string_opt("board_dir", "path",
-                         "folder of boards; empty = <prefix>/share/mocap-box/board, else the "
-                         "source tree's board/",
-                         &DaemonConfig::board_dir));
-  v.push_back(string_opt("calibration", "path",
-                         "calibration file; empty = <state_dir>/calibration.json, then the "
-                         "board's; cameras without one stream 2D detections",
-                         &DaemonConfig::calibration));
-  v.push_back(string_opt("state_dir", "path", "the box's state folder (calibration.json)",
-                         &DaemonConfig::state_dir));
-  v.push_back(string_opt("dev_dir", "path", "where V4L2 device nodes are looked for",
-                         &DaemonConfig::dev_dir));
-  v.push_back(int_opt("max_cameras", "cameras", "most cameras used (the first ones found)",
-                      &DaemonConfig::max_cameras, 1, 32));
-  v.push_back(double_opt("frame_rate_hz", "Hz",
-                         "capture (and simulator) frame rate; 0 = the board's",
-                         &DaemonConfig::frame_rate_hz, 0, 1000));
+      string_param("replay", "path",
+                   "run a recording (calibration.json + videos/<view>.mp4) through the whole "
+                   "pipeline instead of cameras; exits at its end unless loop",
+                   &DaemonConfig::replay));
+  v.push_back(
+      bool_param("loop", "replay: start the recording again at its end", &DaemonConfig::loop));
+  v.push_back(bool_param("replay_realtime",
+                         "replay: deliver frames at the recorded rate and drop what the pipeline "
+                         "cannot keep up with (as cameras would); default: every frame, as fast as "
+                         "the pipeline goes",
+                         &DaemonConfig::replay_realtime));
+  v.push_back(string_param("board", "name",
+                           "board/<name>/board.json to use; empty = the first board whose cameras "
+                           "are found (the simulator board when none)",
+                           &DaemonConfig::board));
+  v.push_back(string_param("board_dir", "path",
+                           "folder of boards; empty = <prefix>/share/mocap-box/board, else the "
+                           "source tree's board/",
+                           &DaemonConfig::board_dir));
+  v.push_back(string_param("calibration", "path",
+                           "calibration file; empty = <state_dir>/calibration.json, then the "
+                           "board's; cameras without one stream 2D detections",
+                           &DaemonConfig::calibration));
+  v.push_back(string_param("state_dir", "path", "the box's state folder (calibration.json)",
+                           &DaemonConfig::state_dir));
+  v.push_back(string_param("dev_dir", "path", "where V4L2 device nodes are looked for",
+                           &DaemonConfig::dev_dir));
+  v.push_back(int_param("max_cameras", "cameras", {1, 32},
+                        "most cameras used (the first ones found)", &DaemonConfig::max_cameras));
+  v.push_back(double_param("frame_rate_hz", "Hz", {0, 1000},
+                           "capture (and simulator) frame rate; 0 = the board's",
+                           &DaemonConfig::frame_rate_hz));
   // CNN
   v.push_back(
-      string_opt("model", "path",
-                 "pose network (.mcnn or TF.js model.json); empty = the installed "
-                 "models/movenet-multipose.mcnn (MoveNet MultiPose), else the source tree's; "
-                 "PoseNet: models/posenet.mcnn",
-                 &DaemonConfig::model));
-  v.push_back(int_opt("input_size_px", "px",
-                      "network input size, the long side with input_fit frame (PoseNet: 16k+1, "
-                      "e.g. 257, 353, 513; MoveNet: a multiple of 32); 0 = the model's default "
-                      "(PoseNet 353, MoveNet 448)",
-                      &DaemonConfig::input_size_px, 0, gpu::kMaxInputSizePx));
-  v.push_back(enum_opt(
+      string_param("model", "path",
+                   "pose network (.mcnn or TF.js model.json); empty = the installed "
+                   "models/movenet-multipose.mcnn (MoveNet MultiPose), else the source tree's; "
+                   "PoseNet: models/posenet.mcnn",
+                   &DaemonConfig::model));
+  v.push_back(int_param("input_size_px", "px", {0, gpu::kMaxInputSizePx},
+                        "network input size, the long side with input_fit frame (PoseNet: 16k+1, "
+                        "e.g. 257, 353, 513; MoveNet: a multiple of 32); 0 = the model's default "
+                        "(PoseNet 353, MoveNet 448)",
+                        &DaemonConfig::input_size_px));
+  v.push_back(enum_param(
       "input_fit", "shape",
       "auto (the model's: frame for MoveNet, square for PoseNet), frame (the short side fitted "
       "to the calibrated frames' aspect: no letterbox border) or square",
@@ -203,19 +85,19 @@ std::vector<OptionSpec> make_options() {
       std::vector<std::pair<std::string, gpu::InputFit>>{{"auto", gpu::InputFit::kAuto},
                                                          {"frame", gpu::InputFit::kFrame},
                                                          {"square", gpu::InputFit::kSquare}}));
-  v.push_back(string_opt(
+  v.push_back(string_param(
       "crops", "model",
       "3D-guided crops: each tracked person's skeleton, projected into every view, gives a crop "
       "that a single-person model refines: auto (thunder on a hardware GPU, none on the CPU "
       "or a software device such as lavapipe), none, thunder (MoveNet Thunder), lightning "
       "(the fast one) or a model file; needs a calibration",
       &DaemonConfig::crops));
-  v.push_back(int_opt("crop_input_size_px", "px",
-                      "crop model input size, a multiple of 32; 0 = the model's (Thunder 256, "
-                      "Lightning 192)",
-                      &DaemonConfig::crop_input_size_px, 0, 1024));
+  v.push_back(int_param("crop_input_size_px", "px", {0, 1024},
+                        "crop model input size, a multiple of 32; 0 = the model's (Thunder 256, "
+                        "Lightning 192)",
+                        &DaemonConfig::crop_input_size_px));
   using gpu::BackendRequest;
-  v.push_back(enum_opt(
+  v.push_back(enum_param(
       "gpu", "backend",
       "auto (Vulkan, the CPU with a warning when no device opens), vulkan "
       "(fail without one) or cpu",
@@ -223,126 +105,107 @@ std::vector<OptionSpec> make_options() {
       std::vector<std::pair<std::string, BackendRequest>>{{"auto", BackendRequest::kAuto},
                                                           {"vulkan", BackendRequest::kVulkan},
                                                           {"cpu", BackendRequest::kCpu}}));
-  v.push_back(string_opt("gpu_device", "name",
-                         "Vulkan device index or name substring; empty = the board's preferred "
-                         "GPU, else the best one",
-                         &DaemonConfig::gpu_device));
+  v.push_back(string_param("gpu_device", "name",
+                           "Vulkan device index or name substring; empty = the board's preferred "
+                           "GPU, else the best one",
+                           &DaemonConfig::gpu_device));
   // Pipeline
-  v.push_back(int_opt("queue_depth", "frames",
-                      "frames waiting between two stages (CNN, association) at most",
-                      &DaemonConfig::queue_depth, 1, 64));
-  v.push_back(enum_opt("drop_policy", "policy",
-                       "when a stage queue is full: drop-oldest (live: latency stays bounded, "
-                       "drops are counted), block (every frame is processed), auto (block for "
-                       "a replay at full speed, drop-oldest otherwise)",
-                       &DaemonConfig::drop_policy,
-                       std::vector<std::pair<std::string, DropPolicyChoice>>{
-                           {"auto", DropPolicyChoice::kAuto},
-                           {"drop-oldest", DropPolicyChoice::kDropOldest},
-                           {"block", DropPolicyChoice::kBlock}}));
-  v.push_back(int_opt("realtime_priority", "SCHED_FIFO",
-                      "real-time priority of the pipeline threads (1-99; needs CAP_SYS_NICE or "
-                      "LimitRTPRIO); 0 = normal scheduling",
-                      &DaemonConfig::realtime_priority, 0, 99));
-  v.push_back(int_opt("max_frames", "frames", "stop after this many frames; -1 = run until stopped",
-                      &DaemonConfig::max_frames, -1, 2147483647));
+  append(v, nested(&DaemonConfig::pipeline, pipeline::PipelineOptions::params(), {"queue_depth"}));
+  v.push_back(enum_param("drop_policy", "policy",
+                         "when a stage queue is full: drop-oldest (live: latency stays bounded, "
+                         "drops are counted), block (every frame is processed), auto (block for "
+                         "a replay at full speed, drop-oldest otherwise)",
+                         &DaemonConfig::drop_policy,
+                         std::vector<std::pair<std::string, DropPolicyChoice>>{
+                             {"auto", DropPolicyChoice::kAuto},
+                             {"drop-oldest", DropPolicyChoice::kDropOldest},
+                             {"block", DropPolicyChoice::kBlock}}));
+  append(v, nested(&DaemonConfig::pipeline, pipeline::PipelineOptions::params(),
+                   {"realtime_priority", "max_frames"}));
   // Outputs
-  v.push_back(string_opt("vmc_targets", "host:port list",
-                         "VMC protocol (OSC/UDP) receivers: HOST:PORT[,HOST:PORT...]; person in "
-                         "slot k goes to PORT+k (VSeeFace, Warudo, Unity EVMC4U, Unreal VMC Live "
-                         "Link); empty = off; flag alias --vmc",
-                         &DaemonConfig::vmc_targets));
-  v.push_back(int_opt("vmc_slots", "persons", "people sent to each VMC target (one port each)",
-                      &DaemonConfig::vmc_slots, 1, 64));
-  v.push_back(double_opt("vmc_slot_release_s", "s",
-                         "a person's VMC port is given to the next new person after it has been "
-                         "unseen this long",
-                         &DaemonConfig::vmc_slot_release_s, 0.05, 3600));
+  v.push_back(string_param("vmc_targets", "host:port list",
+                           "VMC protocol (OSC/UDP) receivers: HOST:PORT[,HOST:PORT...]; person in "
+                           "slot k goes to PORT+k (VSeeFace, Warudo, Unity EVMC4U, Unreal VMC Live "
+                           "Link); empty = off; flag alias --vmc",
+                           &DaemonConfig::vmc_targets));
+  append(v, nested(&DaemonConfig::vmc, out::VmcOptions::params(),
+                   {"vmc_slots", "vmc_slot_release_s"}));
   // Simulator
-  v.push_back(int_opt("sim_people", "persons", "simulator board: people in the scene",
-                      &DaemonConfig::sim_people, 0, 16));
-  v.push_back(int_opt("sim_views", "cameras", "simulator board: virtual cameras",
-                      &DaemonConfig::sim_views, 2, 16));
-  v.push_back(int_opt("sim_bump_view", "camera",
-                      "simulator board: turn this virtual camera mid-run, as if bumped (-1: none)",
-                      &DaemonConfig::sim_bump_view, -1, 15));
-  v.push_back(double_opt("sim_bump_after_s", "s", "simulator board: when the camera is turned",
-                         &DaemonConfig::sim_bump_after_s, 0, 86400));
-  v.push_back(double_opt("sim_bump_deg", "degrees",
-                         "simulator board: how far the camera is turned (about its vertical axis)",
-                         &DaemonConfig::sim_bump_deg, -90, 90));
-  v.push_back(bool_opt("calibration_check",
-                       "watch each camera's reprojection residuals against the skeletons; a "
-                       "camera that moved is named in /health and its pose solved again in the "
-                       "background and swapped in (saved to <state_dir>/calibration.json unless "
-                       "the calibration was named)",
-                       &DaemonConfig::calibration_check));
-  v.push_back(bool_opt("sim_calibrated",
-                       "simulator board: hand mocapd the virtual rig's calibration (false: the "
-                       "box calibrates itself from the simulated people, as with real cameras)",
-                       &DaemonConfig::sim_calibrated));
-  v.push_back(bool_opt("self_calibrate",
-                       "cameras without a usable calibration calibrate themselves from people "
-                       "walking in the room (docs/self-calibration.md), streaming 2D detections "
-                       "meanwhile; the result is written to <state_dir>/calibration.json",
-                       &DaemonConfig::self_calibrate));
-  v.push_back(int_opt("self_calibration_frames", "frames",
-                      "frames collected before each self-calibration attempt",
-                      &DaemonConfig::self_calibration_frames, 30, 100000));
-  // Scale-out
-  v.push_back(enum_opt("role", "role",
-                       "standalone (cameras, CNN, association and outputs in this box), detector "
-                       "(cameras and CNN: 2D detections published over DDS) or fusion (every "
-                       "detector node's views associated here, every output served here)",
-                       &DaemonConfig::role,
-                       std::vector<std::pair<std::string, Role>>{{"standalone", Role::kStandalone},
-                                                                 {"detector", Role::kDetector},
-                                                                 {"fusion", Role::kFusion}}));
-  v.push_back(string_opt("node_name", "name",
-                         "this node's name in the stage (at most 63 characters); empty = the "
-                         "host name",
-                         &DaemonConfig::node_name));
-  v.push_back(string_opt("stage", "name",
-                         "the stage this node belongs to (the DDS partition): boxes with the "
-                         "same stage and dds_domain work together",
-                         &DaemonConfig::stage));
+  v.push_back(int_param("sim_people", "persons", {0, 16}, "simulator board: people in the scene",
+                        &DaemonConfig::sim_people));
+  v.push_back(int_param("sim_views", "cameras", {2, 16}, "simulator board: virtual cameras",
+                        &DaemonConfig::sim_views));
   v.push_back(
-      int_opt("dds_domain", "id", "DDS domain id of the stage", &DaemonConfig::dds_domain, 0, 230));
-  v.push_back(double_opt("node_lease_s", "s",
-                         "liveliness lease: a node that stops (power, crash, cable) is noticed "
-                         "after this long",
-                         &DaemonConfig::node_lease_s, 0.1, 60));
-  v.push_back(double_opt("fusion_max_wait_ms", "ms",
-                         "fusion: longest a frame waits for the views of its live cameras after "
-                         "its first view arrived",
-                         &DaemonConfig::fusion_max_wait_ms, 1, 10000));
-  v.push_back(int_opt("sim_rig_views", "cameras",
-                      "simulated stage: cameras of the whole stage's ring (a detector node "
-                      "renders sim_views of them from sim_first_view on); 0 = sim_views",
-                      &DaemonConfig::sim_rig_views, 0, 64));
-  v.push_back(int_opt("sim_first_view", "camera",
-                      "simulated stage: a detector node's first camera in the stage ring",
-                      &DaemonConfig::sim_first_view, 0, 63));
-  v.push_back(int_opt("sim_epoch_unix_ms", "ms",
-                      "simulated stage: Unix time (ms) the scene starts at, the same on every "
-                      "node; 0 = this node's start (a single node)",
-                      &DaemonConfig::sim_epoch_unix_ms, 0, INT64_MAX));
-  v.push_back(double_opt("sim_stall_after_s", "s",
-                         "simulator: its cameras stall this long after the start (tests)",
-                         &DaemonConfig::sim_stall_after_s, 0, 86400));
-  v.push_back(double_opt("sim_stall_s", "s", "simulator: how long the cameras stall; 0 = never",
-                         &DaemonConfig::sim_stall_s, 0, 3600));
-  v.push_back(double_opt("sim_clock_offset_ms", "ms",
-                         "detector node: added to this node's clock, as if PTP were off (tests)",
-                         &DaemonConfig::sim_clock_offset_ms, -1e6, 1e6));
+      int_param("sim_bump_view", "camera", {-1, 15},
+                "simulator board: turn this virtual camera mid-run, as if bumped (-1: none)",
+                &DaemonConfig::sim_bump_view));
+  v.push_back(double_param("sim_bump_after_s", "s", {0, 86400},
+                           "simulator board: when the camera is turned",
+                           &DaemonConfig::sim_bump_after_s));
+  v.push_back(
+      double_param("sim_bump_deg", "degrees", {-90, 90},
+                   "simulator board: how far the camera is turned (about its vertical axis)",
+                   &DaemonConfig::sim_bump_deg));
+  v.push_back(bool_param("calibration_check",
+                         "watch each camera's reprojection residuals against the skeletons; a "
+                         "camera that moved is named in /health and its pose solved again in the "
+                         "background and swapped in (saved to <state_dir>/calibration.json unless "
+                         "the calibration was named)",
+                         &DaemonConfig::calibration_check));
+  v.push_back(bool_param("sim_calibrated",
+                         "simulator board: hand mocapd the virtual rig's calibration (false: the "
+                         "box calibrates itself from the simulated people, as with real cameras)",
+                         &DaemonConfig::sim_calibrated));
+  v.push_back(bool_param("self_calibrate",
+                         "cameras without a usable calibration calibrate themselves from people "
+                         "walking in the room (docs/self-calibration.md), streaming 2D detections "
+                         "meanwhile; the result is written to <state_dir>/calibration.json",
+                         &DaemonConfig::self_calibrate));
+  v.push_back(int_param("self_calibration_frames", "frames", {30, 100000},
+                        "frames collected before each self-calibration attempt",
+                        &DaemonConfig::self_calibration_frames));
+  // Scale-out
+  v.push_back(
+      enum_param("role", "role",
+                 "standalone (cameras, CNN, association and outputs in this box), detector "
+                 "(cameras and CNN: 2D detections published over DDS) or fusion (every "
+                 "detector node's views associated here, every output served here)",
+                 &DaemonConfig::role,
+                 std::vector<std::pair<std::string, Role>>{{"standalone", Role::kStandalone},
+                                                           {"detector", Role::kDetector},
+                                                           {"fusion", Role::kFusion}}));
+  append(v, nested(&DaemonConfig::dds, dds::StageOptions::params(),
+                   {"node_name", "stage", "dds_domain", "node_lease_s"}));
+  append(v, nested(&DaemonConfig::grouping, fusion::FrameGrouperOptions::params(),
+                   {"fusion_max_wait_ms"}));
+  v.push_back(int_param("sim_rig_views", "cameras", {0, 64},
+                        "simulated stage: cameras of the whole stage's ring (a detector node "
+                        "renders sim_views of them from sim_first_view on); 0 = sim_views",
+                        &DaemonConfig::sim_rig_views));
+  v.push_back(int_param("sim_first_view", "camera", {0, 63},
+                        "simulated stage: a detector node's first camera in the stage ring",
+                        &DaemonConfig::sim_first_view));
+  v.push_back(int_param("sim_epoch_unix_ms", "ms", {0, 1e15},
+                        "simulated stage: Unix time (ms) the scene starts at, the same on every "
+                        "node; 0 = this node's start (a single node)",
+                        &DaemonConfig::sim_epoch_unix_ms));
+  v.push_back(double_param("sim_stall_after_s", "s", {0, 86400},
+                           "simulator: its cameras stall this long after the start (tests)",
+                           &DaemonConfig::sim_stall_after_s));
+  v.push_back(double_param("sim_stall_s", "s", {0, 3600},
+                           "simulator: how long the cameras stall; 0 = never",
+                           &DaemonConfig::sim_stall_s));
+  v.push_back(double_param("sim_clock_offset_ms", "ms", {-1e6, 1e6},
+                           "detector node: added to this node's clock, as if PTP were off (tests)",
+                           &DaemonConfig::sim_clock_offset_ms));
   // Status
-  v.push_back(double_opt("status_log_interval_s", "s",
-                         "how often a status line is logged; 0 = never",
-                         &DaemonConfig::status_log_interval_s, 0, 86400));
-  v.push_back(string_opt("log", "levels",
-                         "log levels, e.g. \"*:info,Pipeline:debug\" (MOCAP_LOG syntax); empty = "
-                         "MOCAP_LOG or info",
-                         &DaemonConfig::log));
+  v.push_back(double_param("status_log_interval_s", "s", {0, 86400},
+                           "how often a status line is logged; 0 = never",
+                           &DaemonConfig::status_log_interval_s));
+  v.push_back(string_param("log", "levels",
+                           "log levels, e.g. \"*:info,Pipeline:debug\" (MOCAP_LOG syntax); empty = "
+                           "MOCAP_LOG or info",
+                           &DaemonConfig::log));
   return v;
 }
 
@@ -477,8 +340,8 @@ Status apply_environment(DaemonConfig& config, char** env) {
 
 Status validate(const DaemonConfig& c) {
   auto err = [](const std::string& m) { return Error(ErrorCode::kInvalidArgument, m); };
-  if (c.http_port > 0 && c.http_port == c.stream_port) {
-    return err("stream_port and http_port are both " + std::to_string(c.http_port) +
+  if (c.server.http_port > 0 && c.server.http_port == c.server.stream_port) {
+    return err("stream_port and http_port are both " + std::to_string(c.server.http_port) +
                ": give them different ports");
   }
   if (c.loop && c.replay.empty()) return err("loop needs replay (a recording folder)");
@@ -486,8 +349,8 @@ Status validate(const DaemonConfig& c) {
     auto targets = out::parse_vmc_targets(c.vmc_targets);
     if (!targets) return err("vmc_targets: " + targets.error().message());
     for (const out::VmcTarget& t : *targets) {
-      if (t.base_port + c.vmc_slots - 1 > 65535) {
-        return err("vmc_targets: " + t.text() + " with vmc_slots " + std::to_string(c.vmc_slots) +
+      if (t.base_port + c.vmc.slots - 1 > 65535) {
+        return err("vmc_targets: " + t.text() + " with vmc_slots " + std::to_string(c.vmc.slots) +
                    " runs past port 65535: lower the port or vmc_slots");
       }
     }
@@ -548,6 +411,8 @@ std::string options_help(const DaemonConfig& defaults) {
     out += o.help;
     out += "\n      default: ";
     out += def.empty() ? std::string("(empty)") : def;
+    if (!o.range.empty())
+      out += "; " + std::string(o.type == OptionType::kString ? "one of " : "range ") + o.range;
     out += "; config key \"";
     out += o.key;
     out += "\"; env ";
@@ -559,13 +424,13 @@ std::string options_help(const DaemonConfig& defaults) {
 
 std::string options_markdown(const DaemonConfig& defaults) {
   std::string out =
-      "| key | flag | environment | unit | default | what it does |\n"
-      "|---|---|---|---|---|---|\n";
+      "| key | flag | environment | unit | range | default | what it does |\n"
+      "|---|---|---|---|---|---|---|\n";
   for (const OptionSpec& o : config_options()) {
     const std::string def = o.show(defaults);
     out += "| `" + o.key + "` | `" + flag_name(o) + "` | `" + env_name(o) + "` | " + o.unit +
-           " | " + (def.empty() ? std::string("(empty)") : "`" + def + "`") + " | " + o.help +
-           " |\n";
+           " | " + o.range + " | " + (def.empty() ? std::string("(empty)") : "`" + def + "`") +
+           " | " + o.help + " |\n";
   }
   return out;
 }

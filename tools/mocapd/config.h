@@ -1,8 +1,11 @@
-// mocapd's configuration: every option with its unit, default and range in one table
-// (config_options()), read from a JSON file (--config), then environment variables
-// (MOCAPD_<KEY>), then command-line flags (--<key-with-dashes>), each overriding the one
-// before. Every value is validated where it is read; the error names the file, variable or
-// flag, the key and the reason. docs/mocapd.md lists the same table (a test checks it).
+// mocapd's configuration: every option with its unit, range, default and help is a declared
+// parameter (runtime/core/params.h). The runtime parts' options (the stream server, the
+// pipeline, VMC, the stage, the fusion grouping) are declared by those parts and nested here;
+// mocapd declares only its own (sources, CNN, simulator, status). Read from a JSON file
+// (--config), then environment variables (MOCAPD_<KEY>), then command-line flags
+// (--<key-with-dashes>), each overriding the one before. Every value is validated where it is
+// read; the error names the file, variable or flag, the key and the reason. docs/mocapd.md's
+// table is generated from the same declarations (mocapd --help-markdown; a test checks it).
 #pragma once
 
 #include <cstdint>
@@ -14,7 +17,13 @@
 
 #include "runtime/core/box_defaults.h"
 #include "runtime/core/error.h"
+#include "runtime/core/params.h"
+#include "runtime/dds/stage_options.h"
+#include "runtime/fusion/grouper_options.h"
 #include "runtime/gpu/cnn_options.h"
+#include "runtime/net/server_options.h"
+#include "runtime/out/vmc_options.h"
+#include "runtime/pipeline/pipeline_options.h"
 
 namespace mocap::daemon {
 
@@ -30,13 +39,10 @@ enum class DropPolicyChoice { kAuto, kDropOldest, kBlock };
 enum class Role { kStandalone, kDetector, kFusion };
 
 struct DaemonConfig {
-  // Network
-  std::string bind_address = "0.0.0.0";
-  int stream_port = kStreamPort;
-  int http_port = kHttpPort;
-  int max_clients = 64;
-  int client_backlog_kib = 4096;
-  bool token_for_reading = false;  // GET needs the access token too (<state_dir>/token)
+  // Network: bind_address, stream_port, http_port, max_clients, client_backlog_kib,
+  // token_for_reading (declared in runtime/net/server_options.h; the token itself is set by
+  // the daemon from <state_dir>/token)
+  net::StreamServerOptions server;
   // Where frames come from
   std::string replay;  // recording folder; empty = cameras, or the simulator when none
   bool loop = false;
@@ -59,11 +65,10 @@ struct DaemonConfig {
   int crop_input_size_px = 0;  // 0 = the crop model's (Thunder 256, Lightning 192)
   gpu::BackendRequest gpu = gpu::BackendRequest::kAuto;
   std::string gpu_device;  // empty = the board's preferred GPU, else the best one
-  // Pipeline
-  int queue_depth = 2;
+  // Pipeline: queue_depth, realtime_priority, max_frames (runtime/pipeline/pipeline_options.h;
+  // the drop policy below is mocapd's, with its auto choice)
+  pipeline::PipelineOptions pipeline;
   DropPolicyChoice drop_policy = DropPolicyChoice::kAuto;
-  int realtime_priority = 0;
-  int max_frames = -1;
   // Simulator (no camera)
   int sim_people = 2;
   int sim_views = 4;
@@ -75,16 +80,12 @@ struct DaemonConfig {
   bool self_calibrate = true;     // cameras without a calibration calibrate from people walking
   int self_calibration_frames = 250;  // frames collected before each self-calibration attempt
   // Outputs (docs/outputs.md)
-  std::string vmc_targets;        // "HOST:PORT[,HOST:PORT...]": VMC to each, person k on PORT+k
-  int vmc_slots = 4;              // people sent per VMC target (ports PORT .. PORT+slots-1)
-  double vmc_slot_release_s = 2;  // a person's VMC port is freed after this long unseen
+  std::string vmc_targets;  // "HOST:PORT[,HOST:PORT...]": VMC to each, person k on PORT+k
+  out::VmcOptions vmc;      // vmc_slots, vmc_slot_release_s (runtime/out/vmc_options.h)
   // Scale-out (docs/scaleout.md)
   Role role = Role::kStandalone;
-  std::string node_name;        // empty = the host name
-  std::string stage = "mocap";  // DDS partition: the boxes of one stage
-  int dds_domain = 0;
-  double node_lease_s = 1.0;       // a dead node is noticed after this
-  double fusion_max_wait_ms = 30;  // a frame waits this long for its late views
+  dds::StageOptions dds;  // node_name, stage, dds_domain, node_lease_s (dds/stage_options.h)
+  fusion::FrameGrouperOptions grouping;  // fusion_max_wait_ms (fusion/grouper_options.h)
   int sim_rig_views = 0;   // detector/fusion simulator: cameras of the stage (0 = sim_views)
   int sim_first_view = 0;  // detector simulator: its first camera in the stage rig
   std::int64_t sim_epoch_unix_ms = 0;  // simulated stage: when the scene starts (0 = now)
@@ -96,17 +97,11 @@ struct DaemonConfig {
   std::string log;  // MOCAP_LOG syntax, e.g. "*:info,Pipeline:debug"
 };
 
-enum class OptionType { kInt, kDouble, kBool, kString };
-
-struct OptionSpec {
-  std::string key;  // JSON key; env MOCAPD_<KEY upper>; flag --<key with '-' for '_'>
-  OptionType type;
-  std::string unit;  // "", "port", "ms", "Hz", "px", "KiB", "s", "path", ...
-  std::string help;  // what it does, the range, the default's meaning
-  std::function<std::string(const DaemonConfig&)> show;  // the current value as text
-  // Parses and validates `text` into the config; the error says what is expected.
-  std::function<Status(DaemonConfig&, std::string_view text)> set;
-};
+// One option: a parameter of DaemonConfig (runtime/core/params.h). Its key is the JSON key;
+// env MOCAPD_<KEY upper>; flag --<key with '-' for '_'>. The options of the runtime's parts
+// are those parts' own declared parameters (nested), not restated here.
+using OptionType = ParamType;
+using OptionSpec = Param<DaemonConfig>;
 
 const std::vector<OptionSpec>& config_options();
 

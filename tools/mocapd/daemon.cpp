@@ -128,8 +128,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
   box::OutputsOptions oo;
   oo.takes_dir = (fs::path(config.state_dir) / "takes").string();
   oo.vmc_targets = config.vmc_targets;
-  oo.vmc_slots = config.vmc_slots;
-  oo.vmc_slot_release_s = config.vmc_slot_release_s;
+  oo.vmc = config.vmc;
   auto outputs = box::Outputs::create(oo, d->unix_offset_ns_,
                                       [raw = d.get()] { return raw->take_metadata(); });
   if (!outputs.ok()) return outputs.error();
@@ -482,14 +481,8 @@ Status Daemon::start() {
   if (!pending_source_) return Error(ErrorCode::kInvalidArgument, "mocapd already started");
   // The server first (GET /health may come at once: it reads the pipeline through
   // pipeline_view_), then the sinks that publish to it, then the pipeline.
-  net::StreamServerOptions so;
-  so.bind_address = config_.bind_address;
-  so.stream_port = config_.stream_port;
-  so.http_port = config_.http_port;
-  so.max_clients = config_.max_clients;
-  so.max_client_backlog_bytes = static_cast<std::size_t>(config_.client_backlog_kib) * 1024;
+  net::StreamServerOptions so = config_.server;
   so.access.token = token_ = access_token();
-  so.access.token_for_reading = config_.token_for_reading;
   auto srv = net::StreamServer::start(
       so, [this] { return health_json(); },
       [this](const net::HttpRequest& req) { return handle_http(req); });
@@ -531,10 +524,7 @@ Status Daemon::start() {
         return Status{};
       });
   sinks.push_back(calibration_sink_.get());
-  pipeline::PipelineOptions po;
-  po.queue_depth = config_.queue_depth;
-  po.realtime_priority = config_.realtime_priority;
-  po.max_frames = config_.max_frames;
+  pipeline::PipelineOptions po = config_.pipeline;
   po.drop_policy = drop_policy(config_, source_kind_);
   pipeline::PipelineParts parts{std::move(pending_source_), detector_.get(), lifecycle_->engine(),
                                 sinks, [this](const FrameSet& frames) {
@@ -555,7 +545,8 @@ Status Daemon::start() {
                           << gpu_description_ << ", "
                           << (lifecycle_->calibrated() ? "skeletons" : "2D detections")
                           << " on tcp port " << server_->stream_port() << ", status on http://"
-                          << config_.bind_address << ":" << server_->http_port() << "/health";
+                          << config_.server.bind_address << ":" << server_->http_port()
+                          << "/health";
   return {};
 }
 

@@ -19,14 +19,10 @@ namespace mocap::daemon {
 namespace fs = std::filesystem;
 
 Status Daemon::join_stage(double rate_hz) {
-  dds::StageOptions so;
-  so.domain_id = config_.dds_domain;
-  so.stage = config_.stage;
-  so.node = config_.node_name;
-  so.lease_s = config_.node_lease_s;
+  dds::StageOptions so = config_.dds;
   so.frame_rate_hz = rate_hz;
   auto st = dds::Stage::join(so);
-  if (!st.ok()) return st.error().with_context("stage " + config_.stage);
+  if (!st.ok()) return st.error().with_context("stage " + config_.dds.stage);
   stage_ = std::move(*st);
   return {};
 }
@@ -35,7 +31,7 @@ Status Daemon::become_detector_node() {
   // Association, calibration and the outputs are the fusion node's.
   config_.calibration_check = false;
   config_.self_calibrate = false;
-  lifecycle_->hand_over("(the fusion node's: stage " + config_.stage + ")");
+  lifecycle_->hand_over("(the fusion node's: stage " + config_.dds.stage + ")");
   if (Status s = join_stage(frame_rate_hz_); !s.ok()) return s;
   std::vector<std::string> names = camera_names_;
   if (source_kind_ != box::SourceKind::kSimulator) {
@@ -51,7 +47,7 @@ Status Daemon::become_detector_node() {
   if (!pub.ok()) return pub.error();
   publisher_ = std::move(*pub);
   MOCAP_LOG(Daemon, Info) << "detector node " << stage_->options().node << " of stage "
-                          << config_.stage << ": publishing " << names.size() << " cameras";
+                          << config_.dds.stage << ": publishing " << names.size() << " cameras";
   return {};
 }
 
@@ -94,8 +90,8 @@ Status Daemon::open_fusion() {
     fo.cameras.push_back(name.empty() ? calibration->view_ids[v] : name);
   }
   fo.topology = topology;
+  fo.grouping = config_.grouping;
   fo.grouping.frame_rate_hz = frame_rate_hz_;
-  fo.grouping.max_wait_ms = config_.fusion_max_wait_ms;
   fo.version = kDaemonVersion;
   if (auto json = calibration_to_json(*calibration); json.ok()) fo.calibration_json = *json;
   auto src = dds::FusionSource::open(*stage_, fo);
@@ -112,7 +108,7 @@ Status Daemon::open_fusion() {
                                                 ? assoc::posenet_coco17_options()
                                                 : assoc::AssociationOptions{};
   MOCAP_LOG(Daemon, Info) << "fusion node " << stage_->options().node << " of stage "
-                          << config_.stage << ": " << fo.cameras.size() << " cameras, "
+                          << config_.dds.stage << ": " << fo.cameras.size() << " cameras, "
                           << frame_rate_hz_ << " Hz";
   return make_engine(*topology, *calibration, options, file);
 }

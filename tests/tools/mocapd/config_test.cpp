@@ -3,6 +3,8 @@
 // every option.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -32,8 +34,8 @@ std::string write(const std::filesystem::path& p, const std::string& text) {
 TEST(DaemonConfig, DefaultsAreTheDocumentedPorts) {
   auto c = load({});
   ASSERT_TRUE(c.ok()) << c.error().message();
-  EXPECT_EQ(c->stream_port, 9870);
-  EXPECT_EQ(c->http_port, 9871);
+  EXPECT_EQ(c->server.stream_port, 9870);
+  EXPECT_EQ(c->server.http_port, 9871);
   EXPECT_EQ(c->gpu, gpu::BackendRequest::kAuto);
   EXPECT_EQ(c->drop_policy, DropPolicyChoice::kAuto);
   EXPECT_EQ(c->input_size_px, 0);  // the model's default
@@ -47,12 +49,12 @@ TEST(DaemonConfig, FileThenEnvironmentThenFlags) {
       write(dir.path() / "m.json", R"({"stream_port": 7000, "http_port": 7001, "sim_people": 3})");
   auto c = load({"--config", f, "--http-port=7101"}, {"MOCAPD_STREAM_PORT=7100"});
   ASSERT_TRUE(c.ok()) << c.error().message();
-  EXPECT_EQ(c->stream_port, 7100);  // environment over file
-  EXPECT_EQ(c->http_port, 7101);    // flag over file
-  EXPECT_EQ(c->sim_people, 3);      // file over default
+  EXPECT_EQ(c->server.stream_port, 7100);  // environment over file
+  EXPECT_EQ(c->server.http_port, 7101);    // flag over file
+  EXPECT_EQ(c->sim_people, 3);             // file over default
   auto d = load({"--config", f, "--stream-port", "7200"}, {"MOCAPD_STREAM_PORT=7100"});
   ASSERT_TRUE(d.ok());
-  EXPECT_EQ(d->stream_port, 7200);  // flag over environment
+  EXPECT_EQ(d->server.stream_port, 7200);  // flag over environment
 }
 
 TEST(DaemonConfig, BadValuesNameTheSourceAndTheKey) {
@@ -146,24 +148,67 @@ TEST(DaemonConfig, PrintConfigNeverThrows) {
   EXPECT_EQ(config_to_json(again), printed);
 }
 
+// docs/mocapd.md's option table is generated from the declarations (mocapd --help-markdown):
+// every key, flag, variable, unit, range, default and help there is what the code has.
 TEST(DaemonConfig, EveryOptionIsDocumentedWithItsDefault) {
   std::ifstream in(std::string(MOCAP_SOURCE_DIR) + "/docs/mocapd.md");
   ASSERT_TRUE(in) << "docs/mocapd.md missing";
   std::stringstream ss;
   ss << in.rdbuf();
   const std::string doc = ss.str();
-  const DaemonConfig defaults;
+  const std::string table = options_markdown(DaemonConfig{});
+  EXPECT_NE(doc.find(table), std::string::npos)
+      << "docs/mocapd.md's option table is not the generated one; replace it with the output "
+         "of `build/bin/mocapd --help-markdown`:\n"
+      << table;
   for (const OptionSpec& o : config_options()) {
-    // A table row: | `key` | `--flag` | `MOCAPD_KEY` | unit | default | ...
-    const std::string row = "| `" + o.key + "` | `" + flag_name(o) + "` | `" + env_name(o) + "` |";
-    EXPECT_NE(doc.find(row), std::string::npos) << "docs/mocapd.md lacks the row for " << o.key;
-    const std::string def = o.show(defaults);
-    if (!def.empty()) {
-      EXPECT_NE(doc.find(row + " " + o.unit + " | `" + def + "` |"), std::string::npos)
-          << "docs/mocapd.md: " << o.key << " should show unit '" << o.unit << "' and default '"
-          << def << "'";
+    EXPECT_FALSE(o.help.empty()) << o.key;
+    if (o.type == OptionType::kInt || o.type == OptionType::kDouble) {
+      EXPECT_FALSE(o.range.empty()) << o.key << ": a number needs its declared range";
     }
   }
+}
+
+// The declared range is what the front end enforces: both ends are accepted, one step beyond
+// either is refused with the range in the message, for every numeric option.
+TEST(DaemonConfig, EveryNumberTakesItsBoundsAndRefusesBeyond) {
+  for (const OptionSpec& o : config_options()) {
+    if (o.type != OptionType::kInt && o.type != OptionType::kDouble) continue;
+    SCOPED_TRACE(o.key + " " + o.range);
+    const bool open_lo = o.range.front() == '(';
+    double lo = 0, hi = 0;
+    ASSERT_EQ(std::sscanf(o.range.c_str() + 1, "%lf, %lf]", &lo, &hi), 2);
+    const bool is_int = o.type == OptionType::kInt;
+    const double step = is_int ? 1 : std::max(1e-6, (hi - lo) * 1e-6);
+    auto text = [&](double v) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, is_int ? "%.0f" : "%.17g", v);
+      return std::string(buf);
+    };
+    DaemonConfig c;
+    EXPECT_TRUE(o.set(c, text(open_lo ? lo + step : lo)).ok());
+    EXPECT_TRUE(o.check(c).ok());
+    EXPECT_TRUE(o.set(c, text(hi)).ok());
+    EXPECT_TRUE(o.check(c).ok());
+    const std::string shown = o.show(c);
+    for (double bad : {open_lo ? lo : lo - step, hi + step}) {
+      const Status s = o.set(c, text(bad));
+      ASSERT_FALSE(s.ok()) << text(bad);
+      EXPECT_NE(s.error().message().find(o.range), std::string::npos) << s.error().message();
+      EXPECT_EQ(o.show(c), shown) << "a refused value must leave the setting as it was";
+    }
+  }
+}
+
+TEST(DaemonConfig, AFileValueOutsideItsRangeNamesTheKeyAndTheRange) {
+  testing::TestTempDir dir("cfg");
+  const std::string file = write(dir.path() / "c.json", R"({"vmc_slot_release_s": 0})");
+  auto c = load({"--config", file});
+  ASSERT_FALSE(c.ok());
+  const std::string& m = c.error().message();
+  EXPECT_NE(m.find("vmc_slot_release_s"), std::string::npos) << m;
+  EXPECT_NE(m.find("(0, 3600]"), std::string::npos) << m;
+  EXPECT_NE(m.find(file), std::string::npos) << m;
 }
 
 }  // namespace

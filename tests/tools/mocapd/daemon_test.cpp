@@ -253,10 +253,10 @@ TEST(DaemonSimulator, MisbehavingClientsNeitherStallThePipelineNorCostOthersMess
   DaemonConfig c = sim_config(dir);
   c.sim_people = 4;  // ~10 KB per message
   c.frame_rate_hz = 60;
-  c.client_backlog_kib = 64;
+  c.server.max_client_backlog_bytes = 64 * 1024;
   // Room for the churn below: closed connections are reaped by the poll thread a moment after
   // the peers close them, and the garbage clients must get in to be rejected for their input.
-  c.max_clients = 400;
+  c.server.max_clients = 400;
   std::mutex mu;
   std::vector<std::uint64_t> published;  // frame ids, in publishing order
   std::vector<std::int64_t> source_ns;
@@ -333,7 +333,7 @@ TEST(DaemonSimulator, MisbehavingClientsNeitherStallThePipelineNorCostOthersMess
   json h = json::parse(testing::http_body(testing::http_get(http, "/health")), nullptr, false);
   EXPECT_GE(h["stream"]["dropped_slow"].get<int>(), 1) << h.dump();
   EXPECT_GE(h["stream"]["dropped_bad_input"].get<int>(), 2) << h.dump();
-  EXPECT_LE(max_backlog, static_cast<std::size_t>(c.max_clients) * 64 * 1024);
+  EXPECT_LE(max_backlog, static_cast<std::size_t>(c.server.max_clients) * 64 * 1024);
   EXPECT_EQ(h["pipeline"]["errors"], 0);
   ::close(stuck);
   (*d)->stop();

@@ -74,9 +74,9 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
   c.replay = data.string();
   c.model = model.string();
   c.gpu = gpu::BackendRequest::kVulkan;
-  c.bind_address = "127.0.0.1";
-  c.stream_port = 0;
-  c.http_port = 0;
+  c.server.bind_address = "127.0.0.1";
+  c.server.stream_port = 0;
+  c.server.http_port = 0;
   c.status_log_interval_s = 0;
 
   std::mutex mu;

@@ -22,9 +22,9 @@ inline DaemonConfig sim_config(const testing::TestTempDir& dir) {
   c.board_dir = boards.string();
   c.dev_dir = (dir.path() / "dev").string();
   c.state_dir = (dir.path() / "state").string();
-  c.bind_address = "127.0.0.1";
-  c.stream_port = 0;
-  c.http_port = 0;
+  c.server.bind_address = "127.0.0.1";
+  c.server.stream_port = 0;
+  c.server.http_port = 0;
   c.status_log_interval_s = 0;
   c.sim_people = 2;
   c.sim_views = 4;

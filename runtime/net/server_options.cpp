@@ -1,0 +1,74 @@
+#include "runtime/net/server_options.h"
+
+#include <arpa/inet.h>
+
+namespace mocap::net {
+namespace {
+
+const std::vector<Param<AccessOptions>>& access_params() {
+  static const std::vector<Param<AccessOptions>> p = {bool_param(
+      "token_for_reading",
+      "reading (the page, the stream, /health, /metrics) needs the access token too; default: "
+      "only actions (record, recalibrate) need it. The token is <state_dir>/token, made on the "
+      "first start (`mocap token` prints it)",
+      &AccessOptions::token_for_reading)};
+  return p;
+}
+
+std::vector<Param<StreamServerOptions>> make_params() {
+  using O = StreamServerOptions;
+  std::vector<Param<O>> p = {
+      string_param("bind_address", "IPv4",
+                   "address the stream and HTTP servers listen on (127.0.0.1: this machine "
+                   "only; 0.0.0.0: every network the box is on)",
+                   &O::bind_address),
+      int_param("stream_port", "port", {0, 65535},
+                "TCP port of the skeleton stream (newline-delimited JSON); 0 = any free port",
+                &O::stream_port),
+      int_param("http_port", "port", {-1, 65535},
+                "HTTP port: GET /health (status JSON), GET /stream (WebSocket); 0 = any free "
+                "port, -1 = off",
+                &O::http_port),
+      int_param("max_clients", "connections", {1, 4096},
+                "most simultaneous stream, WebSocket and HTTP connections; more are refused",
+                &O::max_clients),
+      kib_param("client_backlog_kib", {4, 1048576},
+                "unsent data a client may fall behind by before it is dropped (a slow client "
+                "never stalls the pipeline)",
+                &O::max_client_backlog_bytes)};
+  for (Param<O>& q : nested(&O::access, access_params(), {"token_for_reading"})) {
+    p.push_back(std::move(q));
+  }
+  return p;
+}
+
+}  // namespace
+
+const std::vector<Param<StreamServerOptions>>& StreamServerOptions::params() {
+  static const std::vector<Param<StreamServerOptions>> p = make_params();
+  return p;
+}
+
+Status StreamServerOptions::validate() const {
+  if (Status s = check_params(*this, params(), "stream server"); !s.ok()) return s;
+  in_addr addr{};
+  if (::inet_pton(AF_INET, bind_address.c_str(), &addr) != 1) {
+    return invalid_argument("stream server",
+                            "bind_address '" + bind_address +
+                                "' is not an IPv4 address (e.g. 0.0.0.0 for all interfaces, "
+                                "127.0.0.1)");
+  }
+  if (stream_port != 0 && stream_port == http_port) {
+    return invalid_argument("stream server", "stream_port and http_port are both " +
+                                                 std::to_string(stream_port) +
+                                                 ": give them different ports");
+  }
+  if (max_request_bytes < 256 || max_request_bytes > (std::size_t{1} << 20)) {
+    return invalid_argument(
+        "stream server",
+        "max_request_bytes " + std::to_string(max_request_bytes) + " is outside [256, 1 MiB]");
+  }
+  return {};
+}
+
+}  // namespace mocap::net

@@ -1,0 +1,30 @@
+// What the stream server listens on and how much it lets clients hold, declared once
+// (runtime/core/params.h): mocapd's network options are these parameters.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "runtime/core/box_defaults.h"
+#include "runtime/core/error.h"
+#include "runtime/core/params.h"
+#include "runtime/net/access.h"
+
+namespace mocap::net {
+
+struct StreamServerOptions {
+  std::string bind_address = "0.0.0.0";  // IPv4 address to listen on
+  int stream_port = kStreamPort;         // 0 = any free port (tests)
+  int http_port = kHttpPort;             // 0 = any free port; -1 = no HTTP server
+  int max_clients = 64;                  // stream + WebSocket + HTTP connections
+  std::size_t max_client_backlog_bytes = std::size_t{4} << 20;  // parameter client_backlog_kib
+  std::size_t max_request_bytes = 8192;  // largest HTTP request head, [256, 1 MiB]
+  AccessOptions access;                  // the token (runtime/net/access.h)
+  // The declared ranges, an IPv4 bind address, two different ports; the error names the field.
+  Status validate() const;
+  // bind_address, stream_port, http_port, max_clients, client_backlog_kib, token_for_reading.
+  static const std::vector<Param<StreamServerOptions>>& params();
+};
+
+}  // namespace mocap::net
