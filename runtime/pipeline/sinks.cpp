@@ -1,7 +1,5 @@
 #include "runtime/pipeline/sinks.h"
 
-#include "runtime/net/stream_server.h"
-
 namespace mocap::pipeline {
 
 std::string encode_frame(const PipelineFrame& f, std::int64_t unix_offset_ns) {
@@ -9,11 +7,6 @@ std::string encode_frame(const PipelineFrame& f, std::int64_t unix_offset_ns) {
   t.capture_monotonic_ns = f.detections.timestamp_ns;
   t.capture_unix_ns = f.detections.timestamp_ns + unix_offset_ns;
   return f.result ? encode_skeletons(f.result->skeletons, t) : encode_detections(f.detections, t);
-}
-
-Status StreamSink::consume(const PipelineFrame& frame) {
-  server_.publish(encode_frame(frame, unix_offset_ns_));
-  return {};
 }
 
 Result<std::unique_ptr<MessageFileSink>> MessageFileSink::open(const std::filesystem::path& path,

@@ -1,10 +1,12 @@
 // Sinks every tool composes (runtime/pipeline/stages.h has the interface):
 //
-//   StreamSink    the frame as a stream message (runtime/msg/stream_json.h: "skeletons" when
-//                 calibrated, else "detections") published to the StreamServer's clients.
-//   MessageFile   the same messages, one per line, to a file (`--skeletons-out`): what a
-//                 client of the stream would have received, so files and streams compare.
+//   MessageFile   each frame's stream message (encode_frame), one per line, to a file
+//                 (`--skeletons-out`): what a client of the stream would have received, so
+//                 files and streams compare.
 //   CallbackSink  a function (statistics, per-frame printing, test hooks).
+//
+// The stream itself is net::StreamSink (runtime/net/stream_sink.h), beside the server: the
+// pipeline does not depend on the network.
 #pragma once
 
 #include <cstdint>
@@ -17,27 +19,11 @@
 #include "runtime/msg/stream_json.h"
 #include "runtime/pipeline/stages.h"
 
-namespace mocap::net {
-class StreamServer;
-}
-
 namespace mocap::pipeline {
 
 // The stream message of a frame: capture time = the detections' monotonic timestamp, Unix
 // time = that + unix_offset_ns (realtime_offset_ns() at start-up).
 std::string encode_frame(const PipelineFrame& frame, std::int64_t unix_offset_ns);
-
-class StreamSink final : public Sink {
- public:
-  StreamSink(net::StreamServer& server, std::int64_t unix_offset_ns)
-      : server_(server), unix_offset_ns_(unix_offset_ns) {}
-  std::string name() const override { return "stream"; }
-  Status consume(const PipelineFrame& frame) override;
-
- private:
-  net::StreamServer& server_;
-  std::int64_t unix_offset_ns_;
-};
 
 class MessageFileSink final : public Sink {
  public:

@@ -15,6 +15,7 @@
 #include "runtime/core/clock.h"
 #include "runtime/core/stats.h"
 #include "runtime/net/stream_server.h"
+#include "runtime/net/stream_sink.h"
 #include "runtime/pipeline/sinks.h"
 #include "tools/common/cli.h"
 #include "tools/common/crop_args.h"
@@ -48,7 +49,7 @@ Result<PassResult> run_pass(const ReplayPartsOptions& o, int frames, int queue_d
   so.http_port = -1;
   auto server = net::StreamServer::start(so, [] { return std::string("{}"); });
   if (!server.ok()) return server.error();
-  pipeline::StreamSink stream(**server, realtime_offset_ns());
+  net::StreamSink stream(**server, realtime_offset_ns());
   std::vector<pipeline::Sink*> sinks = {&stream};
   std::unique_ptr<pipeline::MessageFileSink> file;
   if (!skeletons_out.empty()) {

@@ -489,7 +489,7 @@ Status Daemon::start() {
   if (!srv.ok()) return srv.error();
   server_ = std::move(*srv);
   server_view_.store(server_.get());
-  stream_sink_ = std::make_unique<pipeline::StreamSink>(*server_, unix_offset_ns_);
+  stream_sink_ = std::make_unique<net::StreamSink>(*server_, unix_offset_ns_);
   camera_views_ = std::make_unique<box::CameraViews>(box::CameraViewsOptions{});
   camera_views_->set_cameras(lifecycle_->cameras());
   views_sink_ = std::make_unique<pipeline::CallbackSink>(

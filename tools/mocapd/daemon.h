@@ -35,6 +35,7 @@
 #include "runtime/calib/self_calibration.h"
 #include "runtime/core/error.h"
 #include "runtime/geometry/calibration.h"
+#include "runtime/net/stream_sink.h"
 #include "runtime/pipeline/pipeline.h"
 #include "runtime/pipeline/recovering_detector.h"
 #include "runtime/pipeline/sinks.h"
@@ -177,7 +178,7 @@ class Daemon {
   std::unique_ptr<hal::TriggerMaster> trigger_;
   std::unique_ptr<net::StreamServer> server_;
   std::atomic<const net::StreamServer*> server_view_{nullptr};  // for health_json()
-  std::unique_ptr<pipeline::StreamSink> stream_sink_;
+  std::unique_ptr<net::StreamSink> stream_sink_;
   std::unique_ptr<pipeline::CallbackSink> hook_sink_;
   std::unique_ptr<box::Outputs> outputs_;           // VMC and takes
   std::unique_ptr<box::CameraViews> camera_views_;  // the page's camera tiles
