@@ -19,9 +19,9 @@ set(runtime_areas
     "nn:core,msg,skeleton"
     # the real-time pipeline (no network: the stream sink lives in net/)
     "pipeline:assoc,core,msg"
-    # the Vulkan detector. Still uses assoc's crop planning (crop_plan.h, crop_merge.h): to move
-    # behind an interface the detector owns (issue 39)
-    "gpu:assoc,core,geometry,msg,nn,pipeline,skeleton"
+    # the detector's 3D-guided crops, and the Vulkan detector (a pipeline::Detector)
+    "crops:core,geometry,msg,skeleton"
+    "gpu:core,crops,geometry,msg,nn,pipeline,skeleton"
     "fusion:core,msg"
     "sim:core,geometry,msg,pipeline,skeleton"
     # the stream and status servers, and the pipeline sink that feeds them

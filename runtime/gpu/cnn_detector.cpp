@@ -182,12 +182,12 @@ Status CnnDetector::refine_with_crops(const FrameSet& frames, DetectionSet& set)
   }
   auto plan = options_.crops_from_detections
                   ? options_.crops_from_detections(set)
-                  : assoc::plan_crops(*latest, previous ? &*previous : nullptr, frames.timestamp_ns,
+                  : crops::plan_crops(*latest, previous ? &*previous : nullptr, frames.timestamp_ns,
                                       options_.cameras, view_ids, options_.crop_plan);
   if (!plan.ok()) return plan.error();
   if (plan->empty()) return Status::Ok();
   std::vector<CropRequest> requests;
-  for (const assoc::PlannedCrop& c : *plan) {
+  for (const crops::PlannedCrop& c : *plan) {
     const auto at = std::find(view_ids.begin(), view_ids.end(), c.view_id);
     requests.push_back(
         {static_cast<int>(at - view_ids.begin()), c.center_x_px, c.center_y_px, c.side_px});
@@ -204,13 +204,13 @@ Status CnnDetector::refine_with_crops(const FrameSet& frames, DetectionSet& set)
   return set.validate();
 }
 
-Status CnnDetector::merge_crops(const std::vector<assoc::PlannedCrop>& plan,
+Status CnnDetector::merge_crops(const std::vector<crops::PlannedCrop>& plan,
                                 const std::vector<CropPose>& poses, DetectionSet& set) {
   for (ViewDetections& view : set.views) {
-    assoc::CropClaims claims = assoc::crop_claims(view);
+    crops::CropClaims claims = crops::crop_claims(view);
     for (std::size_t i = 0; i < plan.size(); ++i) {
       if (plan[i].view_id != view.view_id) continue;
-      auto stats = assoc::merge_crop(view, claims, *set.topology, poses[i].joints, plan[i].side_px,
+      auto stats = crops::merge_crop(view, claims, *set.topology, poses[i].joints, plan[i].side_px,
                                      options_.crop_merge);
       if (!stats.ok()) return stats.error();
       last_crops_.refined += stats->refined;

@@ -16,9 +16,9 @@
 #include <string>
 #include <vector>
 
-#include "runtime/assoc/crop_merge.h"
-#include "runtime/assoc/crop_plan.h"
 #include "runtime/core/error.h"
+#include "runtime/crops/crop_merge.h"
+#include "runtime/crops/crop_plan.h"
 #include "runtime/geometry/camera.h"
 #include "runtime/gpu/backend.h"
 #include "runtime/gpu/crop_refiner.h"
@@ -41,7 +41,7 @@ struct CnnOptions {
   int frame_width_px = 0;
   int frame_height_px = 0;
   int max_views = 1;  // views per frame (the network batch)
-  // 3D-guided crops (runtime/assoc/crop_plan.h): a MoveNet SinglePose model (empty: none) run
+  // 3D-guided crops (runtime/crops/crop_plan.h): a MoveNet SinglePose model (empty: none) run
   // on each tracked person's crop in each view, at crop_input_size_px, the cameras (indexed by
   // view id) to project the skeletons with. Needs the pipeline to hand it the tracks.
   std::filesystem::path crop_model;
@@ -54,9 +54,9 @@ struct CnnOptions {
   // 2D-guided crops instead (the self-calibration, which has no cameras yet): the crops planned
   // from the frame's own bottom-up detections (a crop per person the planner finds in a view);
   // no tracks are wanted then.
-  std::function<Result<std::vector<assoc::PlannedCrop>>(const DetectionSet&)> crops_from_detections;
-  assoc::CropPlanOptions crop_plan;
-  assoc::CropMergeOptions crop_merge;
+  std::function<Result<std::vector<crops::PlannedCrop>>(const DetectionSet&)> crops_from_detections;
+  crops::CropPlanOptions crop_plan;
+  crops::CropMergeOptions crop_merge;
   Status validate() const;
 };
 
@@ -104,7 +104,7 @@ class CnnDetector final : public pipeline::Detector {
   BackendChoice backend_;  // owns the Vulkan context the detector uses
   Status open_crops(const nn::Model& model);
   Status refine_with_crops(const FrameSet& frames, DetectionSet& set);
-  Status merge_crops(const std::vector<assoc::PlannedCrop>& plan,
+  Status merge_crops(const std::vector<crops::PlannedCrop>& plan,
                      const std::vector<CropPose>& poses, DetectionSet& set);
 
   std::unique_ptr<PoseDetector> detector_;  // destroyed before backend_

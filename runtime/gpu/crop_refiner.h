@@ -1,6 +1,6 @@
 // The single-person stage of 3D-guided crops: MoveNet SinglePose (Thunder or Lightning,
 // runtime/nn/movenet_single.h) run on crops of the camera frames, one per (person, view), as
-// planned from the tracked skeletons (runtime/assoc/crop_plan.h). All crops of a frame go
+// planned from the tracked skeletons (runtime/crops/crop_plan.h). All crops of a frame go
 // through one pre-processing submission and one network batch (in chunks of max_crops). The
 // CPU backend runs the same stages with the CPU references (nn::resample_frame,
 // nn::run_model_cpu).

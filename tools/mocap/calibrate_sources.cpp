@@ -88,8 +88,8 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
   if (!o.cnn.crop_model.empty()) {
     // 2D-guided crops: each person the bottom-up detector found, refined on its own box.
     o.cnn.crops_from_detections =
-        [](const DetectionSet& set) -> Result<std::vector<assoc::PlannedCrop>> {
-      std::vector<assoc::PlannedCrop> plan;
+        [](const DetectionSet& set) -> Result<std::vector<crops::PlannedCrop>> {
+      std::vector<crops::PlannedCrop> plan;
       for (const calib::PersonBox& b :
            calib::person_boxes(set, *set.topology, calib::People2DOptions{})) {
         plan.push_back(

@@ -58,7 +58,7 @@ struct DaemonConfig {
   std::string model;      // empty = the installed models/movenet-multipose.mcnn
   int input_size_px = 0;  // 0 = the model's default (PoseNet 353, MoveNet 448)
   gpu::InputFit input_fit = gpu::InputFit::kAuto;
-  // 3D-guided crops (runtime/assoc/crop_plan.h): auto (thunder on a hardware GPU, none on a
+  // 3D-guided crops (runtime/crops/crop_plan.h): auto (thunder on a hardware GPU, none on a
   // software device), none, thunder, lightning or a model file; on only when the cameras are
   // calibrated.
   std::string crops = "auto";

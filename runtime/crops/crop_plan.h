@@ -2,7 +2,7 @@
 // the frame being detected and projected into every view, gives that person's crop in the
 // view, even where the view is crowded. A single-person model refines each (person, view) crop
 // (runtime/gpu/crop_refiner.h) and the crop's joints enter the 4D graph
-// (runtime/assoc/crop_merge.h) while the bottom-up detector keeps finding newcomers.
+// (runtime/crops/crop_merge.h) while the bottom-up detector keeps finding newcomers.
 //
 // Prediction: constant velocity per joint from the person's two latest skeletons (same
 // person_id), when the time ahead is at most kMaxPredictionSteps times their interval;
@@ -16,7 +16,7 @@
 #include "runtime/geometry/camera.h"
 #include "runtime/msg/messages.h"
 
-namespace mocap::assoc {
+namespace mocap::crops {
 
 inline constexpr double kMaxPredictionSteps = 4.0;
 
@@ -50,4 +50,4 @@ Result<std::vector<PlannedCrop>> plan_crops(const SkeletonSet& latest, const Ske
                                             const std::vector<int>& view_ids,
                                             const CropPlanOptions& options);
 
-}  // namespace mocap::assoc
+}  // namespace mocap::crops

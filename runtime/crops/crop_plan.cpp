@@ -1,10 +1,10 @@
-#include "runtime/assoc/crop_plan.h"
+#include "runtime/crops/crop_plan.h"
 
 #include <algorithm>
 #include <cmath>
 #include <string>
 
-namespace mocap::assoc {
+namespace mocap::crops {
 
 namespace {
 
@@ -127,4 +127,4 @@ Result<std::vector<PlannedCrop>> plan_crops(const SkeletonSet& latest, const Ske
   return out;
 }
 
-}  // namespace mocap::assoc
+}  // namespace mocap::crops

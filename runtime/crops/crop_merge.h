@@ -19,7 +19,7 @@
 #include "runtime/msg/messages.h"
 #include "runtime/skeleton/topology.h"
 
-namespace mocap::assoc {
+namespace mocap::crops {
 
 struct CropMergeOptions {
   float min_score = 0.3f;                // (0, 1]
@@ -46,4 +46,4 @@ Result<CropMergeStats> merge_crop(ViewDetections& view, CropClaims& claims,
                                   std::span<const JointCandidate> joints, double side_px,
                                   const CropMergeOptions& options);
 
-}  // namespace mocap::assoc
+}  // namespace mocap::crops

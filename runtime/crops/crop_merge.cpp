@@ -1,10 +1,10 @@
-#include "runtime/assoc/crop_merge.h"
+#include "runtime/crops/crop_merge.h"
 
 #include <algorithm>
 #include <cmath>
 #include <string>
 
-namespace mocap::assoc {
+namespace mocap::crops {
 
 namespace {
 
@@ -129,4 +129,4 @@ Result<CropMergeStats> merge_crop(ViewDetections& view, CropClaims& claims,
   return stats;
 }
 
-}  // namespace mocap::assoc
+}  // namespace mocap::crops

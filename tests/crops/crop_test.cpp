@@ -1,4 +1,4 @@
-// 3D-guided crops on the CPU (runtime/assoc/crop_plan.h, crop_merge.h): a tracked person
+// 3D-guided crops on the CPU (runtime/crops/crop_plan.h, crop_merge.h): a tracked person
 // projected into a camera gives a square crop around them, predicted at constant velocity;
 // persons out of view, barely seen or unobserved get none. A crop's joints refine the bottom-up
 // candidates near them (each taken once), become new candidates where none is near, and give
@@ -8,13 +8,13 @@
 #include <cmath>
 #include <vector>
 
-#include "runtime/assoc/crop_merge.h"
-#include "runtime/assoc/crop_plan.h"
+#include "runtime/crops/crop_merge.h"
+#include "runtime/crops/crop_plan.h"
 #include "runtime/msg/messages.h"
 #include "runtime/skeleton/topology.h"
 #include "tests/support/cameras.h"
 
-namespace mocap::assoc {
+namespace mocap::crops {
 namespace {
 
 constexpr int kJoints = 17;
@@ -165,4 +165,4 @@ TEST(CropMergeTest, BadInputIsAnError) {
 }
 
 }  // namespace
-}  // namespace mocap::assoc
+}  // namespace mocap::crops
