@@ -15,7 +15,7 @@
 #include "runtime/calib/refusal.h"
 #include "runtime/calib/world_frame.h"
 #include "runtime/core/stats.h"
-#include "runtime/io/text_scan.h"
+#include "runtime/core/text_scan.h"
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::calib {
@@ -577,7 +577,7 @@ Status write_debug_dir(const std::filesystem::path& dir, const KeypointCollector
   }
   nlohmann::json j = nlohmann::json::parse(quality_to_json(q));
   j["diagnostics"] = nlohmann::json::parse(diagnostics_full_json(q.diagnostics));
-  if (Status s = io::write_text_file(dir / "report.json", j.dump(1) + "\n"); !s.ok()) return s;
+  if (Status s = write_text_file(dir / "report.json", j.dump(1) + "\n"); !s.ok()) return s;
   std::string csv = "frame,person,joint,view,x_px,y_px,score,inlier,mirrored\n";
   char line[200];
   for (const UsedJoint& u : r.used) {
@@ -587,7 +587,7 @@ Status write_debug_dir(const std::filesystem::path& dir, const KeypointCollector
                   u.inlier ? 1 : 0, u.mirrored ? 1 : 0);
     csv += line;
   }
-  if (Status s = io::write_text_file(dir / "joints.csv", csv); !s.ok()) return s;
+  if (Status s = write_text_file(dir / "joints.csv", csv); !s.ok()) return s;
   const int stride = std::max(1, keypoints.frame_count() / options.max_frames);
   const CalibrationInput input = prepare_input(keypoints, priors, options.input, stride);
   for (std::size_t v = 0; v < priors.size(); ++v) {

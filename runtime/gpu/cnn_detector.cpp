@@ -7,7 +7,6 @@
 #include "runtime/core/log.h"
 #include "runtime/nn/movenet.h"
 #include "runtime/nn/preprocess.h"
-#include "runtime/nn/tfjs_import.h"
 
 MOCAP_LOG_CATEGORY(Cnn);
 
@@ -52,7 +51,7 @@ Status CnnOptions::validate() const {
 
 Result<std::unique_ptr<CnnDetector>> CnnDetector::open(const CnnOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
-  Result<nn::Model> model = nn::load_model(options.model);
+  Result<nn::Model> model = nn::read_model(options.model, options.model_reader);
   if (!model.ok()) {
     return model.error().with_context(
         "model (install it with tools/fetch_models.sh, or set model)");
@@ -109,7 +108,7 @@ Status CnnDetector::open_crops(const nn::Model& detector_model) {
                         ", not a hardware GPU (ask for them explicitly to run them anyway)";
     return Status::Ok();
   }
-  Result<nn::Model> model = nn::load_model(options_.crop_model);
+  Result<nn::Model> model = nn::read_model(options_.crop_model, options_.model_reader);
   if (!model.ok() && options_.crops_need_gpu) {  // auto: the box runs without them
     crops_off_reason_ = std::string(options_.crops_from_detections ? "2D" : "3D") +
                         "-guided crops are off: " + model.error().message() +
@@ -232,6 +231,20 @@ std::string CnnDetector::description() const {
                          gmacs_text(macs_per_crop_) + " GMAC each)"
                    : std::string()) +
          " on " + backend_.description;
+}
+
+Result<std::unique_ptr<pipeline::RecoveringDetector>> recovering_cnn(
+    std::unique_ptr<CnnDetector> first, const CnnOptions& options) {
+  auto pending = std::make_shared<std::unique_ptr<CnnDetector>>(std::move(first));
+  auto opener = [pending, options](bool cpu_only) -> Result<std::unique_ptr<pipeline::Detector>> {
+    if (*pending) return std::unique_ptr<pipeline::Detector>(std::move(*pending));
+    CnnOptions o = options;
+    if (cpu_only) o.backend = BackendRequest::kCpu;
+    auto d = CnnDetector::open(o);
+    if (!d.ok()) return d.error();
+    return std::unique_ptr<pipeline::Detector>(std::move(*d));
+  };
+  return pipeline::RecoveringDetector::open(std::move(opener));
 }
 
 }  // namespace mocap::gpu

@@ -23,12 +23,17 @@
 #include "runtime/gpu/backend.h"
 #include "runtime/gpu/crop_refiner.h"
 #include "runtime/gpu/pose_detector.h"
+#include "runtime/nn/model_file.h"
+#include "runtime/pipeline/recovering_detector.h"
 #include "runtime/pipeline/stages.h"
 
 namespace mocap::gpu {
 
 struct CnnOptions {
-  std::filesystem::path model;  // .mcnn model file or TF.js model.json
+  std::filesystem::path model;  // .mcnn model file (or TF.js model.json with model_reader)
+  // How model and crop_model files other than .mcnn are read (nn::tfjs_reader() from
+  // runtime/nn_import, for programs that link the importer); empty: .mcnn files only.
+  nn::ModelReader model_reader;
   BackendRequest backend = BackendRequest::kAuto;
   std::string device;  // Vulkan device index or name substring; empty = the best one
   bool validation = false;
@@ -121,5 +126,10 @@ class CnnDetector final : public pipeline::Detector {
   InputShape shape_;
   double macs_per_view_ = 0;
 };
+
+// `first` (opened with `options`) as the pipeline's detector behind a RecoveringDetector: when
+// its GPU is lost it is opened again with the same options, on the CPU when the GPU cannot be.
+Result<std::unique_ptr<pipeline::RecoveringDetector>> recovering_cnn(
+    std::unique_ptr<CnnDetector> first, const CnnOptions& options);
 
 }  // namespace mocap::gpu

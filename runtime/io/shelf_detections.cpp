@@ -10,14 +10,11 @@
 #include <system_error>
 #include <thread>
 
-#include "runtime/io/text_scan.h"
+#include "runtime/core/text_scan.h"
 #include "runtime/skeleton/topology.h"
 
 namespace mocap {
 namespace {
-
-using io::ScanStatus;
-using io::TextScanner;
 
 // Where in the file the parser is, formatted only when an error is reported.
 struct Place {
@@ -108,7 +105,7 @@ std::optional<int> ViewParser::read_count(std::int64_t max, Place place, std::st
     return std::nullopt;
   }
   if (st != ScanStatus::kOk) {
-    *error = fail(place, std::string(what) + ": " + io::describe(st, scan_));
+    *error = fail(place, std::string(what) + ": " + describe(st, scan_));
     return std::nullopt;
   }
   if (n < 0) {
@@ -138,7 +135,7 @@ std::optional<Error> ViewParser::parse_joint(int j, std::vector<JointCandidate>&
       const ScanStatus st = scan_.next_float(v);
       if (st != ScanStatus::kOk) {
         return fail(place, std::string(kRows[row]) + " of candidate " + std::to_string(i) + ": " +
-                               io::describe(st, scan_));
+                               describe(st, scan_));
       }
       if (row == 2 && v < 0.f) {
         return fail(place, "score of candidate " + std::to_string(i) +
@@ -178,7 +175,7 @@ std::optional<Error> ViewParser::parse_limb(int l, const std::vector<int>& count
     if (st != ScanStatus::kOk) {
       const std::size_t c = static_cast<std::size_t>(cols);
       return fail(place, "value (" + std::to_string(i / c) + "," + std::to_string(i % c) +
-                             "): " + io::describe(st, scan_));
+                             "): " + describe(st, scan_));
     }
     if (v < 0.f) return fail(place, "negative PAF score " + scan_.last_token_for_message());
     if (store) out.values[i] = v;
@@ -258,7 +255,7 @@ Result<std::vector<ViewDetections>> parse_shelf_detection_view(
 Result<std::vector<ViewDetections>> load_shelf_detection_view(
     const std::filesystem::path& file, int view_id, int width_px, int height_px,
     const ShelfDetectionOptions& options) {
-  auto text = io::read_text_file(file);
+  auto text = read_text_file(file);
   if (!text.ok()) return text.error();
   return parse_shelf_detection_view(*text, file.string(), view_id, width_px, height_px, options);
 }

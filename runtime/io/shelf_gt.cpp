@@ -9,13 +9,10 @@
 #include <set>
 #include <system_error>
 
-#include "runtime/io/text_scan.h"
+#include "runtime/core/text_scan.h"
 
 namespace mocap {
 namespace {
-
-using io::ScanStatus;
-using io::TextScanner;
 
 constexpr const char* kRowNames[4] = {"x", "y", "z", "homogeneous"};
 
@@ -47,7 +44,7 @@ class GtParser {
     std::int64_t v = 0;
     const ScanStatus st = scan_.next_int(v);
     if (st != ScanStatus::kOk && st != ScanStatus::kOutOfRange) {
-      *error = fail(std::string(what) + ": " + io::describe(st, scan_));
+      *error = fail(std::string(what) + ": " + describe(st, scan_));
       return std::nullopt;
     }
     if (st == ScanStatus::kOutOfRange || v < min || v > max) {
@@ -106,7 +103,7 @@ Result<std::vector<ShelfGtFrame>> GtParser::run() {
           const ScanStatus st = scan_.next_double(v);
           if (st != ScanStatus::kOk) {
             return fail("id " + std::to_string(*id) + ", " + kRowNames[row] + " row, joint " +
-                        std::to_string(j) + ": " + io::describe(st, scan_));
+                        std::to_string(j) + ": " + describe(st, scan_));
           }
           if (row < 3) {
             actor.joints_m[static_cast<std::size_t>(j)][row] = v;
@@ -152,7 +149,7 @@ Result<std::vector<ShelfGtFrame>> parse_shelf_gt(std::string_view text,
 
 Result<std::vector<ShelfGtFrame>> load_shelf_gt(const std::filesystem::path& file,
                                                 const ShelfGtOptions& options) {
-  auto text = io::read_text_file(file);
+  auto text = read_text_file(file);
   if (!text.ok()) return text.error();
   return parse_shelf_gt(*text, file.string(), options);
 }
@@ -203,7 +200,7 @@ Result<std::string> format_shelf_gt(std::span<const ShelfGtFrame> frames) {
 Status write_shelf_gt(const std::filesystem::path& file, std::span<const ShelfGtFrame> frames) {
   auto text = format_shelf_gt(frames);
   if (!text.ok()) return text.error().with_context(file.string());
-  return io::write_text_file(file, *text);
+  return write_text_file(file, *text);
 }
 
 }  // namespace mocap

@@ -2,7 +2,7 @@
 // Backend-agnostic: the CPU reference backend (runtime/nn/cpu_backend.h) and the Vulkan backend
 // (runtime/gpu/) both run a Model. Activations are NHWC float32. Models come from the project's
 // own file format (runtime/nn/model_file.h, docs/model-format.md), which `mocap model convert`
-// writes from a TF.js graph model (runtime/nn/tfjs_import.h).
+// writes from a TF.js graph model (runtime/nn_import/tfjs_import.h).
 #pragma once
 
 #include <cstdint>

@@ -627,4 +627,14 @@ Result<Model> read_model_file(const std::filesystem::path& path) {
   return parse_model_bytes(*bytes, path.string());
 }
 
+Result<Model> read_model(const std::filesystem::path& path, const ModelReader& other) {
+  if (path.extension() != ".json") return read_model_file(path);
+  if (other) return other(path);
+  return Error(ErrorCode::kUnsupported,
+               path.string() +
+                   " is a TF.js model.json, which this program does not import: "
+                   "convert it once with `mocap model convert --tfjs " +
+                   path.string() + " --out FILE.mcnn` and give the .mcnn file");
+}
+
 }  // namespace mocap::nn

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -46,6 +47,14 @@ Status write_model_file(const Model& model, const std::filesystem::path& path);
 
 // Reads the whole file (at most kMaxModelFileBytes) and parses it.
 Result<Model> read_model_file(const std::filesystem::path& path);
+
+// Reads a model from another format (a TF.js model.json: runtime/nn_import's tfjs_reader()).
+// The detector takes one from the program that links the importer; without one it reads the
+// project's model files only.
+using ModelReader = std::function<Result<Model>(const std::filesystem::path&)>;
+// read_model_file(path), or `other(path)` for a path ending in ".json" when `other` is set;
+// without it a ".json" path is refused, naming the file and `mocap model convert`.
+Result<Model> read_model(const std::filesystem::path& path, const ModelReader& other);
 // Reads a file's bytes (at most kMaxModelFileBytes) without parsing them.
 Result<std::vector<std::uint8_t>> read_file_bytes(const std::filesystem::path& path);
 

@@ -66,30 +66,6 @@ AffinityMatrix shared_center_affinity(const std::vector<std::vector<float>>& ga,
 
 }  // namespace
 
-TfjsImportOptions movenet_multipose_cut() {
-  TfjsImportOptions o;
-  o.input_node = "StatefulPartitionedCall/sub_1";
-  o.outputs = {
-      {"StatefulPartitionedCall/kpt_heatmap_0/conv2d_7/BiasAdd", kMoveNetKeypointHeatmap},
-      {"StatefulPartitionedCall/center_0/conv2d_4/BiasAdd", kMoveNetCenterHeatmap},
-      {"StatefulPartitionedCall/kpt_regress_0/conv2d_8/BiasAdd", kMoveNetKeypointRegression},
-      {"StatefulPartitionedCall/kpt_offset_0/conv2d_9/BiasAdd", kMoveNetKeypointOffsets},
-  };
-  return o;
-}
-
-TfjsImportOptions movenet_singlepose_cut() {
-  TfjsImportOptions o;
-  o.input_node = "StatefulPartitionedCall/sub_1";
-  o.outputs = {
-      {"StatefulPartitionedCall/kpt_heatmap_0/conv2d_5/BiasAdd", kMoveNetKeypointHeatmap},
-      {"StatefulPartitionedCall/center_0/conv2d_4/BiasAdd", kMoveNetCenterHeatmap},
-      {"StatefulPartitionedCall/kpt_regress_0/conv2d_6/BiasAdd", kMoveNetKeypointRegression},
-      {"StatefulPartitionedCall/kpt_offset_0/conv2d_7/BiasAdd", kMoveNetKeypointOffsets},
-  };
-  return o;
-}
-
 bool is_movenet(const Model& model) {
   for (const char* name : {kMoveNetKeypointHeatmap, kMoveNetCenterHeatmap,
                            kMoveNetKeypointRegression, kMoveNetKeypointOffsets}) {

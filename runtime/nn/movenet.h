@@ -28,7 +28,6 @@
 #include "runtime/nn/model.h"
 #include "runtime/nn/postprocess.h"
 #include "runtime/nn/preprocess.h"
-#include "runtime/nn/tfjs_import.h"
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::nn {
@@ -43,15 +42,7 @@ inline constexpr int kMoveNetOutputStridePx = 4;
 // Input sizes must be multiples of this (the FPN adds a 2x upsampled level to the next).
 inline constexpr int kMoveNetInputMultiplePx = 32;
 
-// Where to cut movenet-multipose.json: input at the normalised image (the node after the
-// graph's Cast/Sub/Mul/Sub, fed with nn::letterbox_frame's [-1, 1] values), outputs at the
-// four heads above (the graph nodes' BiasAdd), named as above.
-TfjsImportOptions movenet_multipose_cut();
-// Where to cut movenet-thunder.json and movenet-lightning.json (SinglePose, one person per
-// crop): the same input node and the same four heads, whose nodes are numbered differently
-// (the graph has no box heads). The outputs get the same names, so is_movenet() holds; the
-// single-person decoding is movenet_single_person_cpu.
-TfjsImportOptions movenet_singlepose_cut();
+// Where the TF.js graphs are cut at these heads: runtime/nn_import/movenet_cuts.h.
 
 // Whether `model` has MoveNet's four heads (by output name).
 bool is_movenet(const Model& model);

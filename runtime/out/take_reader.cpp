@@ -24,7 +24,7 @@
 #include <system_error>
 #include <thread>
 
-#include "runtime/io/text_scan.h"
+#include "runtime/core/text_scan.h"
 #include "runtime/msg/stream_json.h"
 #include "runtime/out/take_writer.h"
 
@@ -640,7 +640,7 @@ bool being_recorded(const fs::path& stream) {
 
 // take.json of a take folder: its JSON, or an error saying why it cannot be used.
 Result<json> read_take_json(const fs::path& file) {
-  Result<std::string> text = io::read_text_file(file, kMaxTakeJson_bytes);
+  Result<std::string> text = read_text_file(file, kMaxTakeJson_bytes);
   if (!text.ok()) return text.error();
   return parse_take_json(*text, file);
 }

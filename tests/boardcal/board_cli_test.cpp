@@ -11,8 +11,8 @@
 #include <string>
 
 #include "runtime/boardcal/board_detect.h"
+#include "runtime/core/text_scan.h"
 #include "runtime/image/image.h"
-#include "runtime/io/text_scan.h"
 #include "tests/support/data.h"
 #include "tests/support/subprocess.h"
 #include "tests/support/temp_dir.h"
@@ -47,7 +47,7 @@ TEST(BoardCliTest, CaliscopeCharucoAgainstCaliscopesCalibration) {
   EXPECT_LE(rms, 0.6) << r.out;  // the target; measured 0.29
   EXPECT_NE(r.out.find("camera 0: 1280x720, board in"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("registration: root camera"), std::string::npos) << r.out;
-  auto json = io::read_text_file(report);
+  auto json = read_text_file(report);
   ASSERT_TRUE(json.ok());
   EXPECT_NE(json->find("\"pairs\""), std::string::npos);
   EXPECT_TRUE(std::filesystem::exists(dir.path() / "board.json"));
@@ -69,7 +69,7 @@ TEST(BoardCliTest, CaliscopeCharucoAgainstCaliscopesCalibration) {
   EXPECT_LE(testing::last_value(hc.out, "max_rotation_deg"), 0.6) << hc.out;
   EXPECT_LE(testing::last_value(hc.out, "median_center_m"), 0.01) << hc.out;
   // A wrong board: refused naming the description, the calibration written before untouched.
-  auto before = io::read_text_file(held);
+  auto before = read_text_file(held);
   ASSERT_TRUE(before.ok());
   auto w = testing::run_process(
       {kBin, "calibrate", "board", "--recording", data.string(), "--board",
@@ -80,7 +80,7 @@ TEST(BoardCliTest, CaliscopeCharucoAgainstCaliscopesCalibration) {
                        "the board description (charuco:4x5:0.054:0.0405:DICT_5X5_50) matches"),
             std::string::npos)
       << w.out;
-  auto after = io::read_text_file(held);
+  auto after = read_text_file(held);
   ASSERT_TRUE(after.ok());
   EXPECT_EQ(*after, *before);
   EXPECT_FALSE(std::filesystem::exists(held + ".bak"));
@@ -130,7 +130,7 @@ TEST(BoardCliTest, PrintedPdfReadByPopplerHasTheBoardToScale) {
 
 TEST(BoardCliTest, UnreadableImagesAndEmptyGlobsAreNamed) {
   testing::TestTempDir dir("board_images");
-  ASSERT_TRUE(io::write_text_file(dir.path() / "cam0_000.png", "not a png").ok());
+  ASSERT_TRUE(write_text_file(dir.path() / "cam0_000.png", "not a png").ok());
   auto r = testing::run_process(
       {kBin, "calibrate", "board", "--images", (dir.path() / "cam0_*.png").string(), "--board",
        "chessboard:9x6:0.025", "--out", (dir.path() / "o.json").string()},

@@ -6,8 +6,8 @@
 
 #include <string>
 
+#include "runtime/core/text_scan.h"
 #include "runtime/geometry/calibration.h"
-#include "runtime/io/text_scan.h"
 #include "tests/support/data.h"
 #include "tests/support/subprocess.h"
 #include "tests/support/temp_dir.h"
@@ -34,7 +34,7 @@ TEST(CalibrateCliTest, SyntheticWritesCalibrationAndReport) {
   EXPECT_EQ(line.size() - line.find('.'), 4u) << line;  // two decimals and the newline
   EXPECT_LT(testing::last_value(r.out, "calibration_reprojection_px"), 3.0);
   EXPECT_TRUE(load_calibration(out).ok());
-  auto json = io::read_text_file(report);
+  auto json = read_text_file(report);
   ASSERT_TRUE(json.ok());
   EXPECT_NE(json->find("\"ok\": true"), std::string::npos);
   auto c =

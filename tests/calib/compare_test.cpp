@@ -12,7 +12,7 @@
 #include <numbers>
 #include <string>
 
-#include "runtime/io/text_scan.h"
+#include "runtime/core/text_scan.h"
 #include "tests/support/cameras.h"
 #include "tests/support/subprocess.h"
 #include "tests/support/temp_dir.h"
@@ -159,7 +159,7 @@ TEST(CalibCompareCli, LastLineAndBadFile) {
        {std::pair{"ref.json", ref}, std::pair{"moved.json", in_other_frame(ref, 2.0, kRa, kT)}}) {
     auto json = calibration_to_json(c);
     ASSERT_TRUE(json.ok());
-    ASSERT_TRUE(io::write_text_file(dir.path() / name, *json).ok());
+    ASSERT_TRUE(write_text_file(dir.path() / name, *json).ok());
   }
   const std::string bin = MOCAP_BIN_DIR "/mocap";
   auto r = testing::run_process({bin, "calib", "compare", (dir.path() / "ref.json").string(),

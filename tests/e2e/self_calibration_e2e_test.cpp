@@ -11,8 +11,8 @@
 #include <filesystem>
 #include <string>
 
+#include "runtime/core/text_scan.h"
 #include "runtime/geometry/calibration.h"
-#include "runtime/io/text_scan.h"
 #include "tests/support/data.h"
 #include "tests/support/subprocess.h"
 #include "tests/support/temp_dir.h"
@@ -54,20 +54,20 @@ TEST(SelfCalibrationE2e, Pose2SimMultiFromTheVideosWithItsIntrinsics) {
   const double kept = compare_max_rotation(data / "calibration.json", out, dir, &center_m);
   EXPECT_LE(kept, 3.5);
   EXPECT_LE(center_m, 0.13);
-  auto json = io::read_text_file(report);
+  auto json = read_text_file(report);
   ASSERT_TRUE(json.ok());
   EXPECT_NE(json->find("\"ok\": true"), std::string::npos);
   EXPECT_NE(json->find("\"hypotheses\""), std::string::npos);
   // What the debug folder holds: the whole report, the joints used, a coverage PNG per view.
-  auto full = io::read_text_file(debug / "report.json");
+  auto full = read_text_file(debug / "report.json");
   ASSERT_TRUE(full.ok());
   EXPECT_NE(full->find("\"steps\""), std::string::npos);
-  auto joints = io::read_text_file(debug / "joints.csv");
+  auto joints = read_text_file(debug / "joints.csv");
   ASSERT_TRUE(joints.ok());
   EXPECT_EQ(joints->rfind("frame,person,joint,view,x_px,y_px,score,inlier,mirrored\n", 0), 0u);
   EXPECT_GT(std::count(joints->begin(), joints->end(), '\n'), 5000);
   for (int v = 0; v < 4; ++v) {
-    auto png = io::read_text_file(debug / ("coverage_view" + std::to_string(v) + ".png"));
+    auto png = read_text_file(debug / ("coverage_view" + std::to_string(v) + ".png"));
     ASSERT_TRUE(png.ok()) << "view " << v;
     EXPECT_EQ(png->substr(1, 3), "PNG");
   }
@@ -175,7 +175,7 @@ TEST(SelfCalibrationRecordingTest, VideoOfAnotherSizeThanItsCalibrationIsNamed) 
   MOCAP_REQUIRE_DATA(data, "pose2sim_multi");
   testing::TestTempDir dir("selfcal_size");
   const auto rec = linked_recording(dir, data);
-  auto text = io::read_text_file(data / "calibration.json");
+  auto text = read_text_file(data / "calibration.json");
   ASSERT_TRUE(text.ok());
   // View 2's imgSize says 1080 x 1920 (the video is 1088 x 1920).
   std::string j = *text;
@@ -184,7 +184,7 @@ TEST(SelfCalibrationRecordingTest, VideoOfAnotherSizeThanItsCalibrationIsNamed) 
   const std::size_t size_at = j.find("1088", j.find("imgSize", at));
   ASSERT_NE(size_at, std::string::npos);
   j.replace(size_at, 4, "1080");
-  ASSERT_TRUE(io::write_text_file(rec / "calibration.json", j).ok());
+  ASSERT_TRUE(write_text_file(rec / "calibration.json", j).ok());
   auto r = testing::run_process({kBin, "calibrate", "people", "--recording", rec.string(),
                                  "--frames", "12", "--out", (dir.path() / "o.json").string()},
                                 dir.path(), "calibrate", 300000);
@@ -202,11 +202,11 @@ TEST(SelfCalibrationRecordingTest, TruncatedVideoIsNamed) {
   std::filesystem::create_directories(rec / "videos");
   for (int v = 0; v < 4; ++v) {
     const std::string name = std::to_string(v) + ".mp4";
-    auto bytes = io::read_text_file(data / "videos" / name);
+    auto bytes = read_text_file(data / "videos" / name);
     ASSERT_TRUE(bytes.ok());
     // View 1 cut to 40 %: its index (at the end of these files) is gone.
     const std::string kept = v == 1 ? bytes->substr(0, bytes->size() * 2 / 5) : *bytes;
-    ASSERT_TRUE(io::write_text_file(rec / "videos" / name, kept).ok());
+    ASSERT_TRUE(write_text_file(rec / "videos" / name, kept).ok());
   }
   auto r = testing::run_process({kBin, "calibrate", "people", "--recording", rec.string(),
                                  "--frames", "12", "--out", (dir.path() / "o.json").string()},

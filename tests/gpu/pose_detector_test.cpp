@@ -18,7 +18,8 @@
 #include "runtime/image/image.h"
 #include "runtime/nn/model_file.h"
 #include "runtime/nn/movenet.h"
-#include "runtime/nn/tfjs_import.h"
+#include "runtime/nn_import/movenet_cuts.h"
+#include "runtime/nn_import/tfjs_import.h"
 #include "runtime/skeleton/topology.h"
 #include "tests/support/data.h"
 

@@ -19,7 +19,7 @@
 #include "runtime/image/image.h"
 #include "runtime/nn/cpu_ops.h"
 #include "runtime/nn/preprocess.h"
-#include "runtime/nn/tfjs_import.h"
+#include "runtime/nn_import/tfjs_import.h"
 #include "tests/support/data.h"
 #include "tests/support/tensor_compare.h"
 

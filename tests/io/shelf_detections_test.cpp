@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "runtime/io/text_scan.h"
+#include "runtime/core/text_scan.h"
 #include "runtime/skeleton/topology.h"
 #include "tests/support/data.h"
 
@@ -234,7 +234,7 @@ class ShelfDetectionsFilesTest : public ::testing::Test {
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
   void write(const std::string& name, const std::string& text) {
-    ASSERT_TRUE(io::write_text_file(dir_ / name, text).ok());
+    ASSERT_TRUE(write_text_file(dir_ / name, text).ok());
   }
   std::filesystem::path dir_;
 };

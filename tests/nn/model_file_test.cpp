@@ -330,6 +330,34 @@ TEST(ModelFileTest, ReadMissingFile) {
   EXPECT_THAT(r.error().message(), HasSubstr("/nonexistent/dir/model.mcnn"));
 }
 
+// The detector's model reading (gpu::CnnOptions::model_reader): .mcnn files itself, a TF.js
+// model.json only through the reader of a program that links the importer, else refused
+// with the conversion command.
+TEST(ModelFileTest, ReadModelTakesAModelJsonOnlyThroughTheReaderGiven) {
+  ::mocap::testing::TestTempDir dir("model_file_test");
+  const std::filesystem::path file = dir.path() / "m.mcnn";
+  ASSERT_TRUE(write_model_file(tiny_model(), file).ok());
+  Result<Model> own = read_model(file, {});
+  ASSERT_TRUE(own.ok()) << own.error().message();
+  expect_equal(tiny_model(), *own);
+
+  const std::filesystem::path json = dir.path() / "model.json";
+  Result<Model> refused = read_model(json, {});
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code(), ErrorCode::kUnsupported);
+  EXPECT_THAT(refused.error().message(),
+              AllOf(HasSubstr(json.string() + " is a TF.js model.json"),
+                    HasSubstr("mocap model convert --tfjs " + json.string())));
+
+  std::vector<std::filesystem::path> asked;
+  ModelReader reader = [&](const std::filesystem::path& p) -> Result<Model> {
+    asked.push_back(p);
+    return tiny_model();
+  };
+  ASSERT_TRUE(read_model(json, reader).ok());
+  ASSERT_TRUE(read_model(file, reader).ok());  // .mcnn never goes to the reader
+  EXPECT_EQ(asked, std::vector<std::filesystem::path>{json});
+}
 TEST(ModelFileTest, CorruptedByteFailsTheChecksum) {
   const Bytes good = serialize_model(tiny_model());
   const std::size_t data_offset = static_cast<std::size_t>(le64(good, kDocDataOffsetAt));

@@ -1,4 +1,4 @@
-#include "runtime/nn/tfjs_import.h"
+#include "runtime/nn_import/tfjs_import.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -19,6 +19,7 @@
 
 #include "runtime/nn/model_file.h"
 #include "runtime/nn/movenet.h"
+#include "runtime/nn_import/movenet_cuts.h"
 #include "tests/support/data.h"
 #include "tests/support/temp_dir.h"
 

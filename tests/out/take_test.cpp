@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "runtime/io/text_scan.h"
+#include "runtime/core/text_scan.h"
 #include "runtime/msg/stream_json.h"
 #include "runtime/out/animation.h"
 #include "runtime/out/humanoid.h"
@@ -101,7 +101,7 @@ TakeMetadata metadata(const std::string& name) {
 }
 
 nlohmann::json read_json(const fs::path& file) {
-  Result<std::string> text = io::read_text_file(file, 1 << 20);
+  Result<std::string> text = read_text_file(file, 1 << 20);
   return nlohmann::json::parse(text.ok() ? *text : std::string(), nullptr, false);
 }
 

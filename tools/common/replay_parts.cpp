@@ -1,5 +1,7 @@
 #include "tools/common/replay_parts.h"
 
+#include "runtime/nn_import/tfjs_import.h"
+
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::tools {
@@ -27,6 +29,8 @@ Result<ReplayParts> open_replay(const ReplayPartsOptions& options) {
   parts.source = std::move(*src);
   parts.cameras = parts.source->calibration().cameras;
   gpu::CnnOptions cnn = options.cnn;
+  // The tools accept a TF.js model.json wherever they take a model.
+  if (!cnn.model_reader) cnn.model_reader = nn::tfjs_reader();
   cnn.max_views = parts.source->view_count();
   set_frame_size(cnn, parts.cameras);
   parts.calibrated = parts.source->calibrated();

@@ -5,9 +5,9 @@
 #include <optional>
 
 #include "runtime/calib/world_frame.h"
+#include "runtime/core/text_scan.h"
 #include "runtime/geometry/calibration.h"
 #include "runtime/io/shelf_detections.h"
-#include "runtime/io/text_scan.h"
 #include "runtime/pipeline/pipeline.h"
 #include "runtime/pipeline/sinks.h"
 #include "runtime/sim/simulator.h"
@@ -176,7 +176,7 @@ Status collect_recording(const SourceArgs& a, bool keep_intrinsics,
 Status collect_saved(const SourceArgs& a, bool keep_intrinsics, const std::string& intrinsics,
                      std::unique_ptr<calib::KeypointCollector>& out,
                      std::vector<calib::CameraPrior>& priors) {
-  auto text = io::read_text_file(a.keypoints);
+  auto text = read_text_file(a.keypoints);
   if (!text.ok()) return text.error();
   auto c = calib::KeypointCollector::from_json(*text, a.keypoints, calib::People2DOptions{});
   if (!c.ok()) return c.error();

@@ -13,9 +13,9 @@
 #include "runtime/calib/self_calibration.h"
 #include "runtime/calib/world_frame.h"
 #include "runtime/core/data_dir.h"
+#include "runtime/core/text_scan.h"
 #include "runtime/geometry/calibration.h"
 #include "runtime/io/shelf_detections.h"
-#include "runtime/io/text_scan.h"
 #include "runtime/pipeline/pipeline.h"
 #include "runtime/pipeline/sinks.h"
 #include "runtime/sim/simulator.h"
@@ -122,7 +122,7 @@ int run_people(Args args) {
   Status collected = collect_people(src, keep_intrinsics, keypoints, priors);
   if (!collected.ok()) return cli::fail(collected.error());
   if (!keypoints_out.empty()) {
-    if (Status s = io::write_text_file(keypoints_out, keypoints->to_json() + "\n"); !s.ok()) {
+    if (Status s = write_text_file(keypoints_out, keypoints->to_json() + "\n"); !s.ok()) {
       return cli::fail(s.error());
     }
   }
@@ -137,7 +137,7 @@ int run_people(Args args) {
     std::printf("debug files written to %s\n", debug_dir.c_str());
   }
   if (!report.empty()) {
-    if (Status s = io::write_text_file(report, calib::quality_to_json(q) + "\n"); !s.ok()) {
+    if (Status s = write_text_file(report, calib::quality_to_json(q) + "\n"); !s.ok()) {
       return cli::fail(s.error());
     }
   }

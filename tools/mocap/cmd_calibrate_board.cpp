@@ -12,7 +12,7 @@
 #include <string>
 
 #include "runtime/boardcal/board_calibration.h"
-#include "runtime/io/text_scan.h"
+#include "runtime/core/text_scan.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/board_frames.h"
 #include "tools/mocap/board_live.h"
@@ -190,7 +190,7 @@ int run_calibrate_board(Args args) {
   }
   print_result(*result);
   if (!report.empty()) {
-    if (Status s = io::write_text_file(report, boardcal::board_report_json(*result)); !s.ok()) {
+    if (Status s = write_text_file(report, boardcal::board_report_json(*result)); !s.ok()) {
       return cli::fail(s.error());
     }
   }
@@ -198,7 +198,7 @@ int run_calibrate_board(Args args) {
   const auto board_file = std::filesystem::path(out).parent_path() / "board.json";
   std::error_code ec;
   if (!std::filesystem::exists(board_file, ec)) {
-    if (Status s = io::write_text_file(board_file, board->to_json()); s.ok()) {
+    if (Status s = write_text_file(board_file, board->to_json()); s.ok()) {
       std::printf("board description written to %s\n", board_file.c_str());
     }
   }

@@ -24,7 +24,7 @@
 #include "runtime/nn/cpu_ops.h"
 #include "runtime/nn/movenet.h"
 #include "runtime/nn/postprocess.h"
-#include "runtime/nn/tfjs_import.h"
+#include "runtime/nn_import/tfjs_import.h"
 #include "runtime/skeleton/topology.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"

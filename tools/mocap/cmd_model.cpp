@@ -10,7 +10,8 @@
 #include "runtime/nn/model.h"
 #include "runtime/nn/model_file.h"
 #include "runtime/nn/movenet.h"
-#include "runtime/nn/tfjs_import.h"
+#include "runtime/nn_import/movenet_cuts.h"
+#include "runtime/nn_import/tfjs_import.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
 

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "runtime/boardcal/board_detect.h"
+#include "runtime/core/text_scan.h"
 #include "runtime/image/image.h"
-#include "runtime/io/text_scan.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
 
@@ -103,7 +103,7 @@ int run_print_board(Args args) {
   if (pdf) {
     auto bytes = pdf_page(*img, dpi);
     if (!bytes.ok()) return cli::fail(bytes.error());
-    written = io::write_text_file(out, *bytes);
+    written = write_text_file(out, *bytes);
   } else {
     image::ImageRgb8 rgb;
     rgb.width_px = img->width_px;

@@ -13,9 +13,9 @@
 
 #include "runtime/core/clock.h"
 #include "runtime/core/stats.h"
+#include "runtime/core/text_scan.h"
 #include "runtime/eval/quality.h"
 #include "runtime/eval/replay_stats.h"
-#include "runtime/io/text_scan.h"
 #include "runtime/pipeline/sinks.h"
 #include "runtime/skeleton/topology.h"
 #include "tools/common/cli.h"
@@ -260,7 +260,7 @@ int run_replay(Args args) {
   const eval::QualityReport q = quality->finish();
   print_quality(q);
   if (!quality_out.empty()) {
-    if (Status s = io::write_text_file(quality_out, q.to_json() + "\n"); !s.ok())
+    if (Status s = write_text_file(quality_out, q.to_json() + "\n"); !s.ok())
       return cli::fail(s.error());
     std::printf("quality written to %s\n", quality_out.c_str());
   }

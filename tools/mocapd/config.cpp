@@ -1,32 +1,20 @@
 #include "tools/mocapd/config.h"
 
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
-#include <cctype>
-#include <charconv>
-#include <cmath>
-#include <cstdint>
-#include <cstdio>
-#include <cstring>
-#include <fstream>
-#include <sstream>
-#include <type_traits>
 
 #include "runtime/core/log.h"
+#include "runtime/core/param_sources.h"
 #include "runtime/out/vmc_sender.h"
 
 namespace mocap::daemon {
 namespace {
 
-using nlohmann::json;
-
 void append(std::vector<OptionSpec>& v, std::vector<OptionSpec> more) {
   for (OptionSpec& o : more) v.push_back(std::move(o));
 }
 
-std::vector<OptionSpec> make_options() {
-  std::vector<OptionSpec> v;
+// The options in the order --help and docs/mocapd.md list them, a section per function.
+void add_network_and_sources(std::vector<OptionSpec>& v) {
   // Network
   append(v, nested(&DaemonConfig::server, net::StreamServerOptions::params(),
                    {"bind_address", "stream_port", "http_port", "max_clients", "client_backlog_kib",
@@ -65,6 +53,9 @@ std::vector<OptionSpec> make_options() {
   v.push_back(double_param("frame_rate_hz", "Hz", {0, 1000},
                            "capture (and simulator) frame rate; 0 = the board's",
                            &DaemonConfig::frame_rate_hz));
+}
+
+void add_detector_pipeline_and_outputs(std::vector<OptionSpec>& v) {
   // CNN
   v.push_back(
       string_param("model", "path",
@@ -130,6 +121,9 @@ std::vector<OptionSpec> make_options() {
                            &DaemonConfig::vmc_targets));
   append(v, nested(&DaemonConfig::vmc, out::VmcOptions::params(),
                    {"vmc_slots", "vmc_slot_release_s"}));
+}
+
+void add_simulator_and_calibration(std::vector<OptionSpec>& v) {
   // Simulator
   v.push_back(int_param("sim_people", "persons", {0, 16}, "simulator board: people in the scene",
                         &DaemonConfig::sim_people));
@@ -164,6 +158,9 @@ std::vector<OptionSpec> make_options() {
   v.push_back(int_param("self_calibration_frames", "frames", {30, 100000},
                         "frames collected before each self-calibration attempt",
                         &DaemonConfig::self_calibration_frames));
+}
+
+void add_scale_out_and_status(std::vector<OptionSpec>& v) {
   // Scale-out
   v.push_back(
       enum_param("role", "role",
@@ -206,32 +203,18 @@ std::vector<OptionSpec> make_options() {
                            "log levels, e.g. \"*:info,Pipeline:debug\" (MOCAP_LOG syntax); empty = "
                            "MOCAP_LOG or info",
                            &DaemonConfig::log));
+}
+
+std::vector<OptionSpec> make_options() {
+  std::vector<OptionSpec> v;
+  add_network_and_sources(v);
+  add_detector_pipeline_and_outputs(v);
+  add_simulator_and_calibration(v);
+  add_scale_out_and_status(v);
   return v;
 }
 
-std::string upper(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  return s;
-}
-
-const OptionSpec* find_option(std::string_view key) {
-  for (const OptionSpec& o : config_options()) {
-    if (o.key == key) return &o;
-  }
-  return nullptr;
-}
-
-std::string nearest_key(std::string_view key) {
-  // The option sharing the longest prefix, for "did you mean".
-  const OptionSpec* best = nullptr;
-  std::size_t best_len = 0;
-  for (const OptionSpec& o : config_options()) {
-    std::size_t n = 0;
-    while (n < o.key.size() && n < key.size() && o.key[n] == key[n]) ++n;
-    if (n > best_len) best_len = n, best = &o;
-  }
-  return best != nullptr && best_len >= 3 ? " (did you mean \"" + best->key + "\"?)" : "";
-}
+const ParamNaming kNaming{"mocapd", "MOCAPD_", "docs/mocapd.md"};
 
 }  // namespace
 
@@ -240,120 +223,33 @@ const std::vector<OptionSpec>& config_options() {
   return options;
 }
 
-std::string env_name(const OptionSpec& o) {
-  std::string e("MOCAPD_");
-  e += upper(o.key);
-  return e;
-}
-
-std::string flag_name(const OptionSpec& o) {
-  std::string f("--");
-  f += o.key;
-  std::replace(f.begin(), f.end(), '_', '-');
-  return f;
-}
+std::string env_name(const OptionSpec& o) { return param_env(o.key, kNaming); }
+std::string flag_name(const OptionSpec& o) { return param_flag(o.key); }
 
 Status apply_config_file(DaemonConfig& config, const std::string& path) {
-  std::ifstream in(path);
-  if (!in) {
-    return Error(ErrorCode::kNotFound, path + ": cannot open the config file (" +
-                                           std::strerror(errno) + "); check --config");
-  }
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return apply_config_text(config, ss.str(), path);
+  return apply_json_file_params(setters(config_options(), config), path, kNaming);
 }
 
 Status apply_config_text(DaemonConfig& config, std::string_view json_text,
                          const std::string& path) {
-  json j = json::parse(json_text, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded()) {
-    return Error(ErrorCode::kParse, path + ": not valid JSON (docs/mocapd.md has an example)");
-  }
-  if (!j.is_object()) return Error(ErrorCode::kParse, path + ": expected a JSON object");
-  for (auto it = j.begin(); it != j.end(); ++it) {
-    const OptionSpec* o = find_option(it.key());
-    if (o == nullptr) {
-      return Error(ErrorCode::kInvalidArgument, path + ": unknown key \"" + it.key() + "\"" +
-                                                    nearest_key(it.key()) +
-                                                    "; `mocapd --help` lists the options");
-    }
-    const json& v = *it;
-    std::string text;
-    bool type_ok = false;
-    switch (o->type) {
-      case OptionType::kInt:
-        type_ok = v.is_number_integer();
-        if (type_ok) text = v.dump();
-        break;
-      case OptionType::kDouble:
-        type_ok = v.is_number();
-        if (type_ok) text = v.dump();
-        break;
-      case OptionType::kBool:
-        type_ok = v.is_boolean();
-        if (type_ok) text = v.get<bool>() ? "true" : "false";
-        break;
-      case OptionType::kString:
-        type_ok = v.is_string();
-        if (type_ok) text = v.get<std::string>();
-        break;
-    }
-    if (!type_ok) {
-      static const char* names[] = {"an integer", "a number", "true or false", "a string"};
-      return Error(ErrorCode::kInvalidArgument, path + ": key \"" + o->key + "\": expected " +
-                                                    names[static_cast<int>(o->type)] + ", got " +
-                                                    v.dump());
-    }
-    if (Status s = o->set(config, text); !s.ok()) {
-      return Error(ErrorCode::kInvalidArgument,
-                   path + ": key \"" + o->key + "\": " + s.error().message());
-    }
-  }
-  return {};
+  return apply_json_params(setters(config_options(), config), json_text, path, kNaming);
 }
 
 Status apply_environment(DaemonConfig& config, char** env) {
-  if (env == nullptr) return {};
-  for (char** e = env; *e != nullptr; ++e) {
-    std::string_view kv(*e);
-    if (kv.substr(0, 7) != "MOCAPD_") continue;
-    const std::size_t eq = kv.find('=');
-    if (eq == std::string_view::npos) continue;
-    const std::string_view name = kv.substr(0, eq);
-    const OptionSpec* found = nullptr;
-    for (const OptionSpec& o : config_options()) {
-      if (env_name(o) == name) found = &o;
-    }
-    if (found == nullptr) {
-      return Error(ErrorCode::kInvalidArgument,
-                   "environment variable " + std::string(name) +
-                       ": no such option (`mocapd --help` lists the MOCAPD_* variables)");
-    }
-    if (Status s = found->set(config, kv.substr(eq + 1)); !s.ok()) {
-      return Error(ErrorCode::kInvalidArgument,
-                   "environment variable " + std::string(name) + ": " + s.error().message());
-    }
-  }
-  return {};
+  return apply_env_params(setters(config_options(), config), env, kNaming);
 }
 
 Status validate(const DaemonConfig& c) {
   auto err = [](const std::string& m) { return Error(ErrorCode::kInvalidArgument, m); };
-  if (c.server.http_port > 0 && c.server.http_port == c.server.stream_port) {
-    return err("stream_port and http_port are both " + std::to_string(c.server.http_port) +
-               ": give them different ports");
-  }
+  // The structs DaemonConfig holds check themselves (ports, address, VMC ports).
+  if (Status s = c.server.validate(); !s.ok()) return s;
   if (c.loop && c.replay.empty()) return err("loop needs replay (a recording folder)");
   if (!c.vmc_targets.empty()) {
     auto targets = out::parse_vmc_targets(c.vmc_targets);
     if (!targets) return err("vmc_targets: " + targets.error().message());
-    for (const out::VmcTarget& t : *targets) {
-      if (t.base_port + c.vmc.slots - 1 > 65535) {
-        return err("vmc_targets: " + t.text() + " with vmc_slots " + std::to_string(c.vmc.slots) +
-                   " runs past port 65535: lower the port or vmc_slots");
-      }
-    }
+    out::VmcOptions vmc = c.vmc;
+    vmc.targets = *targets;
+    if (Status s = vmc.validate(); !s.ok()) return s;
   }
   if (c.replay_realtime && c.replay.empty()) {
     return err("replay_realtime needs replay (a recording folder)");
@@ -373,66 +269,15 @@ Status validate(const DaemonConfig& c) {
 }
 
 std::string config_to_json(const DaemonConfig& config) {
-  json j = json::object();
-  for (const OptionSpec& o : config_options()) {
-    const std::string v = o.show(config);
-    switch (o.type) {
-      case OptionType::kInt:
-        j[o.key] = std::stoll(v);
-        break;
-      case OptionType::kDouble:
-        // show()'s "%g" text; strtod, not stod, which throws on a subnormal such as 1e-320.
-        j[o.key] = std::strtod(v.c_str(), nullptr);
-        break;
-      case OptionType::kBool:
-        j[o.key] = v == "true";
-        break;
-      case OptionType::kString:
-        j[o.key] = v;
-        break;
-    }
-  }
-  // A string from a flag or an environment variable need not be UTF-8: its bad bytes print
-  // as U+FFFD instead of throwing.
-  return j.dump(2, ' ', false, json::error_handler_t::replace);
+  return params_json(describe(config_options(), config));
 }
 
 std::string options_help(const DaemonConfig& defaults) {
-  std::string out;
-  for (const OptionSpec& o : config_options()) {
-    const std::string def = o.show(defaults);
-    out += "  ";
-    out += flag_name(o);
-    if (o.type != OptionType::kBool) {
-      out += ' ';
-      out += o.unit.empty() ? std::string("VALUE") : upper(o.unit);
-    }
-    out += "\n      ";
-    out += o.help;
-    out += "\n      default: ";
-    out += def.empty() ? std::string("(empty)") : def;
-    if (!o.range.empty())
-      out += "; " + std::string(o.type == OptionType::kString ? "one of " : "range ") + o.range;
-    out += "; config key \"";
-    out += o.key;
-    out += "\"; env ";
-    out += env_name(o);
-    out += '\n';
-  }
-  return out;
+  return params_help(describe(config_options(), defaults), kNaming);
 }
 
 std::string options_markdown(const DaemonConfig& defaults) {
-  std::string out =
-      "| key | flag | environment | unit | range | default | what it does |\n"
-      "|---|---|---|---|---|---|---|\n";
-  for (const OptionSpec& o : config_options()) {
-    const std::string def = o.show(defaults);
-    out += "| `" + o.key + "` | `" + flag_name(o) + "` | `" + env_name(o) + "` | " + o.unit +
-           " | " + o.range + " | " + (def.empty() ? std::string("(empty)") : "`" + def + "`") +
-           " | " + o.help + " |\n";
-  }
-  return out;
+  return params_markdown(describe(config_options(), defaults), kNaming);
 }
 
 Result<CommandLine> parse_command_line(std::span<const std::string_view> args) {
@@ -473,21 +318,19 @@ Result<CommandLine> parse_command_line(std::span<const std::string_view> args) {
       if (!v) return v.error();
       cmd.config_file = *v;
     } else {
-      const OptionSpec* found = nullptr;
-      for (const OptionSpec& o : config_options()) {
-        if (flag_name(o) == a) found = &o;
-      }
-      if (found == nullptr) {
+      auto found = std::find_if(config_options().begin(), config_options().end(),
+                                [&](const OptionSpec& o) { return flag_name(o) == a; });
+      if (found == config_options().end()) {
         return Error(ErrorCode::kInvalidArgument,
                      "unknown option '" + std::string(args[i]) + "' (see mocapd --help)");
       }
       if (found->type == OptionType::kBool && !has_value) {
-        cmd.settings.emplace_back(found, "true");
+        cmd.settings.emplace_back(&*found, "true");
         continue;
       }
       auto v = take_value(a);
       if (!v) return v.error();
-      cmd.settings.emplace_back(found, *v);
+      cmd.settings.emplace_back(&*found, *v);
     }
   }
   return cmd;

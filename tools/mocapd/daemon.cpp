@@ -16,6 +16,7 @@
 #include "hal/gpio/trigger_line.h"
 #include "hal/rig_source.h"
 #include "runtime/assoc/options.h"
+#include "runtime/box/calibration_choice.h"
 #include "runtime/box/camera_views.h"
 #include "runtime/core/clock.h"
 #include "runtime/core/log.h"
@@ -23,6 +24,7 @@
 #include "runtime/net/json_reply.h"
 #include "runtime/net/stream_server.h"
 #include "runtime/net/token_file.h"
+#include "runtime/nn_import/tfjs_import.h"
 #include "runtime/sim/simulator_source.h"
 #include "runtime/skeleton/topology.h"
 #include "tools/common/allocator.h"
@@ -40,34 +42,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-// Puts the cameras in calibration order: by name when every calibrated view names a found
-// camera (its id or its name), else in discovery order. false when the counts differ.
-bool match_calibration(const Calibration& calib, std::vector<hal::FoundCamera>& cams,
-                       std::string& how) {
-  if (calib.size() != cams.size()) return false;
-  std::vector<hal::FoundCamera> ordered;
-  for (const Camera& c : calib.cameras) {
-    auto it = std::find_if(cams.begin(), cams.end(), [&](const hal::FoundCamera& f) {
-      return !c.name().empty() && (f.description.id == c.name() || f.description.name == c.name());
-    });
-    if (it == cams.end()) break;
-    ordered.push_back(*it);
-  }
-  if (ordered.size() == cams.size()) {
-    cams = std::move(ordered);
-    how = "by camera name";
-  } else {
-    how = "in discovery order (the calibration's views have no names matching the cameras)";
-  }
-  return true;
-}
-
-std::string camera_ids(const hal::Discovery& disc) {
-  std::string ids;
-  for (const auto& c : disc.cameras) ids += (ids.empty() ? "" : ", ") + c.description.id;
-  return ids;
-}
 
 // What to do about a missing or unusable calibration.
 std::string calibration_fix(const DaemonConfig& c) {
@@ -263,61 +237,23 @@ Status Daemon::open_simulator(double rate_hz) {
                      "(the simulator's virtual rig)");
 }
 
-// The calibration named, else the state folder's, else the board's. A named one that cannot be
-// used is an error (set in `error`); a found one that cannot is a problem with its fix, and the
-// cameras stream 2D detections.
-std::optional<Calibration> Daemon::choose_calibration(hal::Discovery& disc,
-                                                      const fs::path& board_dir, Status& error,
-                                                      std::string& file) {
-  std::vector<std::pair<fs::path, bool>> candidates;  // path, named explicitly
-  if (!config_.calibration.empty()) {
-    candidates.emplace_back(config_.calibration, true);
-  } else {
-    candidates.emplace_back(fs::path(config_.state_dir) / "calibration.json", false);
-    if (disc.board.calibration) {
-      candidates.emplace_back(board_dir / disc.board_name / *disc.board.calibration, false);
-    }
-  }
-  const std::string ids = camera_ids(disc);
-  const std::string fix = calibration_fix(config_);
-  for (const auto& [path, explicit_] : candidates) {
-    std::error_code ec;
-    if (!explicit_ && !fs::exists(path, ec)) continue;
-    Result<Calibration> c = load_calibration(path);
-    file = path.string();
-    if (!c.ok()) {
-      if (explicit_) error = c.error();
-      lifecycle_->set_uncalibrated(CalibrationState::kInvalid, file);
-      add_problem(box::ProblemCode::kCalibrationInvalid,
-                  "calibration " + c.error().message() + ": cameras " + ids +
-                      " stream 2D detections only; fix it: " + fix,
-                  fix);
-      return std::nullopt;
-    }
-    std::string how;
-    if (!match_calibration(*c, disc.cameras, how)) {
-      const std::string m = path.string() + " has " + std::to_string(c->size()) + " views but " +
-                            std::to_string(disc.cameras.size()) + " cameras were found (" + ids +
-                            ")";
-      if (explicit_) error = Error(ErrorCode::kInvalidArgument, m);
-      lifecycle_->set_uncalibrated(CalibrationState::kMismatch, file);
-      add_problem(box::ProblemCode::kCalibrationMismatch,
-                  m + ": streaming 2D detections only; " + fix, fix);
-      return std::nullopt;
-    }
-    MOCAP_LOG(Daemon, Info) << "calibration " << path.string() << ": cameras matched " << how;
-    return std::move(*c);
-  }
-  add_problem(box::ProblemCode::kCalibrationMissing,
-              "cameras " + ids + " have no calibration: streaming 2D detections only; " + fix, fix);
-  return std::nullopt;
-}
-
 Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, double rate_hz) {
-  Status error;
-  std::string file;
-  std::optional<Calibration> calibration = choose_calibration(disc, board_dir, error, file);
-  if (!error.ok()) return error;
+  std::vector<box::FoundCameraName> found;
+  for (const hal::FoundCamera& c : disc.cameras)
+    found.push_back({c.description.id, c.description.name});
+  const box::CalibrationSearch search{
+      config_.calibration, fs::path(config_.state_dir) / "calibration.json",
+      disc.board.calibration ? board_dir / disc.board_name / *disc.board.calibration : fs::path(),
+      calibration_fix(config_)};
+  auto chosen = box::choose_calibration(search, found, *lifecycle_, problems_);
+  if (!chosen.ok()) return chosen.error();
+  std::optional<Calibration> calibration = std::move(chosen->calibration);
+  const std::string file = chosen->file;
+  if (calibration) {  // the cameras in calibration order
+    std::vector<hal::FoundCamera> ordered;
+    for (std::size_t i : chosen->camera_order) ordered.push_back(disc.cameras[i]);
+    disc.cameras = std::move(ordered);
+  }
   hal::RigSourceOptions ro;
   ro.frame_rate_hz = rate_hz;
   ro.external_trigger = disc.board.trigger.mode != hal::SyncMode::kSoftware;
@@ -363,7 +299,7 @@ Status Daemon::open_cameras(hal::Discovery& disc, const fs::path& board_dir, dou
         ids.push_back(static_cast<int>(v));
         priors.push_back({std::to_string(v), 0, 0, std::nullopt});
       }
-      lifecycle_->start_self_calibration(ids, priors, "cameras " + camera_ids(disc));
+      lifecycle_->start_self_calibration(ids, priors, "cameras " + box::camera_ids(found));
     }
     return {};
   }
@@ -413,6 +349,7 @@ Status Daemon::open_cnn(int views, const std::string& preferred_gpu,
                         const std::vector<Camera>& sized_views) {
   gpu::CnnOptions o;
   o.model = config_.model.empty() ? tools::default_model_path() : fs::path(config_.model);
+  o.model_reader = nn::tfjs_reader();  // a model.json is accepted too (docs/mocapd.md)
   o.backend = config_.gpu;
   o.device = config_.gpu_device.empty() ? preferred_gpu : config_.gpu_device;
   o.input_size_px = config_.input_size_px;
@@ -440,8 +377,7 @@ Status Daemon::open_cnn(int views, const std::string& preferred_gpu,
   return adopt_cnn(std::move(*det), o);
 }
 
-// The opened CNN as the pipeline's detector, behind a RecoveringDetector: when its GPU is lost
-// it is opened again with the same options, on the CPU when the GPU cannot be (/health: gpu).
+// The opened CNN as the pipeline's detector, recovering from a lost GPU (/health: gpu).
 Status Daemon::adopt_cnn(std::unique_ptr<gpu::CnnDetector> first, const gpu::CnnOptions& options) {
   crops_off_reason_ = first->crops_off_reason();
   if (!crops_off_reason_.empty()) {
@@ -453,16 +389,7 @@ Status Daemon::adopt_cnn(std::unique_ptr<gpu::CnnDetector> first, const gpu::Cnn
     add_problem(box::ProblemCode::kCnnOnCpu,
                 "the CNN runs on the CPU: " + first->fallback_reason());
   }
-  auto pending = std::make_shared<std::unique_ptr<gpu::CnnDetector>>(std::move(first));
-  auto opener = [pending, options](bool cpu_only) -> Result<std::unique_ptr<pipeline::Detector>> {
-    if (*pending) return std::unique_ptr<pipeline::Detector>(std::move(*pending));
-    gpu::CnnOptions o = options;
-    if (cpu_only) o.backend = gpu::BackendRequest::kCpu;
-    auto d = gpu::CnnDetector::open(o);
-    if (!d.ok()) return d.error();
-    return std::unique_ptr<pipeline::Detector>(std::move(*d));
-  };
-  auto rd = pipeline::RecoveringDetector::open(std::move(opener));
+  auto rd = gpu::recovering_cnn(std::move(first), options);
   if (!rd.ok()) return rd.error();
   detector_ = std::move(*rd);
   return {};

@@ -133,9 +133,6 @@ class Daemon {
   Result<Calibration> fusion_calibration(const SkeletonTopology*& topology, std::string& file);
   Status join_stage(double rate_hz);
   Status open_cameras(hal::Discovery& disc, const std::filesystem::path& board_dir, double rate_hz);
-  std::optional<Calibration> choose_calibration(hal::Discovery& disc,
-                                                const std::filesystem::path& board_dir,
-                                                Status& error, std::string& file);
   Status open_trigger(const hal::Discovery& disc, double rate_hz);
   // sized_views: the calibrated views (their frame size shapes the input); empty = unknown.
   Status open_cnn(int views, const std::string& preferred_gpu,

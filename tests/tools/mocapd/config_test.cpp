@@ -86,6 +86,10 @@ TEST(DaemonConfig, BadValuesNameTheSourceAndTheKey) {
                {"stream_port and http_port", "9000"});
   expect_error(load({"--loop"}), {"loop needs replay"});
   expect_error(load({"--log", "Net:loud"}), {"log", "loud"});
+  // The server's and VMC's own validate() at load, not at start.
+  expect_error(load({"--bind-address", "box.local"}), {"bind_address 'box.local'", "IPv4"});
+  expect_error(load({"--vmc", "127.0.0.1:65530", "--vmc-slots", "8"}),
+               {"127.0.0.1:65530", "65535", "vmc_slots"});
 }
 
 TEST(DaemonConfig, ChoicesBecomeEnumsAtTheBoundary) {

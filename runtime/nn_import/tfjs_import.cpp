@@ -1,4 +1,4 @@
-#include "runtime/nn/tfjs_import.h"
+#include "runtime/nn_import/tfjs_import.h"
 
 #include <algorithm>
 #include <array>
@@ -1626,6 +1626,10 @@ Result<Model> import_tfjs(const std::filesystem::path& model_json,
 Result<Model> load_model(const std::filesystem::path& path, const TfjsImportOptions& options) {
   if (path.extension() == ".json") return import_tfjs(path, options);
   return read_model_file(path);
+}
+
+ModelReader tfjs_reader() {
+  return [](const std::filesystem::path& path) { return load_model(path); };
 }
 
 }  // namespace mocap::nn

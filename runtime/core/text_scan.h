@@ -1,6 +1,5 @@
-// Helpers shared by the whitespace-separated text loaders of runtime/io (Shelf detections,
-// Shelf ground truth): whole-file reading/writing and a fast tokenizer. Not a public API of
-// the pipeline; other areas should use the loaders instead.
+// Whole-file reading and writing of text, and a fast tokenizer for whitespace-separated numbers:
+// the dataset loaders (runtime/io), the calibration's reports, take files and the tools use it.
 #pragma once
 
 #include <cstddef>
@@ -11,7 +10,7 @@
 
 #include "runtime/core/error.h"
 
-namespace mocap::io {
+namespace mocap {
 
 // Reads a whole file into memory. kNotFound when it does not exist, kIo when it cannot be
 // opened or read, kInvalidArgument when it is larger than `max_bytes`.
@@ -71,4 +70,4 @@ class TextScanner {
 // A readable reason for a failed read, quoting the offending token.
 std::string describe(ScanStatus status, const TextScanner& scan);
 
-}  // namespace mocap::io
+}  // namespace mocap

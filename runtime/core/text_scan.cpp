@@ -1,4 +1,4 @@
-#include "runtime/io/text_scan.h"
+#include "runtime/core/text_scan.h"
 
 #include <charconv>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <new>
 #include <system_error>
 
-namespace mocap::io {
+namespace mocap {
 namespace {
 
 constexpr bool is_space(char c) {
@@ -171,4 +171,4 @@ std::string describe(ScanStatus status, const TextScanner& scan) {
   return "unknown scan status";
 }
 
-}  // namespace mocap::io
+}  // namespace mocap

@@ -31,6 +31,7 @@
 
 #include "runtime/core/error.h"
 #include "runtime/nn/model.h"
+#include "runtime/nn/model_file.h"
 
 namespace mocap::nn {
 
@@ -66,5 +67,9 @@ Result<Model> import_tfjs(const std::filesystem::path& model_json,
 // model file (runtime/nn/model_file.h), told apart by the ".json" extension. `options` apply to
 // a model.json only.
 Result<Model> load_model(const std::filesystem::path& path, const TfjsImportOptions& options = {});
+
+// load_model with the whole graph, as a ModelReader for the detector (gpu::CnnOptions::
+// model_reader): programs that link the importer accept a model.json wherever a model is asked.
+ModelReader tfjs_reader();
 
 }  // namespace mocap::nn
