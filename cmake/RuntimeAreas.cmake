@@ -60,9 +60,10 @@ set(runtime_appliance_libraries mocap_core mocap_solver mocap_calib mocap_detect
     mocap_net mocap_outputs mocap_box)
 
 # mocap_runtime_library_table(): for each library L of runtime_libraries, sets in the caller
-# mocap_library_areas_<L> (its areas) and mocap_library_uses_<L> (the libraries it may use),
-# and mocap_library_names (all, lowest first); fails when a library uses one declared after it
-# or an area is in no library or in two.
+# mocap_library_areas_<L> (its areas), mocap_library_uses_<L> (the libraries it may use) and
+# mocap_library_below_<L> (those and the libraries below them), and mocap_library_names (all,
+# lowest first); fails when a library uses one declared after it or an area is in no library
+# or in two.
 function(mocap_runtime_library_table)
   set(names "")
   foreach(entry IN LISTS runtime_libraries)
@@ -109,8 +110,14 @@ function(mocap_runtime_library_table)
       endif()
     endforeach()
     list(APPEND before ${lib})
+    set(below_${lib} "")
+    foreach(u IN LISTS uses_${lib})
+      list(APPEND below_${lib} ${u} ${below_${u}})
+    endforeach()
+    list(REMOVE_DUPLICATES below_${lib})
     set(mocap_library_areas_${lib} "${areas_${lib}}" PARENT_SCOPE)
     set(mocap_library_uses_${lib} "${uses_${lib}}" PARENT_SCOPE)
+    set(mocap_library_below_${lib} "${below_${lib}}" PARENT_SCOPE)
   endforeach()
   set(mocap_library_names "${names}" PARENT_SCOPE)
 endfunction()

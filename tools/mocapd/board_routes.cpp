@@ -14,10 +14,10 @@
 // on its own thread.
 #include <charconv>
 #include <filesystem>
-#include <fstream>
 
 #include "runtime/assoc/engine.h"
 #include "runtime/boardcal/board_capture.h"
+#include "runtime/core/atomic_file.h"
 #include "runtime/core/log.h"
 #include "runtime/net/json_reply.h"
 #include "tools/mocapd/daemon.h"
@@ -162,10 +162,12 @@ net::HttpReply Daemon::save_board_calibration() {
   if (Status s = calib::write_calibration_durably(result->calibration, path); !s.ok()) {
     return error_reply(500, "the board calibration was not saved: " + s.error().message());
   }
-  {  // The board's description beside it (read again by a later `mocap calibrate board`).
-    const fs::path board_file = path.parent_path() / "board.json";
-    std::ofstream f(board_file);
-    f << cap->board().to_json();
+  // The board's description beside it (read again by a later `mocap calibrate board`), whole or
+  // not at all; the calibration is saved either way.
+  const fs::path board_file = path.parent_path() / "board.json";
+  if (Status s = write_file_atomically(board_file, cap->board().to_json(), Durability::kDurable);
+      !s.ok()) {
+    MOCAP_LOG(Daemon, Warn) << "board calibration: " << s.error().message();
   }
   {
     std::lock_guard<std::mutex> lock(board_mu_);
