@@ -6,11 +6,12 @@
 #include <cctype>
 #include <cerrno>
 #include <cstdlib>
-#include <cstring>
 #include <fstream>
 #include <optional>
 #include <sstream>
 #include <utility>
+
+#include "runtime/core/atomic_file.h"
 
 namespace mocap {
 namespace {
@@ -161,7 +162,7 @@ Status apply_json_file_params(std::span<const ParamSetter> params, const std::st
   std::ifstream in(path);
   if (!in) {
     return Error(ErrorCode::kNotFound, path + ": cannot open the config file (" +
-                                           std::strerror(errno) + "); check --config");
+                                           errno_text(errno) + "); check --config");
   }
   std::stringstream text;
   text << in.rdbuf();

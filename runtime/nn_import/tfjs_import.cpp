@@ -1624,8 +1624,8 @@ Result<Model> import_tfjs(const std::filesystem::path& model_json,
 }
 
 Result<Model> load_model(const std::filesystem::path& path, const TfjsImportOptions& options) {
-  if (path.extension() == ".json") return import_tfjs(path, options);
-  return read_model_file(path);
+  return read_model(
+      path, [&options](const std::filesystem::path& json) { return import_tfjs(json, options); });
 }
 
 ModelReader tfjs_reader() {
