@@ -20,9 +20,10 @@ for spec in "$@"; do
   archive=${rest#*=}
   [[ -f $archive ]] || { echo "check_link_graph: $lib: no archive $archive (build it first)"; exit 2; }
   echo "$lib $allowed" >>"$work/allowed"
-  # POSIX format: "archive[member.o]:" headers, then "symbol type value size" lines.
+  # POSIX format: a member header ("archive[member.o]:" from GNU nm, "member.o:" from llvm-nm),
+  # then "symbol type value size" lines.
   "$nm_tool" -P -g "$archive" | awk -v lib="$lib" -v def="$work/defined" -v undef="$work/undefined" '
-    /\]:$/ { member = $1; sub(/.*\[/, "", member); sub(/\]:$/, "", member); next }
+    NF == 1 && /:$/ { member = $1; sub(/.*\[/, "", member); sub(/\]?:$/, "", member); next }
     $1 !~ /5mocap/ { next }
     $2 == "U" { print lib, member, $1 >> undef; next }
     $2 ~ /^[TtWVDdBbRrSsGgu]$/ { print lib, $1 >> def }'
@@ -50,6 +51,10 @@ awk -v allowed_file="$work/allowed" -v def_file="$work/defined" '
   }' "$work/undefined" | sort -u >"$work/bad"
 libs=$#
 symbols=$(wc -l <"$work/undefined")
+if ((symbols == 0)); then
+  echo "check_link_graph: read no undefined mocap:: symbol from the archives ($nm_tool output not understood?)"
+  exit 2
+fi
 if [[ -s $work/bad ]]; then
   count=$(wc -l <"$work/bad")
   # Names demangled for the reader (the check itself compares mangled names).
