@@ -32,10 +32,11 @@ std::string default_take_name() {
   return buf;
 }
 
+// A take's state as /health and the replies show it. Its folder only in the replies to the
+// actions (which needed the token): /health and GET /takes are open to the network.
 json take_json(const out::TakeWriter& t) {
   return {
       {"name", t.dir().filename().string()},
-      {"dir", t.dir().string()},
       {"frames", t.frames()},
       {"bytes", t.bytes()},
       {"status", to_string(t.stopped() ? out::TakeStatus::kStopped : out::TakeStatus::kRecording)},
@@ -126,9 +127,9 @@ std::optional<net::HttpReply> Outputs::handle(const net::HttpRequest& req) {
   } else {
     return error_reply(500, takes.error().message());
   }
+  // Reading is open to the network: the box's folders are not named (actions' replies do).
   json body = take_health(ignored);
   body["takes"] = list;
-  body["dir"] = takes_dir_;
   return json_reply(200, body);
 }
 
@@ -194,7 +195,9 @@ net::HttpReply Outputs::start_take(std::string name) {
   if (take_) (void)take_->finish(unix_now_ns());  // a take stopped on an error: already saved
   take_ = std::move(*t);
   MOCAP_LOG(Outputs, Info) << "take " << take_->dir().string() << " started";
-  return json_reply(201, take_json(*take_));
+  json reply = take_json(*take_);
+  reply["dir"] = take_->dir().string();
+  return json_reply(201, reply);
 }
 
 net::HttpReply Outputs::stop_take() {
@@ -209,6 +212,7 @@ net::HttpReply Outputs::stop_take() {
   MOCAP_LOG(Outputs, Info) << "take " << take_->dir().string() << " ended: " << take_->frames()
                            << " frames";
   if (exports_) exports_->request(take_->dir());
+  j["dir"] = take_->dir().string();
   take_.reset();
   return json_reply(200, j);
 }
@@ -226,7 +230,6 @@ void Outputs::finish() {
 json Outputs::take_health(std::vector<std::string>& problems) const {
   std::lock_guard lock(take_mu_);
   json j;
-  j["dir"] = takes_dir_;
   j["recording"] = take_ && !take_->stopped() ? json(take_->dir().filename().string()) : json();
   if (take_) {
     j["current"] = take_json(*take_);

@@ -78,7 +78,9 @@ std::string_view to_string(Role role) {
 }
 
 json calibration_json(const CalibrationReport& r) {
-  json c = {{"state", std::string(to_string(r.state))}, {"file", r.file}, {"views", r.views}};
+  json c = {{"state", std::string(to_string(r.state))},
+            {"file", std::filesystem::path(r.file).filename().string()},
+            {"views", r.views}};
   if (r.progress) c["progress"] = progress_json(*r.progress);
   if (r.checks) {
     json checks = json::array();
@@ -123,10 +125,17 @@ json health_json(const BoxStatus& s) {
   j["persons"] = s.pipeline.persons;
   if (s.stream) {
     const net::ServerStats& st = s.stream->stats;
-    j["stream"] = {{"port", s.stream->stream_port},     {"http_port", s.stream->http_port},
-                   {"clients", st.stream_clients},      {"websocket_clients", st.websocket_clients},
-                   {"dropped_slow", st.dropped_slow},   {"dropped_bad_input", st.dropped_bad_input},
-                   {"rejected_full", st.rejected_full}, {"messages", st.messages_published},
+    j["stream"] = {{"port", s.stream->stream_port},
+                   {"http_port", s.stream->http_port},
+                   {"clients", st.stream_clients},
+                   {"websocket_clients", st.websocket_clients},
+                   {"dropped_slow", st.dropped_slow},
+                   {"dropped_bad_input", st.dropped_bad_input},
+                   {"rejected_full", st.rejected_full},
+                   {"messages", st.messages_published},
+                   {"rejected_per_address", st.rejected_per_address},
+                   {"forbidden", st.forbidden},
+                   {"locked", st.locked},
                    {"backlog_bytes", st.backlog_bytes}};
   }
   if (s.trigger) {

@@ -99,12 +99,18 @@ void server_metrics(Exposition& e, const net::ServerStats& s) {
   e.sample("mocap_clients_dropped_total", static_cast<double>(s.dropped_bad_input),
            label("reason", "bad_input"));
   e.sample("mocap_clients_dropped_total", static_cast<double>(s.rejected_full),
-           label("reason", "max_clients"));
+           label("reason", "budget"));
+  e.sample("mocap_clients_dropped_total", static_cast<double>(s.rejected_per_address),
+           label("reason", "per_address"));
   e.single("mocap_http_requests_total", "counter", "HTTP requests answered.",
            static_cast<double>(s.http_requests));
   e.family("mocap_http_refused_total", "counter",
-           "Requests refused by access control: unauthorized (401, no or a wrong token) and "
-           "throttled (429, too many wrong tokens from one address).");
+           "Requests refused: unauthorized (401, no or a wrong token), throttled (429, too "
+           "many wrong tokens like it from one address), forbidden (403, a foreign Host or "
+           "Origin) and locked (503, the box has no usable token).");
+  e.sample("mocap_http_refused_total", static_cast<double>(s.forbidden),
+           label("reason", "forbidden"));
+  e.sample("mocap_http_refused_total", static_cast<double>(s.locked), label("reason", "locked"));
   e.sample("mocap_http_refused_total", static_cast<double>(s.unauthorized),
            label("reason", "unauthorized"));
   e.sample("mocap_http_refused_total", static_cast<double>(s.throttled),

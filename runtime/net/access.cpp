@@ -10,7 +10,14 @@ constexpr std::size_t kMaxTrackedAddresses = 4096;
 constexpr std::string_view kBearer = "bearer ";
 constexpr std::string_view kProtocolPrefix = "mocap-token.";
 
+constexpr std::size_t kThrottlePrefix = 8;
+
 bool is_token_char(char c) { return c > ' ' && c < 0x7f; }
+
+// Whose guesses are counted together: one address, one token prefix.
+std::string throttle_key(std::string_view presented, const std::string& address) {
+  return address + "|" + std::string(presented.substr(0, kThrottlePrefix));
+}
 
 }  // namespace
 
@@ -33,7 +40,7 @@ Status AccessOptions::validate() const {
   if (failure_window_s < 1 || failure_window_s > 3600) {
     return bad("failure_window_s " + std::to_string(failure_window_s) + " is outside [1, 3600]");
   }
-  if (token.empty() && token_for_reading) {
+  if (token.empty() && token_for_reading && locked_reason.empty()) {
     return bad("token_for_reading needs a token (it is made in the state folder on first start)");
   }
   return Status::Ok();
@@ -87,9 +94,15 @@ Access AccessGuard::check(const HttpRequest& req, Clock::time_point now) {
 
 Access AccessGuard::check_token(std::string_view presented, const std::string& address,
                                 Clock::time_point now) {
+  if (locked()) return Access::kLocked;
   if (!enabled()) return Access::kAllowed;
+  if (presented.empty()) {  // no guess: nothing to throttle
+    ++stats_.unauthorized;
+    return Access::kUnauthorized;
+  }
+  const std::string key = throttle_key(presented, address);
   const auto window = std::chrono::seconds(options_.failure_window_s);
-  auto it = failures_.find(address);
+  auto it = failures_.find(key);
   if (it != failures_.end() && now - it->second.window_start >= window) {
     failures_.erase(it);
     it = failures_.end();
@@ -98,9 +111,7 @@ Access AccessGuard::check_token(std::string_view presented, const std::string& a
     ++stats_.throttled;  // not compared: guessing stops here
     return Access::kThrottled;
   }
-  if (!presented.empty() && constant_time_equal(presented, options_.token)) {
-    return Access::kAllowed;
-  }
+  if (constant_time_equal(presented, options_.token)) return Access::kAllowed;
   ++stats_.unauthorized;
   if (it == failures_.end()) {
     if (failures_.size() >= kMaxTrackedAddresses) {  // forget the oldest window
@@ -109,14 +120,15 @@ Access AccessGuard::check_token(std::string_view presented, const std::string& a
       });
       failures_.erase(oldest);
     }
-    it = failures_.emplace(address, Failures{now, 0}).first;
+    it = failures_.emplace(key, Failures{now, 0}).first;
   }
   ++it->second.count;
   return Access::kUnauthorized;
 }
 
-int AccessGuard::retry_after_s(const std::string& address, Clock::time_point now) const {
-  const auto it = failures_.find(address);
+int AccessGuard::retry_after_s(std::string_view presented, const std::string& address,
+                               Clock::time_point now) const {
+  const auto it = failures_.find(throttle_key(presented, address));
   if (it == failures_.end() || it->second.count < options_.max_failures) return 0;
   const auto left =
       std::chrono::seconds(options_.failure_window_s) - (now - it->second.window_start);

@@ -213,7 +213,20 @@ std::string http_head(int code, std::string_view content_type, std::uint64_t con
   out += content_type;
   out += "\r\nContent-Length: " + std::to_string(content_length) + "\r\n";
   out += "Cache-Control: no-store\r\nConnection: close\r\n";
-  for (const auto& [name, value] : headers) out += name + ": " + value + "\r\n";
+  // Every answer: never framed (clickjacking of the page's buttons), never sniffed into another
+  // type, no referrer; a page that needs more than nothing brings its own policy.
+  out += "X-Frame-Options: DENY\r\nX-Content-Type-Options: nosniff\r\n";
+  out += "Referrer-Policy: no-referrer\r\n";
+  bool own_policy = false;
+  for (const auto& [name, value] : headers) {
+    own_policy = own_policy || lower(name) == "content-security-policy";
+    out += name + ": " + value + "\r\n";
+  }
+  if (!own_policy) {
+    out += "Content-Security-Policy: ";
+    out += kDefaultSecurityPolicy;
+    out += "\r\n";
+  }
   out += "\r\n";
   return out;
 }

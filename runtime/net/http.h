@@ -48,8 +48,12 @@ std::size_t find_head_end(std::string_view buf, std::size_t from);
 std::optional<std::string> percent_decode(std::string_view v);
 
 std::string_view reason_phrase(int code);
-// Status line and headers (Content-Length: content_length; no-store; Connection: close), then
-// `body`.
+// The content security policy of an answer that brings none: nothing loads, nothing frames it.
+inline constexpr std::string_view kDefaultSecurityPolicy =
+    "default-src 'none'; frame-ancestors 'none'";
+// Status line and headers (Content-Length: content_length; no-store; Connection: close; the
+// security headers: X-Frame-Options DENY, nosniff, no referrer, kDefaultSecurityPolicy unless
+// `headers` has a Content-Security-Policy), then `body`.
 std::string http_head(int code, std::string_view content_type, std::uint64_t content_length,
                       const std::vector<std::pair<std::string, std::string>>& headers = {});
 std::string http_response(int code, std::string_view content_type, std::string_view body,

@@ -9,10 +9,12 @@
 
 namespace mocap::net {
 
+// Text that is not UTF-8 (a client's bytes echoed in an error) becomes U+FFFD instead of an
+// exception.
 inline HttpReply json_reply(int status, const nlohmann::json& body) {
   HttpReply r;
   r.status = status;
-  r.body = body.dump();
+  r.body = body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   return r;
 }
 

@@ -29,9 +29,25 @@ std::vector<Param<StreamServerOptions>> make_params() {
                 "HTTP port: GET /health (status JSON), GET /stream (WebSocket); 0 = any free "
                 "port, -1 = off",
                 &O::http_port),
-      int_param("max_clients", "connections", {1, 4096},
-                "most simultaneous stream, WebSocket and HTTP connections; more are refused",
-                &O::max_clients),
+      int_param("max_stream_clients", "connections", {1, 4096},
+                "most clients of the stream port at once; more are refused",
+                &O::max_stream_clients),
+      int_param("max_websocket_clients", "connections", {1, 4096},
+                "most WebSocket clients (pages, bridges) at once; more get 503",
+                &O::max_websocket_clients),
+      int_param("max_http_connections", "connections", {1, 4096},
+                "most HTTP requests being answered at once (the box itself has 16 more, so "
+                "`curl localhost:8080/health` on the box always gets through)",
+                &O::max_http_connections),
+      int_param("max_connections_per_address", "connections", {1, 4096},
+                "most connections of all kinds from one address (not 127.0.0.1): one client "
+                "cannot take every slot",
+                &O::max_connections_per_address),
+      string_param("allowed_hosts", "names",
+                   "comma-separated host names the box answers to besides its own host name, "
+                   "addresses and localhost (the name of a proxy in front of it); any other Host "
+                   "or page Origin gets 403",
+                   &O::allowed_hosts),
       kib_param("client_backlog_kib", {4, 1048576},
                 "unsent data a client may fall behind by before it is dropped (a slow client "
                 "never stalls the pipeline)",
@@ -43,6 +59,27 @@ std::vector<Param<StreamServerOptions>> make_params() {
 }
 
 }  // namespace
+
+ConnectionBudgets StreamServerOptions::budgets() const {
+  ConnectionBudgets b;
+  b.max_stream_clients = max_stream_clients;
+  b.max_websocket_clients = max_websocket_clients;
+  b.max_http_connections = max_http_connections;
+  b.max_connections_per_address = max_connections_per_address;
+  return b;
+}
+
+std::vector<std::string> StreamServerOptions::allowed_host_list() const {
+  std::vector<std::string> out;
+  std::string_view rest = allowed_hosts;
+  while (!rest.empty()) {
+    const std::size_t comma = rest.find(',');
+    const std::string_view item = trim(rest.substr(0, comma));
+    if (!item.empty()) out.emplace_back(item);
+    rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
+  }
+  return out;
+}
 
 const std::vector<Param<StreamServerOptions>>& StreamServerOptions::params() {
   static const std::vector<Param<StreamServerOptions>> p = make_params();
@@ -62,6 +99,13 @@ Status StreamServerOptions::validate() const {
     return invalid_argument("stream server", "stream_port and http_port are both " +
                                                  std::to_string(stream_port) +
                                                  ": give them different ports");
+  }
+  for (const std::string& h : allowed_host_list()) {
+    if (host_of(h).empty()) {
+      return invalid_argument("stream server", "allowed_hosts: '" + h +
+                                                   "' is not a host name or address (e.g. "
+                                                   "mocap.studio.example, 10.0.0.5)");
+    }
   }
   if (max_request_bytes < 256 || max_request_bytes > (std::size_t{1} << 20)) {
     return invalid_argument(

@@ -2,6 +2,7 @@
 
 #include <arpa/inet.h>
 #include <fcntl.h>
+#include <malloc.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <poll.h>
@@ -23,6 +24,7 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -48,7 +50,18 @@ constexpr auto kRequestTimeout = std::chrono::seconds(10);     // the whole HTTP
 constexpr auto kFlushTimeout = std::chrono::seconds(10);       // sending the last answer
 constexpr auto kLingerTimeout = std::chrono::seconds(2);       // reading after our FIN
 constexpr auto kAcceptPause = std::chrono::milliseconds(100);  // after EMFILE/ENFILE
+// A stream or WebSocket client that takes nothing for this long while data waits is dropped,
+// whatever its backlog: a held slot must be a reading client.
+constexpr auto kStallTimeout = std::chrono::seconds(30);
+// What a subscriber may send: a browser's WebSocket sends nothing but a rare ping, a stream
+// client its token line. Over this (a token bucket per connection) it is closed and its
+// address refused for kFloodCooldown: a ping flood cost the poll thread a core (666 MB/s).
+constexpr double kInputBytesPerS = 64 * 1024;
+constexpr double kInputBurstBytes = 2 * 1024 * 1024;
+constexpr auto kFloodCooldown = std::chrono::seconds(10);
+constexpr std::size_t kMaxCooldowns = 4096;
 constexpr std::uint16_t kWsProtocolError = 1002;
+constexpr std::uint16_t kWsPolicyViolation = 1008;
 
 // ------------------------------------------------------------------------------ connections
 
@@ -72,6 +85,7 @@ enum class Phase {
 struct OutItem {
   std::shared_ptr<const std::string> bytes;
   bool counted = false;  // part of the outbox backlog (published messages)
+  bool pong = false;
 };
 
 // Owned by the poll thread.
@@ -83,7 +97,7 @@ struct Connection {
     if (fd >= 0) ::close(fd);
     if (file_fd >= 0) ::close(file_fd);
   }
-  bool has_output() const { return !out.empty() || file_fd >= 0; }
+  bool has_output() const { return !out.empty() || file_fd >= 0 || pong; }
 
   int fd = -1;
   Phase phase = Phase::kStream;
@@ -97,10 +111,31 @@ struct Connection {
   std::size_t counted_sent = 0;    // counted bytes sent since the last sync
   bool peer_closed = false;        // read EOF
   bool dead = false;               // close at the next sync
-  bool dropped_slow = false;       // for the log line
+  bool dropped_slow = false;       // for the log line: over its backlog
+  bool stalled = false;            // for the log line: took nothing for kStallTimeout
+  bool pong_queued = false;        // a pong is in `out`, not yet wholly sent
   std::shared_ptr<Outbox> outbox;  // stream and WebSocket clients
   std::optional<Clock::time_point> deadline;
+  // The pong for the latest unanswered ping, sent at the next frame boundary. Pings coming
+  // faster than the client reads replace it (RFC 6455 5.5.3): a ping flood holds one pong.
+  std::optional<std::string> pong;
+  bool head_only = false;  // a HEAD request: its answer without the body
+  // The input token bucket of a subscriber (kInputBytesPerS, kInputBurstBytes).
+  double input_allowance = kInputBurstBytes;
+  Clock::time_point input_checked{};
 };
+
+ClientKind client_kind(const Connection& c) {
+  switch (c.phase) {
+    case Phase::kStream:
+    case Phase::kStreamAuth:
+      return ClientKind::kStream;
+    case Phase::kWebSocket:
+      return ClientKind::kWebSocket;
+    default:
+      return ClientKind::kHttp;
+  }
+}
 
 const char* kind_name(const Connection& c) {
   switch (c.phase) {
@@ -201,6 +236,10 @@ struct StreamServer::Impl {
   struct Counters {
     std::uint64_t accepted = 0;
     std::uint64_t rejected_full = 0;
+    std::uint64_t rejected_per_address = 0;
+    std::uint64_t dropped_slow = 0;  // stalled (the backlog overflows are counted in sync)
+    std::uint64_t forbidden = 0;
+    std::uint64_t locked = 0;
     std::uint64_t dropped_bad_input = 0;
     std::uint64_t http_requests = 0;
     std::uint64_t bytes_sent = 0;
@@ -211,6 +250,7 @@ struct StreamServer::Impl {
   const StatusProvider status;
   const RequestHandler handler;
   AccessGuard access{options.access};  // poll thread only; its counters go to `shared`
+  HostAllowList hosts{options.allowed_host_list()};  // poll thread only
   int stream_listen_fd = -1;
   int http_listen_fd = -1;
   int wake_fd = -1;  // eventfd; open until destruction so a late publish() never writes a
@@ -236,6 +276,7 @@ struct StreamServer::Impl {
   Counters local;
   Clock::time_point accept_paused_until{};
   Clock::time_point last_accept_warning{};
+  std::unordered_map<std::string, Clock::time_point> cooldowns;  // flooders' addresses: until
 
   void close_listeners() {
     if (stream_listen_fd >= 0) ::close(stream_listen_fd);
@@ -255,28 +296,37 @@ struct StreamServer::Impl {
   }
 
   void run();
+  void fold_counters();
+  ConnectionCounts counts(std::string_view address) const;
   void sync();
   void reap();
   void shutdown_all();
   int poll_timeout_ms() const;
   void expire(Clock::time_point now);
   void accept_from(int listen_fd, bool http, std::size_t polled);
+  void add_connection(int fd, const sockaddr_in& addr, bool http);
   void handle(Connection& c, short revents);
   void flush(Connection& c);
   void consume(Connection& c, std::size_t n);
   bool read_file_chunk(Connection& c);
   void read_stream_token(Connection& c);
   bool admit(Connection& c, const HttpRequest& req);
+  bool admit_websocket(Connection& c);
+  void upgrade(Connection& c, const HttpRequest& req, std::size_t head_end);
+  void fail_overflowing(Connection& c);
   void reply(Connection& c, HttpReply r);
   void read_request(Connection& c);
   void read_websocket(Connection& c);
   void discard_input(Connection& c);
+  bool within_input_budget(Connection& c, std::size_t bytes);
+  bool cooling_down(const std::string& address, Clock::time_point now);
   void on_eof(Connection& c);
   void answer_request(Connection& c, std::size_t head_end);
   void respond(Connection& c, std::string response);
   void parse_frames(Connection& c);
   void websocket_fail(Connection& c, const char* reason);
   void queue(Connection& c, std::string bytes);
+  void queue_pong(Connection& c);
   void drop_unsent(Connection& c);
   void subscribe(Connection& c);
   std::string index_page() const;
@@ -320,6 +370,44 @@ void StreamServer::Impl::run() {
   shutdown_all();
 }
 
+// The poll thread's counter deltas into `shared`; under mu.
+void StreamServer::Impl::fold_counters() {
+  shared.accepted += local.accepted;
+  shared.rejected_full += local.rejected_full;
+  shared.rejected_per_address += local.rejected_per_address;
+  shared.dropped_slow += local.dropped_slow;
+  shared.forbidden += local.forbidden;
+  shared.locked += local.locked;
+  shared.dropped_bad_input += local.dropped_bad_input;
+  shared.http_requests += local.http_requests;
+  shared.bytes_sent += local.bytes_sent;
+  shared.files_sent += local.files_sent;
+  shared.unauthorized = access.stats().unauthorized;
+  shared.throttled = access.stats().throttled;
+  local = Counters{};
+}
+
+// The open connections by kind, and those from `address`.
+ConnectionCounts StreamServer::Impl::counts(std::string_view address) const {
+  ConnectionCounts n;
+  for (const auto& c : conns) {
+    if (c->dead) continue;
+    switch (client_kind(*c)) {
+      case ClientKind::kStream:
+        ++n.stream;
+        break;
+      case ClientKind::kWebSocket:
+        ++n.websocket;
+        break;
+      case ClientKind::kHttp:
+        ++n.http;
+        break;
+    }
+    if (c->address == address) ++n.from_address;
+  }
+  return n;
+}
+
 // Exchanges state with publish()/stats() under one lock per poll round: folds in the counters,
 // settles the backlog of what was sent, hands newly published messages to the connections,
 // drops clients over their backlog limit, (un)registers subscribers; then closes dead
@@ -328,15 +416,7 @@ void StreamServer::Impl::sync() {
   {
     std::lock_guard lock(mu);
     wake_pending = false;
-    shared.accepted += local.accepted;
-    shared.rejected_full += local.rejected_full;
-    shared.dropped_bad_input += local.dropped_bad_input;
-    shared.http_requests += local.http_requests;
-    shared.bytes_sent += local.bytes_sent;
-    shared.files_sent += local.files_sent;
-    shared.unauthorized = access.stats().unauthorized;
-    shared.throttled = access.stats().throttled;
-    local = Counters{};
+    fold_counters();
     int streams = 0;
     int websockets = 0;
     for (const auto& cp : conns) {
@@ -346,11 +426,14 @@ void StreamServer::Impl::sync() {
         box.backlog_bytes -= c.counted_sent;
         shared.backlog_bytes -= c.counted_sent;
         c.counted_sent = 0;
+        const std::size_t control = c.pong ? c.pong->size() + 4 : 0;
+        if (!c.dead && box.backlog_bytes + control > options.max_client_backlog_bytes) {
+          box.overflow = true;
+        }
         bool leaving = c.dead || (c.phase != Phase::kStream && c.phase != Phase::kWebSocket);
         if (!leaving && box.overflow) {
           ++shared.dropped_slow;
-          c.dropped_slow = true;
-          c.dead = true;
+          fail_overflowing(c);
           leaving = true;
         }
         if (leaving) {
@@ -392,13 +475,34 @@ void StreamServer::Impl::subscribe(Connection& c) {
 }
 
 void StreamServer::Impl::reap() {
+  bool freed = false;
   for (const auto& c : conns) {
-    if (c->dropped_slow) {
+    if (c->dead && c->dropped_slow) {
       MOCAP_LOG(Net, Info) << kind_name(*c) << " client " << c->peer << " dropped: more than "
                            << options.max_client_backlog_bytes << " bytes unsent";
+      freed = true;
+    }
+    if (c->dead && c->stalled) {
+      MOCAP_LOG(Net, Info) << kind_name(*c) << " client " << c->peer
+                           << " dropped: took nothing for " << kStallTimeout.count() << " s";
+      freed = true;
     }
   }
   std::erase_if(conns, [](const std::unique_ptr<Connection>& c) { return c->dead; });
+  // A dropped client's backlog was many small blocks: give the pages back to the system.
+  if (freed) ::malloc_trim(0);
+}
+
+// A client over its backlog: its unsent messages are let go now; a stream client is closed, a
+// WebSocket is told why (close 1008) should it read again within kFlushTimeout.
+void StreamServer::Impl::fail_overflowing(Connection& c) {
+  c.dropped_slow = true;
+  if (c.phase == Phase::kWebSocket) {
+    drop_unsent(c);
+    respond(c, websocket_close_frame(kWsPolicyViolation));
+  } else {
+    c.dead = true;
+  }
 }
 
 void StreamServer::Impl::shutdown_all() {
@@ -406,15 +510,7 @@ void StreamServer::Impl::shutdown_all() {
   std::lock_guard lock(mu);
   closed = true;
   subscribers.clear();
-  shared.accepted += local.accepted;
-  shared.rejected_full += local.rejected_full;
-  shared.dropped_bad_input += local.dropped_bad_input;
-  shared.http_requests += local.http_requests;
-  shared.bytes_sent += local.bytes_sent;
-  shared.files_sent += local.files_sent;
-  shared.unauthorized = access.stats().unauthorized;
-  shared.throttled = access.stats().throttled;
-  local = Counters{};
+  fold_counters();
   shared.stream_clients = 0;
   shared.websocket_clients = 0;
   shared.backlog_bytes = 0;
@@ -439,6 +535,10 @@ void StreamServer::Impl::expire(Clock::time_point now) {
     if (c.dead || !c.deadline || *c.deadline > now) continue;
     if (c.phase == Phase::kHttpRequest) {
       respond(c, text_response(408, "request head not received in time\n"));
+    } else if (c.phase == Phase::kStream || c.phase == Phase::kWebSocket) {
+      ++local.dropped_slow;  // its send deadline (kStallTimeout) passed
+      c.stalled = true;
+      c.dead = true;
     } else {
       c.dead = true;
     }
@@ -446,14 +546,15 @@ void StreamServer::Impl::expire(Clock::time_point now) {
 }
 
 // A connection accepted in this round has not been polled yet: it may already be closed by its
-// peer (a burst of connect-and-close while this thread was busy). So when the limit is reached
+// peer (a burst of connect-and-close while this thread was busy). So when a budget is reached
 // with fresh connections among the live ones, the rest wait in the backlog for the next round,
-// which reaps the closed ones first; only a limit reached by settled connections refuses.
+// which reaps the closed ones first; only a budget reached by settled connections refuses.
 void StreamServer::Impl::accept_from(int listen_fd, bool http, std::size_t polled) {
-  std::size_t live = 0;
-  for (const auto& c : conns) live += c->dead ? 0 : 1;
+  const ClientKind kind = http ? ClientKind::kHttp : ClientKind::kStream;
+  const ConnectionBudgets budgets = options.budgets();
   for (int i = 0; i < kAcceptsPerEvent; ++i) {
-    const bool full = live >= static_cast<std::size_t>(options.max_clients);
+    // Whether a stranger would be refused now (the box itself has a reserve).
+    const bool full = refuse_connection(budgets, counts({}), kind, {}).has_value();
     if (full && conns.size() > polled) return;  // the fresh ones first: next round
     sockaddr_in addr{};
     socklen_t len = sizeof(addr);
@@ -468,40 +569,51 @@ void StreamServer::Impl::accept_from(int listen_fd, bool http, std::size_t polle
         if (now - last_accept_warning > std::chrono::seconds(10)) {
           last_accept_warning = now;
           MOCAP_LOG(Net, Warn) << "cannot accept connections: " << errno_text(err)
-                               << " (raise the open-file limit or lower max_clients)";
+                               << " (raise the open-file limit or lower the client budgets)";
         }
         return;
       }
       continue;  // EINTR, ECONNABORTED and network errors of that one connection
     }
-    if (full) {
+    const std::string address = format_address(addr);
+    if (cooling_down(address, Clock::now())) {
       ::close(fd);
-      ++local.rejected_full;
-      MOCAP_LOG(Net, Debug) << "connection from " << format_peer(addr)
-                            << " refused: " << options.max_clients << " clients connected";
+      ++local.rejected_per_address;
       continue;
     }
-    const int one = 1;
-    ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof(one));
-    auto c = std::make_unique<Connection>();
-    c->fd = fd;
-    c->peer = format_peer(addr);
-    c->address = format_address(addr);
-    if (http) {
-      c->phase = Phase::kHttpRequest;
-      c->deadline = Clock::now() + kRequestTimeout;
-    } else if (options.access.token_for_reading) {
-      c->phase = Phase::kStreamAuth;  // nothing is sent before its token line
-      c->deadline = Clock::now() + kRequestTimeout;
-    } else {
-      c->phase = Phase::kStream;
-      subscribe(*c);
+    if (const auto refusal = refuse_connection(budgets, counts(address), kind, address)) {
+      ::close(fd);
+      ++(*refusal == Refusal::kPerAddress ? local.rejected_per_address : local.rejected_full);
+      MOCAP_LOG(Net, Debug) << "connection from " << format_peer(addr) << " refused: "
+                            << (*refusal == Refusal::kPerAddress ? "that address's connections"
+                                                                 : "that kind's budget")
+                            << " reached";
+      continue;
     }
-    ++local.accepted;
-    MOCAP_LOG(Net, Debug) << (http ? "http" : "stream") << " client " << c->peer << " connected";
-    conns.push_back(std::move(c));
-    ++live;
+    add_connection(fd, addr, http);
   }
+}
+
+void StreamServer::Impl::add_connection(int fd, const sockaddr_in& addr, bool http) {
+  const int one = 1;
+  ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof(one));
+  auto c = std::make_unique<Connection>();
+  c->fd = fd;
+  c->peer = format_peer(addr);
+  c->address = format_address(addr);
+  if (http) {
+    c->phase = Phase::kHttpRequest;
+    c->deadline = Clock::now() + kRequestTimeout;
+  } else if (access.enabled() && options.access.token_for_reading) {
+    c->phase = Phase::kStreamAuth;  // nothing is sent before its token line
+    c->deadline = Clock::now() + kRequestTimeout;
+  } else {
+    c->phase = Phase::kStream;
+    subscribe(*c);
+  }
+  ++local.accepted;
+  MOCAP_LOG(Net, Debug) << (http ? "http" : "stream") << " client " << c->peer << " connected";
+  conns.push_back(std::move(c));
 }
 
 void StreamServer::Impl::handle(Connection& c, short revents) {
@@ -532,7 +644,9 @@ void StreamServer::Impl::handle(Connection& c, short revents) {
 }
 
 void StreamServer::Impl::flush(Connection& c) {
+  const bool subscriber = c.phase == Phase::kStream || c.phase == Phase::kWebSocket;
   while (c.has_output()) {
+    if (c.pong && !c.pong_queued) queue_pong(c);
     if (c.out.empty() && !read_file_chunk(c)) return;
     std::array<iovec, kMaxIov> iov{};
     std::size_t n = 0;
@@ -549,7 +663,10 @@ void StreamServer::Impl::flush(Connection& c) {
     if (sent < 0) {
       const int err = errno;
       if (err == EINTR) continue;
-      if (err == EAGAIN || err == EWOULDBLOCK) return;
+      if (err == EAGAIN || err == EWOULDBLOCK) {
+        if (subscriber && !c.deadline) c.deadline = Clock::now() + kStallTimeout;
+        return;
+      }
       MOCAP_LOG(Net, Debug) << kind_name(c) << " client " << c.peer << ": " << errno_text(err);
       c.dead = true;
       return;
@@ -558,6 +675,7 @@ void StreamServer::Impl::flush(Connection& c) {
     consume(c, static_cast<std::size_t>(sent));
     // A download may take longer than kFlushTimeout in all: the limit is on a stall.
     if (c.phase == Phase::kFlushThenClose) c.deadline = Clock::now() + kFlushTimeout;
+    if (subscriber && sent > 0) c.deadline.reset();  // it reads: no stall deadline
   }
   if (c.phase == Phase::kFlushThenClose) {
     if (c.peer_closed) {
@@ -603,6 +721,7 @@ void StreamServer::Impl::consume(Connection& c, std::size_t n) {
     n -= take;
     c.out_offset += take;
     if (c.out_offset == front.bytes->size()) {
+      if (front.pong) c.pong_queued = false;
       c.out.pop_front();
       c.out_offset = 0;
     }
@@ -614,10 +733,50 @@ void StreamServer::Impl::on_eof(Connection& c) {
   if (c.phase != Phase::kFlushThenClose || c.out.empty()) c.dead = true;
 }
 
+// Whether a subscriber that sent `bytes` more stays within what it may send; when not, it is
+// closed (a WebSocket with 1008) and its address cools down.
+bool StreamServer::Impl::within_input_budget(Connection& c, std::size_t bytes) {
+  const Clock::time_point now = Clock::now();
+  if (c.input_checked == Clock::time_point{}) c.input_checked = now;
+  const double elapsed_s = std::chrono::duration<double>(now - c.input_checked).count();
+  c.input_checked = now;
+  c.input_allowance = std::min(kInputBurstBytes, c.input_allowance + elapsed_s * kInputBytesPerS) -
+                      static_cast<double>(bytes);
+  if (c.input_allowance >= 0) return true;
+  ++local.dropped_bad_input;
+  MOCAP_LOG(Net, Info) << kind_name(c) << " client " << c.peer << " closed: it sends more than "
+                       << kInputBytesPerS / 1024 << " KiB/s; its address waits "
+                       << kFloodCooldown.count() << " s";
+  if (!is_box_itself(c.address)) {
+    if (cooldowns.size() >= kMaxCooldowns)
+      std::erase_if(cooldowns, [&](const auto& e) { return e.second <= now; });
+    if (cooldowns.size() < kMaxCooldowns) cooldowns[c.address] = now + kFloodCooldown;
+  }
+  if (c.phase == Phase::kWebSocket) {
+    drop_unsent(c);
+    respond(c, websocket_close_frame(kWsPolicyViolation));
+  } else {
+    c.dead = true;
+  }
+  return false;
+}
+
+bool StreamServer::Impl::cooling_down(const std::string& address, Clock::time_point now) {
+  const auto it = cooldowns.find(address);
+  if (it == cooldowns.end()) return false;
+  if (it->second > now) return true;
+  cooldowns.erase(it);
+  return false;
+}
+
 void StreamServer::Impl::discard_input(Connection& c) {
   std::array<char, kReadChunk> buf;
   for (int i = 0; i < kReadsPerEvent; ++i) {
     const ssize_t r = ::recv(c.fd, buf.data(), buf.size(), 0);
+    if (r > 0 && c.phase == Phase::kStream &&
+        !within_input_budget(c, static_cast<std::size_t>(r))) {
+      return;
+    }
     if (r > 0) continue;
     if (r == 0) {
       on_eof(c);
@@ -669,7 +828,23 @@ void StreamServer::Impl::queue(Connection& c, std::string bytes) {
   c.out.push_back({std::make_shared<const std::string>(std::move(bytes)), false});
 }
 
+// The pending pong goes out at the next frame boundary: before the queued messages, after the
+// one partly sent.
+void StreamServer::Impl::queue_pong(Connection& c) {
+  auto frame = std::make_shared<const std::string>(websocket_frame(kWsPong, *c.pong));
+  c.pong.reset();
+  const auto at = c.out_offset > 0 ? std::next(c.out.begin()) : c.out.begin();
+  c.out.insert(at, OutItem{std::move(frame), false, true});
+  c.pong_queued = true;
+}
+
+// The last answer of a connection; a HEAD request's without its body.
 void StreamServer::Impl::respond(Connection& c, std::string response) {
+  if (c.head_only) {
+    const std::size_t end = response.find("\r\n\r\n");
+    if (end != std::string::npos) response.resize(end + 4);
+  }
+  c.pong.reset();  // nothing follows a close frame
   queue(c, std::move(response));
   c.phase = Phase::kFlushThenClose;
   c.in = std::string();
@@ -696,13 +871,23 @@ void StreamServer::Impl::answer_request(Connection& c, std::size_t head_end) {
     return;
   }
   req->peer_address = c.address;
+  c.head_only = req->method == "HEAD";
+  if (const auto refused = check_host_and_origin(*req, hosts, Clock::now())) {
+    ++local.forbidden;
+    MOCAP_LOG(Net, Info) << "http client " << c.peer << ": " << req->method << " " << req->path
+                         << " refused (" << refused->status << "): foreign Host or Origin";
+    respond(c, text_response(refused->status, refused->message));
+    return;
+  }
   if (!admit(c, *req)) return;
   if (handler) {
     std::optional<HttpReply> r;
     try {
       r = handler(*req);
     } catch (const std::exception& e) {
-      respond(c, text_response(500, std::string("handler failed: ") + e.what() + "\n"));
+      // The exception's text stays in the journal: it may carry paths or the request's bytes.
+      MOCAP_LOG(Net, Error) << req->method << " " << req->path << " failed: " << e.what();
+      respond(c, text_response(500, "internal error (the box's journal has the details)\n"));
       return;
     }
     if (r) {
@@ -710,8 +895,8 @@ void StreamServer::Impl::answer_request(Connection& c, std::size_t head_end) {
       return;
     }
   }
-  if (req->method != "GET") {
-    respond(c, text_response(405, "only GET is served\n", {{"Allow", "GET"}}));
+  if (req->method != "GET" && req->method != "HEAD") {
+    respond(c, text_response(405, "only GET is served\n", {{"Allow", "GET, HEAD"}}));
     return;
   }
   if (req->path == "/health") {
@@ -720,7 +905,8 @@ void StreamServer::Impl::answer_request(Connection& c, std::size_t head_end) {
       try {
         body = status();
       } catch (const std::exception& e) {
-        respond(c, text_response(500, std::string("status provider failed: ") + e.what() + "\n"));
+        MOCAP_LOG(Net, Error) << "GET /health failed: " << e.what();
+        respond(c, text_response(500, "status provider failed (the box's journal has why)\n"));
         return;
       } catch (...) {
         respond(c, text_response(500, "status provider failed\n"));
@@ -759,10 +945,31 @@ void StreamServer::Impl::answer_request(Connection& c, std::size_t head_end) {
                              "Sec-WebSocket-Key\n"));
     return;
   }
+  if (admit_websocket(c)) upgrade(c, *req, head_end);
+}
+
+// Whether one more WebSocket client fits its budget and its address's cap; 503 when not.
+bool StreamServer::Impl::admit_websocket(Connection& c) {
+  ConnectionCounts n = counts(c.address);
+  --n.http;  // this connection becomes the WebSocket
+  --n.from_address;
+  if (!refuse_connection(options.budgets(), n, ClientKind::kWebSocket, c.address)) return true;
+  ++local.rejected_full;
+  respond(c, text_response(503,
+                           "the box serves as many WebSocket clients as it may (" +
+                               std::to_string(options.max_websocket_clients) + " in all, " +
+                               std::to_string(options.max_connections_per_address) +
+                               " connections per address): close one or try again later\n",
+                           {{"Retry-After", "5"}}));
+  return false;
+}
+
+void StreamServer::Impl::upgrade(Connection& c, const HttpRequest& req, std::size_t head_end) {
+  const std::string* key = req.header("sec-websocket-key");
   // A browser that offered subprotocols (the page offers "mocap.v1" and its token) fails the
   // connection unless one is chosen.
   std::string protocol;
-  const std::vector<std::string> offered = req->tokens("sec-websocket-protocol");
+  const std::vector<std::string> offered = req.tokens("sec-websocket-protocol");
   if (!offered.empty()) {
     protocol = std::find(offered.begin(), offered.end(), "mocap.v1") != offered.end()
                    ? "mocap.v1"
@@ -786,13 +993,17 @@ bool StreamServer::Impl::admit(Connection& c, const HttpRequest& req) {
   const Clock::time_point now = Clock::now();
   const Access a = access.check(req, now);
   if (a == Access::kAllowed) return true;
-  if (a == Access::kThrottled) {
-    respond(c,
-            text_response(429,
-                          "too many wrong tokens from " + c.address + ": wait " +
-                              std::to_string(access.retry_after_s(c.address, now)) +
-                              " s (`mocap token` on the box prints the right one)\n",
-                          {{"Retry-After", std::to_string(access.retry_after_s(c.address, now))}}));
+  if (a == Access::kLocked) {
+    ++local.locked;
+    respond(c, text_response(503, req.method + " " + req.path +
+                                      " is refused: " + access.locked_reason() + "\n"));
+  } else if (a == Access::kThrottled) {
+    const std::string wait =
+        std::to_string(access.retry_after_s(presented_token(req), c.address, now));
+    respond(c, text_response(429,
+                             "too many wrong tokens like this one from " + c.address + ": wait " +
+                                 wait + " s (`mocap token` on the box prints the right one)\n",
+                             {{"Retry-After", wait}}));
   } else {
     MOCAP_LOG(Net, Info) << "http client " << c.peer << ": " << req.method << " " << req.path
                          << " without the right token (401)";
@@ -816,11 +1027,19 @@ void StreamServer::Impl::reply(Connection& c, HttpReply r) {
   if (fd < 0 || ::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     const std::string why = fd < 0 ? errno_text(errno) : "not a regular file";
     if (fd >= 0) ::close(fd);
-    respond(c, text_response(404, "cannot read " + r.file + ": " + why + "\n"));
+    // The path stays in the journal: the answer names nothing of the box's folders.
+    MOCAP_LOG(Net, Warn) << "http client " << c.peer << ": cannot read " << r.file << ": " << why;
+    respond(c, text_response(404,
+                             "that file is gone from the box (it was removed or cannot be "
+                             "read; the journal says which)\n"));
     return;
   }
   respond(c,
           http_head(r.status, r.content_type, static_cast<std::uint64_t>(st.st_size), r.headers));
+  if (c.head_only) {
+    ::close(fd);
+    return;
+  }
   c.file_left = static_cast<std::uint64_t>(st.st_size);
   if (c.file_left > 0) {
     c.file_fd = fd;
@@ -853,6 +1072,8 @@ void StreamServer::Impl::read_stream_token(Connection& c) {
     MOCAP_LOG(Net, Info) << "stream client " << c.peer << ": wrong or missing token";
     queue(c, a == Access::kThrottled
                  ? std::string("error: too many wrong tokens from this address; wait\n")
+             : a == Access::kLocked
+                 ? "error: the box refuses readers: " + access.locked_reason() + "\n"
                  : std::string("error: send the box's token (`mocap token`) as the first line\n"));
     c.phase = Phase::kFlushThenClose;
     c.deadline = Clock::now() + kFlushTimeout;
@@ -877,6 +1098,7 @@ void StreamServer::Impl::read_websocket(Connection& c) {
       if (err != EAGAIN && err != EWOULDBLOCK) c.dead = true;
       return;
     }
+    if (!within_input_budget(c, static_cast<std::size_t>(r))) return;
     c.in.append(buf.data(), static_cast<std::size_t>(r));
     parse_frames(c);  // leaves at most one incomplete frame (<= 64 KiB + header) in c.in
   }
@@ -890,6 +1112,7 @@ void StreamServer::Impl::drop_unsent(Connection& c) {
   } else {
     c.out.clear();
   }
+  c.pong_queued = !c.out.empty() && c.out.front().pong;
 }
 
 void StreamServer::Impl::websocket_fail(Connection& c, const char* reason) {
@@ -907,7 +1130,7 @@ void StreamServer::Impl::parse_frames(Connection& c) {
     if (d.status == FrameDecode::kBad) return websocket_fail(c, d.error);
     pos += d.frame.bytes;
     if (d.frame.opcode == kWsPing) {
-      queue(c, websocket_frame(kWsPong, d.frame.payload));
+      c.pong = std::move(d.frame.payload);  // replaces an unsent one (RFC 6455 5.5.3)
     } else if (d.frame.opcode == kWsClose) {
       MOCAP_LOG(Net, Debug) << "websocket client " << c.peer << " closed";
       drop_unsent(c);

@@ -14,15 +14,20 @@
 //   connection is closed.
 //
 // A client never stalls the pipeline: publish() only appends a shared, immutable message to
-// each client's queue and wakes the poll thread. A client whose unsent backlog exceeds
-// max_client_backlog_bytes is dropped (counted in dropped_slow), so memory stays bounded by
-// max_clients x max_client_backlog_bytes. Malformed HTTP/WebSocket input closes that
+// each client's queue and wakes the poll thread. A client whose unsent backlog (pongs
+// included: pings faster than it reads share one pong) exceeds max_client_backlog_bytes, or
+// that takes nothing for 30 s while data waits, is dropped (counted in dropped_slow; a
+// WebSocket gets close 1008), so memory stays bounded by (max_stream_clients +
+// max_websocket_clients) x max_client_backlog_bytes. Malformed HTTP/WebSocket input closes that
 // connection only (counted in dropped_bad_input): a request head over max_request_bytes (431),
 // an unparseable request (400), an unmasked, oversized (> 64 KiB) or otherwise invalid
 // WebSocket frame (close 1002). Client pings are answered, client text/binary frames ignored.
 // An HTTP client has 10 s to send its request head (then 408); after an answer the server
 // closes its side and discards input for at most 2 s before closing the connection.
-// When max_clients connections are open, a new one is accepted and closed at once.
+// Before any token is looked at (runtime/net/admission.h): a connection over its kind's budget
+// or its address's cap is accepted and closed at once; a request naming another Host, or a
+// WebSocket upgrade or action from another site's page (Origin), gets 403. Every answer
+// carries the security headers (http.h). HEAD gets GET's head without the body.
 #pragma once
 
 #include <cstddef>
@@ -46,15 +51,18 @@ struct ServerStats {
   int stream_clients = 0;     // connected now
   int websocket_clients = 0;  // connected now
   std::uint64_t accepted = 0;
-  std::uint64_t rejected_full = 0;      // refused: max_clients reached
-  std::uint64_t dropped_slow = 0;       // backlog over the limit
-  std::uint64_t dropped_bad_input = 0;  // malformed HTTP request or WebSocket frame
+  std::uint64_t rejected_full = 0;         // refused: that kind's budget reached
+  std::uint64_t rejected_per_address = 0;  // refused: max_connections_per_address reached
+  std::uint64_t dropped_slow = 0;          // backlog over the limit
+  std::uint64_t dropped_bad_input = 0;     // malformed HTTP request or WebSocket frame
   std::uint64_t http_requests = 0;
   std::uint64_t messages_published = 0;
   std::uint64_t bytes_sent = 0;
   std::size_t backlog_bytes = 0;   // unsent, all clients, now
   std::uint64_t unauthorized = 0;  // 401: a request or stream client without the right token
   std::uint64_t throttled = 0;     // 429: too many wrong tokens from one address
+  std::uint64_t forbidden = 0;     // 403: a Host or Origin that is not the box's
+  std::uint64_t locked = 0;        // 503: an action while the box has no usable token
   std::uint64_t files_sent = 0;    // downloads answered (RequestHandler replies with a file)
 };
 

@@ -40,9 +40,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   for (int i = 0; i < 5; ++i) {
     const mocap::net::Access a = guard.check_token(line, "192.0.2.7", now);
     if (right != (a == mocap::net::Access::kAllowed)) std::abort();
-    if (!right && i >= options.max_failures && a != mocap::net::Access::kThrottled) std::abort();
+    // A missing token (an empty line) is never counted; a wrong one is, per prefix.
+    const bool guess = !right && !line.empty();
+    if (guess && i >= options.max_failures && a != mocap::net::Access::kThrottled) std::abort();
+    if (line.empty() && a != mocap::net::Access::kUnauthorized) std::abort();
   }
-  if (!right && guard.retry_after_s("192.0.2.7", now) <= 0) std::abort();
+  if (!right && !line.empty() && guard.retry_after_s(line, "192.0.2.7", now) <= 0) std::abort();
   if (mocap::net::constant_time_equal(line, options.token) != right) std::abort();
   return 0;
 }

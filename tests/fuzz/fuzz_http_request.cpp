@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "runtime/net/access.h"
+#include "runtime/net/admission.h"
 #include "runtime/net/http.h"
 #include "runtime/net/websocket.h"
 
@@ -57,7 +58,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const mocap::net::Access a = guard.check(*req, now);
   const std::string presented = mocap::net::presented_token(*req);
   if (a == mocap::net::Access::kAllowed && presented != options.token) std::abort();
-  (void)guard.retry_after_s(req->peer_address, now);
+  (void)guard.retry_after_s(mocap::net::presented_token(*req), req->peer_address, now);
+  // The Host and Origin check (runtime/net/admission.h) on the same head.
+  mocap::net::HostAllowList hosts({"studio.example"});
+  (void)mocap::net::check_host_and_origin(*req, hosts, now);
 
   if (const std::string* key = req->header("sec-websocket-key")) {
     if (mocap::net::websocket_accept_key(*key).size() != 28) std::abort();  // base64 of 20 bytes

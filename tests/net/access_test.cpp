@@ -61,25 +61,58 @@ TEST(Access, ActionsNeedTheTokenReadingIsOpenUnlessConfigured) {
   EXPECT_EQ(open.check(request("POST", {}), now), Access::kAllowed);
 }
 
-TEST(Access, WrongTokensAreThrottledPerAddressForTheWindow) {
+TEST(Access, WrongTokensAreThrottledPerAddressAndPrefixForTheWindow) {
   AccessGuard guard(AccessOptions{.token = kToken, .max_failures = 3, .failure_window_s = 60});
   const auto t0 = Clock::now();
   for (int i = 0; i < 3; ++i) {
     EXPECT_EQ(
         guard.check(
-            request("POST", {{"x-mocap-token", "guess" + std::to_string(i) + "aaaaaaaaaaaa"}}), t0),
+            request("POST", {{"x-mocap-token", "guessaaa" + std::to_string(i) + "aaaaaaaaaaaa"}}),
+            t0),
         Access::kUnauthorized);
   }
-  // Even the right token is not compared now: guessing has stopped for this address.
-  EXPECT_EQ(guard.check(request("POST", {{"x-mocap-token", kToken}}), t0), Access::kThrottled);
-  EXPECT_GT(guard.retry_after_s("10.0.0.7", t0), 55);
+  // Guesses with that prefix are not compared now: guessing has stopped for them...
+  EXPECT_EQ(guard.check(request("POST", {{"x-mocap-token", "guessaaa9aaaaaaaaaaaa"}}), t0),
+            Access::kThrottled);
+  EXPECT_GT(guard.retry_after_s("guessaaa9aaaaaaaaaaaa", "10.0.0.7", t0), 55);
+  // ...but the right token, which the guesser does not know the start of, still works from the
+  // same address: a stranger cannot lock the operator out.
+  EXPECT_EQ(guard.check(request("POST", {{"x-mocap-token", kToken}}), t0), Access::kAllowed);
+  // Nor can requests without a token (a web page's form posts): they are not counted.
+  for (int i = 0; i < 20; ++i) {
+    EXPECT_EQ(guard.check(request("POST", {}, "10.0.0.9"), t0), Access::kUnauthorized);
+  }
+  EXPECT_EQ(guard.check(request("POST", {{"x-mocap-token", kToken}}, "10.0.0.9"), t0),
+            Access::kAllowed);
+  // Someone who knows the first 8 characters is throttled on the right token too.
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(guard.check(request("POST", {{"x-mocap-token", kToken.substr(0, 8) + "wrongwrong"}},
+                                  "10.0.0.10"),
+                          t0),
+              Access::kUnauthorized);
+  }
+  EXPECT_EQ(guard.check(request("POST", {{"x-mocap-token", kToken}}, "10.0.0.10"), t0),
+            Access::kThrottled);
   // Another address is not affected.
   EXPECT_EQ(guard.check(request("POST", {{"x-mocap-token", kToken}}, "10.0.0.8"), t0),
             Access::kAllowed);
   // After the window it may try again.
   const auto later = t0 + std::chrono::seconds(61);
-  EXPECT_EQ(guard.check(request("POST", {{"x-mocap-token", kToken}}), later), Access::kAllowed);
-  EXPECT_EQ(guard.stats().throttled, 1u);
+  EXPECT_EQ(guard.check(request("POST", {{"x-mocap-token", kToken}}, "10.0.0.10"), later),
+            Access::kAllowed);
+  EXPECT_EQ(guard.stats().throttled, 2u);
+}
+
+TEST(Access, LockedBoxRefusesEveryActionWhateverItPresents) {
+  AccessOptions o;
+  o.locked_reason = "the token file cannot be read";
+  ASSERT_TRUE(o.validate().ok());
+  AccessGuard guard(o);
+  const auto now = Clock::now();
+  EXPECT_EQ(guard.check(request("GET", {}), now), Access::kAllowed);
+  EXPECT_EQ(guard.check(request("POST", {}), now), Access::kLocked);
+  EXPECT_EQ(guard.check(request("POST", {{"x-mocap-token", kToken}}), now), Access::kLocked);
+  EXPECT_EQ(guard.check_token("", "10.0.0.7", now), Access::kLocked);
 }
 
 TEST(Access, ConstantTimeEqualAndOptionErrors) {
@@ -200,12 +233,12 @@ TEST(ServerAccess, ActionWithoutTokenIs401WithTheFixAndCounted) {
   EXPECT_EQ(s.server->stats().unauthorized, 1u);
 }
 
-TEST(ServerAccess, BruteForceIsThrottledWith429AndRetryAfter) {
+TEST(ServerAccess, GuessesAreThrottledWith429ButTheOperatorIsNotLockedOut) {
   Served s = serve(AccessOptions{.token = kToken, .max_failures = 5});
   ASSERT_TRUE(s.server);
   int unauthorized = 0, throttled = 0;
   for (int i = 0; i < 40; ++i) {
-    const std::string r = roundtrip(s.port, "POST /act HTTP/1.1\r\nX-Mocap-Token: guess-" +
+    const std::string r = roundtrip(s.port, "POST /act HTTP/1.1\r\nX-Mocap-Token: guessing-" +
                                                 std::to_string(i) + "-xxxxxxxxxx\r\n\r\n");
     unauthorized += status_of(r) == 401;
     if (status_of(r) == 429) {
@@ -215,10 +248,15 @@ TEST(ServerAccess, BruteForceIsThrottledWith429AndRetryAfter) {
   }
   EXPECT_EQ(unauthorized, 5);
   EXPECT_EQ(throttled, 35);
-  // The right token is refused too until the window ends.
+  // Forty requests without any token (a web page's form posts) are 401 and not counted...
+  for (int i = 0; i < 40; ++i) {
+    EXPECT_EQ(status_of(roundtrip(s.port, "POST /act HTTP/1.1\r\n\r\n")), 401);
+  }
+  // ...and the right token from the same address still works: the guesses were counted
+  // against their own prefix, which is not the token's.
   EXPECT_EQ(
       status_of(roundtrip(s.port, "POST /act HTTP/1.1\r\nX-Mocap-Token: " + kToken + "\r\n\r\n")),
-      429);
+      201);
 }
 
 TEST(ServerAccess, TokenForReadingCoversHealthWebSocketAndStreamPort) {
@@ -231,7 +269,7 @@ TEST(ServerAccess, TokenForReadingCoversHealthWebSocketAndStreamPort) {
   // A browser's WebSocket offers the token as a subprotocol; the server picks mocap.v1.
   testing::LineClient ws(s.port);
   ws.send(
-      "GET /stream HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+      "GET /stream HTTP/1.1\r\nHost: localhost\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
       "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
       "Sec-WebSocket-Protocol: mocap.v1, mocap-token." +
       kToken + "\r\n\r\n");

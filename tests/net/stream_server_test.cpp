@@ -33,242 +33,14 @@
 #include <vector>
 
 #include "runtime/net/sha1.h"
+#include "tests/net/socket_client.h"
 
 namespace mocap::net {
 namespace {
 
 using namespace std::chrono_literals;
 
-constexpr auto kTimeout = 30s;  // generous: sanitizer builds on a loaded 2-core machine
-
-// ---------------------------------------------------------------------------------- sockets
-
-class Socket {
- public:
-  Socket() = default;
-  explicit Socket(int fd) : fd_(fd) {}
-  Socket(Socket&& other) noexcept : fd_(std::exchange(other.fd_, -1)) {}
-  Socket& operator=(Socket&& other) noexcept {
-    if (this != &other) {
-      reset();
-      fd_ = std::exchange(other.fd_, -1);
-    }
-    return *this;
-  }
-  ~Socket() { reset(); }
-  int fd() const { return fd_; }
-  bool valid() const { return fd_ >= 0; }
-  void reset() {
-    if (fd_ >= 0) ::close(fd_);
-    fd_ = -1;
-  }
-
- private:
-  int fd_ = -1;
-};
-
-// A blocking loopback connection whose reads and writes time out after kTimeout.
-// rcvbuf > 0 shrinks the receive buffer (a slow client whose kernel absorbs little).
-Socket connect_to(int port, int rcvbuf = 0) {
-  Socket s(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0));
-  if (!s.valid()) return s;
-  timeval tv{};
-  tv.tv_sec = std::chrono::duration_cast<std::chrono::seconds>(kTimeout).count();
-  ::setsockopt(s.fd(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
-  ::setsockopt(s.fd(), SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof(tv));
-  if (rcvbuf > 0) ::setsockopt(s.fd(), SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof(rcvbuf));
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<std::uint16_t>(port));
-  ::inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
-  if (::connect(s.fd(), reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) != 0) s.reset();
-  return s;
-}
-
-bool send_all(const Socket& s, std::string_view data) {
-  while (!data.empty()) {
-    const ssize_t n = ::send(s.fd(), data.data(), data.size(), MSG_NOSIGNAL);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return false;
-    data.remove_prefix(static_cast<std::size_t>(n));
-  }
-  return true;
-}
-
-bool recv_exact(const Socket& s, char* out, std::size_t n) {
-  while (n > 0) {
-    const ssize_t r = ::recv(s.fd(), out, n, 0);
-    if (r < 0 && errno == EINTR) continue;
-    if (r <= 0) return false;
-    out += r;
-    n -= static_cast<std::size_t>(r);
-  }
-  return true;
-}
-
-enum class End { kEof, kReset, kTimedOut };
-
-// Reads until the peer closes; what was read goes to *out when given.
-End read_to_end(const Socket& s, std::string* out = nullptr) {
-  std::array<char, 65536> buf;
-  for (;;) {
-    const ssize_t r = ::recv(s.fd(), buf.data(), buf.size(), 0);
-    if (r > 0) {
-      if (out != nullptr) out->append(buf.data(), static_cast<std::size_t>(r));
-      continue;
-    }
-    if (r == 0) return End::kEof;
-    if (errno == EINTR) continue;
-    return (errno == EAGAIN || errno == EWOULDBLOCK) ? End::kTimedOut : End::kReset;
-  }
-}
-
-class LineReader {
- public:
-  explicit LineReader(const Socket& s) : fd_(s.fd()) {}
-  std::optional<std::string> next() {
-    for (;;) {
-      const std::size_t nl = buf_.find('\n', scanned_);
-      if (nl != std::string::npos) {
-        std::string line = buf_.substr(0, nl);
-        buf_.erase(0, nl + 1);
-        scanned_ = 0;
-        return line;
-      }
-      scanned_ = buf_.size();
-      std::array<char, 65536> chunk;
-      const ssize_t r = ::recv(fd_, chunk.data(), chunk.size(), 0);
-      if (r < 0 && errno == EINTR) continue;
-      if (r <= 0) return std::nullopt;
-      buf_.append(chunk.data(), static_cast<std::size_t>(r));
-    }
-  }
-
- private:
-  int fd_;
-  std::string buf_;
-  std::size_t scanned_ = 0;
-};
-
-template <typename Pred>
-bool wait_until(Pred pred, std::chrono::steady_clock::duration timeout = kTimeout) {
-  const auto end = std::chrono::steady_clock::now() + timeout;
-  while (!pred()) {
-    if (std::chrono::steady_clock::now() > end) return false;
-    std::this_thread::sleep_for(2ms);
-  }
-  return true;
-}
-
-// ------------------------------------------------------------------------------------ HTTP
-
-std::string http_exchange(int port, std::string_view request) {
-  Socket s = connect_to(port);
-  if (!s.valid()) return "connect failed";
-  send_all(s, request);  // may fail half-way when the server answers early; read anyway
-  std::string response;
-  if (read_to_end(s, &response) == End::kTimedOut) return "timeout: " + response;
-  return response;
-}
-
-int status_code(const std::string& response) {
-  if (response.size() < 12 || response.compare(0, 9, "HTTP/1.1 ") != 0) return -1;
-  return std::stoi(response.substr(9, 3));
-}
-
-std::string body_of(const std::string& response) {
-  const std::size_t p = response.find("\r\n\r\n");
-  return p == std::string::npos ? std::string() : response.substr(p + 4);
-}
-
-// ------------------------------------------------------------------------------- WebSocket
-
-constexpr std::string_view kKey = "dGhlIHNhbXBsZSBub25jZQ==";  // RFC 6455 §1.3
-
-// Connects to /stream and completes the handshake; invalid socket on failure.
-Socket websocket_connect(int port, std::string* response_out = nullptr) {
-  Socket s = connect_to(port);
-  if (!s.valid()) return s;
-  const std::string request =
-      "GET /stream HTTP/1.1\r\nHost: localhost\r\nUpgrade: websocket\r\n"
-      "Connection: keep-alive, Upgrade\r\nSec-WebSocket-Version: 13\r\n"
-      "Sec-WebSocket-Key: " +
-      std::string(kKey) + "\r\n\r\n";
-  if (!send_all(s, request)) return Socket();
-  std::string head;
-  char c = 0;
-  while (head.size() < 4096 && head.find("\r\n\r\n") == std::string::npos) {
-    if (!recv_exact(s, &c, 1)) return Socket();
-    head.push_back(c);
-  }
-  if (response_out != nullptr) *response_out = head;
-  if (status_code(head) != 101) return Socket();
-  return s;
-}
-
-struct Frame {
-  bool fin = false;
-  int opcode = -1;
-  bool masked = false;
-  std::string payload;
-};
-
-std::optional<Frame> read_frame(const Socket& s) {
-  std::array<char, 8> h{};
-  if (!recv_exact(s, h.data(), 2)) return std::nullopt;
-  Frame f;
-  const auto b0 = static_cast<std::uint8_t>(h[0]);
-  const auto b1 = static_cast<std::uint8_t>(h[1]);
-  f.fin = (b0 & 0x80u) != 0;
-  f.opcode = b0 & 0x0F;
-  f.masked = (b1 & 0x80u) != 0;
-  std::uint64_t len = b1 & 0x7Fu;
-  const std::size_t ext = len == 126 ? 2 : len == 127 ? 8 : 0;
-  if (ext > 0) {
-    if (!recv_exact(s, h.data(), ext)) return std::nullopt;
-    len = 0;
-    for (std::size_t i = 0; i < ext; ++i) len = (len << 8) | static_cast<std::uint8_t>(h[i]);
-  }
-  if (f.masked && !recv_exact(s, h.data(), 4)) return std::nullopt;
-  f.payload.resize(static_cast<std::size_t>(len));
-  if (len > 0 && !recv_exact(s, f.payload.data(), f.payload.size())) return std::nullopt;
-  return f;
-}
-
-// A client frame (FIN set unless first_byte says otherwise). claimed_len overrides the length
-// field (an oversized frame whose payload is never sent).
-std::string client_frame(std::uint8_t first_byte, std::string_view payload, bool masked = true,
-                         std::optional<std::uint64_t> claimed_len = std::nullopt) {
-  const std::uint64_t len = claimed_len.value_or(payload.size());
-  std::string out;
-  out.push_back(static_cast<char>(first_byte));
-  const std::uint8_t mask_bit = masked ? 0x80 : 0x00;
-  if (len < 126) {
-    out.push_back(static_cast<char>(mask_bit | len));
-  } else if (len <= 0xFFFF) {
-    out.push_back(static_cast<char>(mask_bit | 126));
-    out.push_back(static_cast<char>(len >> 8));
-    out.push_back(static_cast<char>(len & 0xFF));
-  } else {
-    out.push_back(static_cast<char>(mask_bit | 127));
-    for (int shift = 56; shift >= 0; shift -= 8) out.push_back(static_cast<char>(len >> shift));
-  }
-  const std::array<std::uint8_t, 4> mask = {0x37, 0xfa, 0x21, 0x3d};
-  if (masked) {
-    for (std::uint8_t m : mask) out.push_back(static_cast<char>(m));
-  }
-  for (std::size_t i = 0; i < payload.size(); ++i) {
-    const auto b = static_cast<std::uint8_t>(payload[i]);
-    out.push_back(static_cast<char>(masked ? (b ^ mask[i % 4]) : b));
-  }
-  return out;
-}
-
-std::uint16_t close_status(const Frame& f) {
-  if (f.payload.size() < 2) return 0;
-  return static_cast<std::uint16_t>((static_cast<std::uint8_t>(f.payload[0]) << 8) |
-                                    static_cast<std::uint8_t>(f.payload[1]));
-}
+using namespace mocap::net::test;  // NOLINT
 
 // ---------------------------------------------------------------------------------- server
 
@@ -377,8 +149,14 @@ TEST(StreamServerOptions, DefaultsAreValidAndErrorsNameTheField) {
   o.http_port = o.stream_port;
   expect_error(o, "http_port");
   o = {};
-  o.max_clients = 0;
-  expect_error(o, "max_clients");
+  o.max_stream_clients = 0;
+  expect_error(o, "max_stream_clients");
+  o = {};
+  o.max_connections_per_address = 0;
+  expect_error(o, "max_connections_per_address");
+  o = {};
+  o.allowed_hosts = "studio.example, bad/host";
+  expect_error(o, "allowed_hosts");
   o = {};
   o.max_client_backlog_bytes = 100;
   expect_error(o, "client_backlog_kib");
@@ -386,10 +164,10 @@ TEST(StreamServerOptions, DefaultsAreValidAndErrorsNameTheField) {
   o.max_request_bytes = 10;
   expect_error(o, "max_request_bytes");
   o = test_options();
-  o.max_clients = 0;
+  o.max_websocket_clients = 0;
   auto server = StreamServer::start(o, nullptr);
   ASSERT_FALSE(server.ok());
-  EXPECT_NE(server.error().message().find("max_clients"), std::string::npos);
+  EXPECT_NE(server.error().message().find("max_websocket_clients"), std::string::npos);
 }
 
 TEST(StreamServer, BindErrorNamesThePortAndTheFix) {
@@ -559,7 +337,7 @@ TEST(StreamServer, HealthReturnsTheProvidersJson) {
   auto server = start_server();
   ASSERT_TRUE(server);
   const std::string r =
-      http_exchange(server->http_port(), "GET /health HTTP/1.1\r\nHost: x\r\n\r\n");
+      http_exchange(server->http_port(), "GET /health HTTP/1.1\r\nHost: localhost\r\n\r\n");
   EXPECT_EQ(status_code(r), 200) << r;
   EXPECT_NE(r.find("\r\nContent-Type: application/json\r\n"), std::string::npos) << r;
   EXPECT_NE(r.find("\r\nConnection: close\r\n"), std::string::npos) << r;
@@ -588,7 +366,9 @@ TEST(StreamServer, HealthProviderThatThrowsGets500) {
   ASSERT_TRUE(server.ok());
   const std::string r = http_exchange((*server)->http_port(), "GET /health HTTP/1.1\r\n\r\n");
   EXPECT_EQ(status_code(r), 500) << r;
-  EXPECT_NE(r.find("pipeline gone"), std::string::npos);
+  // The exception's text goes to the journal, not to whoever asked.
+  EXPECT_EQ(r.find("pipeline gone"), std::string::npos) << r;
+  EXPECT_NE(r.find("journal"), std::string::npos) << r;
 }
 
 TEST(StreamServer, HttpErrorsAnswerAndClose) {
@@ -630,9 +410,10 @@ TEST(StreamServer, HttpErrorsAnswerAndClose) {
 
 // ------------------------------------------------------------------------------ admission
 
-TEST(StreamServer, ConnectionsBeyondMaxClientsAreClosedAtOnce) {
+TEST(StreamServer, ConnectionsBeyondTheirBudgetAreClosedAtOnce) {
   StreamServerOptions o = test_options();
-  o.max_clients = 2;
+  o.max_stream_clients = 2;
+  o.max_http_connections = 1;
   auto server = start_server(o);
   ASSERT_TRUE(server);
   Socket a = connect_to(server->stream_port());
@@ -642,10 +423,17 @@ TEST(StreamServer, ConnectionsBeyondMaxClientsAreClosedAtOnce) {
   Socket c = connect_to(server->stream_port());
   ASSERT_TRUE(c.valid());  // the kernel completes the handshake; the server closes it
   EXPECT_EQ(read_to_end(c), End::kEof);
-  Socket d = connect_to(server->http_port());
+  // HTTP has its own budget: one held request head from another address fills it.
+  Socket held = connect_from("127.0.0.2", server->http_port());
+  ASSERT_TRUE(held.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().accepted == 3; }));
+  Socket d = connect_from("127.0.0.3", server->http_port());
   ASSERT_TRUE(d.valid());
   EXPECT_EQ(read_to_end(d), End::kEof);
   EXPECT_TRUE(wait_until([&] { return server->stats().rejected_full == 2; }));
+  // The box itself still gets its /health (its reserve beyond the budget).
+  EXPECT_EQ(status_code(http_exchange(server->http_port(), "GET /health HTTP/1.1\r\n\r\n")), 200);
+  held.reset();
 
   a.reset();  // a slot frees up
   ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
@@ -655,7 +443,7 @@ TEST(StreamServer, ConnectionsBeyondMaxClientsAreClosedAtOnce) {
   server->publish(message(7));
   LineReader reader(e);
   EXPECT_TRUE(receives_in_order(reader, 7, 1));
-  EXPECT_EQ(server->stats().accepted, 3u);
+  EXPECT_EQ(server->stats().accepted, 5u);
 }
 
 // ------------------------------------------------------------------- misbehaving clients
@@ -664,7 +452,8 @@ TEST(StreamServer, ConnectionsBeyondMaxClientsAreClosedAtOnce) {
 // gets every message; the server's backlog stays bounded.
 TEST(StreamServer, NonReadingClientIsDroppedOthersGetEveryMessage) {
   StreamServerOptions o = test_options();
-  o.max_clients = 4;
+  o.max_stream_clients = 4;
+  o.max_websocket_clients = 1;
   o.max_client_backlog_bytes = std::size_t{1} << 20;
   auto server = start_server(o);
   ASSERT_TRUE(server);
@@ -676,7 +465,9 @@ TEST(StreamServer, NonReadingClientIsDroppedOthersGetEveryMessage) {
   constexpr std::size_t kPad = 64 * 1024 - 32;  // ~64 KiB lines
   constexpr int kMessages = 3200;               // ~200 MB
   constexpr int kBatch = 4;  // a quarter of the backlog limit: the reader never falls behind
-  const std::size_t bound = static_cast<std::size_t>(o.max_clients) * o.max_client_backlog_bytes;
+  const std::size_t bound =
+      static_cast<std::size_t>(o.max_stream_clients + o.max_websocket_clients) *
+      o.max_client_backlog_bytes;
   LineReader reader(good);
   std::size_t max_backlog = 0;
   for (int first = 0; first < kMessages; first += kBatch) {
@@ -799,7 +590,8 @@ class StoppedServer {
 // (seen once in CI under load: /health answered by a bare close).
 TEST(StreamServer, ClosedConnectionsInTheBacklogDoNotCrowdOutLiveOnes) {
   StreamServerOptions o = test_options();
-  o.max_clients = 8;
+  o.max_stream_clients = 8;
+  o.max_http_connections = 8;
   StoppedServer server(o);
   ASSERT_TRUE(server.ready());
   for (int i = 0; i < 40; ++i) {
@@ -885,7 +677,9 @@ TEST(StreamServer, SurvivesGarbageInput) {
 
 // (d) 50 concurrent stream clients (and a few WebSocket clients) each get all N messages.
 TEST(StreamServer, FiftyConcurrentClientsGetEveryMessage) {
-  auto server = start_server();
+  StreamServerOptions o = test_options();
+  o.max_stream_clients = 64;
+  auto server = start_server(o);
   ASSERT_TRUE(server);
   constexpr int kClients = 50;
   constexpr int kWebSockets = 5;

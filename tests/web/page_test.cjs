@@ -83,7 +83,14 @@ async function pageMode(a, browser, result) {
   });
   const cdp = await page.createCDPSession();
   await cdp.send("Browser.setDownloadBehavior", { behavior: "allow", downloadPath: a.out });
-  await page.goto(a.url, { waitUntil: "load" });
+  // Every violation of the page's content security policy (the box sends one: docs/web.md).
+  await page.evaluateOnNewDocument(() => {
+    window.__cspViolations = [];
+    document.addEventListener("securitypolicyviolation", (e) =>
+      window.__cspViolations.push(`${e.violatedDirective} ${e.blockedURI}`));
+  });
+  const response = await page.goto(a.url, { waitUntil: "load" });
+  result.page_headers = response.headers();
   await sleep(2500);
   result.console_errors_at_load = [...result.console_errors];
 
@@ -140,6 +147,7 @@ async function pageMode(a, browser, result) {
   await page.screenshot({ path: path.join(a.out, "page_after_take.png"), fullPage: true });
   result.stats = await page.evaluate(() => ({ received: mocapStats.received,
     rendered: mocapStats.rendered, skipped: mocapStats.skipped }));
+  result.csp_violations = await page.evaluate(() => window.__cspViolations);
 }
 
 const quantile = (v, q) => {

@@ -14,8 +14,10 @@
 #include <cstdlib>
 #include <filesystem>
 #include <map>
+#include <mutex>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <vector>
 
 #include "runtime/geometry/calibration.h"
@@ -25,6 +27,7 @@
 #include "tests/support/mocapd_process.h"
 #include "tests/support/subprocess.h"
 #include "tests/support/temp_dir.h"
+#include "tests/web/mixed_attack.h"
 
 namespace mocap {
 namespace {
@@ -115,6 +118,17 @@ TEST_F(Browser, PageShowsEachPersonCamerasAndTakesWithTheToken) {
     EXPECT_NE(e.get<std::string>().find("401"), std::string::npos) << e;
   }
   EXPECT_TRUE(r["external_requests"].empty()) << r["external_requests"].dump();
+  // The page lives under its own content security policy, unframeable, with no violation
+  // through loading, the token, a take and its download.
+  const json& headers = r["page_headers"];
+  EXPECT_NE(headers.value("content-security-policy", "").find("script-src 'self' 'sha256-"),
+            std::string::npos)
+      << headers.dump();
+  EXPECT_NE(headers.value("content-security-policy", "").find("frame-ancestors 'none'"),
+            std::string::npos);
+  EXPECT_EQ(headers.value("x-frame-options", ""), "DENY");
+  EXPECT_TRUE(r["csp_violations"].is_array() && r["csp_violations"].empty())
+      << r["csp_violations"].dump();
   ASSERT_EQ(r["persons"].size(), 2u) << r.dump();
   for (std::size_t i = 0; i < r["persons"].size(); ++i) {
     const int pixels = r["colour_pixels"][i].get<int>();
@@ -169,6 +183,167 @@ TEST_F(Browser, KeepsUpWithA60HzStreamForAMinute) {
       << "heap grew from " << first["heap_mb"] << " to " << last["heap_mb"] << " MB";
   std::printf("[ browser ] heap %.1f -> %.1f MB (max %.1f), worst p95 lag %.1f ms\n",
               first["heap_mb"].get<double>(), last["heap_mb"].get<double>(), heap_max, worst_lag);
+}
+
+// What the operator sees of the box, from another host (127.0.0.5), while strangers attack.
+struct OperatorView {
+  std::mutex mu;
+  std::vector<double> quiet_gaps_ms;   // between consecutive stream lines, before the attack
+  std::vector<double> stream_gaps_ms;  // and during it
+  std::vector<double> health_ms;       // each GET /health, answered or not
+  std::map<int, int> health_status, token_status;
+  std::vector<int> heap_mib;
+};
+
+double since_ms(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// GET /health from the operator's host: status, and the heap in use (MiB, -1 unknown).
+std::pair<int, int> health_from(const char* from, int port) {
+  net::test::Socket s = net::test::connect_from(from, port);
+  if (!s.valid()) return {-1, -1};
+  net::test::send_all(s, "GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+  std::string r;
+  net::test::read_to_end(s, &r);
+  const json j = json::parse(net::test::body_of(r), nullptr, false);
+  const int heap = j.is_object() ? j["memory"].value("heap_in_use_mib", -1) : -1;
+  return {net::test::status_code(r), heap};
+}
+
+// Issue 40's minute: a ping flood, 500 idle connections from 3 addresses, 1000 wrong-token
+// POSTs and cross-origin upgrades, while the page is open in headless Chromium, a client on
+// another host reads the stream, and the operator polls /health and uses the token. Printed:
+// the stream's largest gap, /health's slowest answer, the heap before, during and after.
+TEST_F(Browser, AMinuteOfMixedAttackLeavesTheOperatorAndTheStreamUntouched) {
+  testing::MocapdProcess m = testing::start_mocapd(kBin, dir_.path(), {"--frame-rate-hz", "30"});
+  ASSERT_GT(m.http_port, 0) << m.process->err_so_far();
+  const std::string err = m.process->err_so_far();
+  const std::size_t at = err.find("stream port ");
+  ASSERT_NE(at, std::string::npos) << err;
+  const int stream_port = std::atoi(err.c_str() + at + 12);
+  auto token = net::read_token(m.state_dir / "token");
+  ASSERT_TRUE(token.ok()) << token.error().message();
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  const int heap_before = health_from("127.0.0.5", m.http_port).second;
+  ASSERT_GE(heap_before, 0);
+
+  OperatorView view;
+  std::atomic<bool> done{false};
+  std::atomic<bool> attacking{false};
+  std::thread reader([&] {
+    net::test::Socket s = net::test::connect_from("127.0.0.5", stream_port);
+    net::test::LineReader lines(s);
+    auto last = std::chrono::steady_clock::now();
+    while (!done && lines.next()) {
+      const double gap = since_ms(last);
+      last = std::chrono::steady_clock::now();
+      std::lock_guard lock(view.mu);
+      (attacking ? view.stream_gaps_ms : view.quiet_gaps_ms).push_back(gap);
+    }
+  });
+  std::thread operator_([&] {
+    for (int tick = 0; !done; ++tick) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const auto [status, heap] = health_from("127.0.0.5", m.http_port);
+      const double ms = since_ms(t0);
+      int token_status = 0;
+      if (tick % 2 == 0) {
+        net::test::Socket s = net::test::connect_from("127.0.0.5", m.http_port);
+        net::test::send_all(s, "POST /token/check HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Mocap-Token: " +
+                                   *token + "\r\nContent-Length: 0\r\n\r\n");
+        std::string r;
+        net::test::read_to_end(s, &r);
+        token_status = net::test::status_code(r);
+      }
+      {
+        std::lock_guard lock(view.mu);
+        view.health_ms.push_back(ms);
+        ++view.health_status[status];
+        if (heap >= 0) view.heap_mib.push_back(heap);
+        if (token_status != 0) ++view.token_status[token_status];
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    }
+  });
+  // The page is open for 80 s: 20 s of quiet (the figures to compare with), then the minute.
+  testing::MixedAttack attack(m.http_port, stream_port);
+  std::thread starter([&] {
+    std::this_thread::sleep_for(std::chrono::seconds(20));
+    attacking = true;
+    attack.start(60);
+  });
+  const fs::path out = artefacts("attack");
+  const json page = drive(m, out, "keepup", 80, dir_.path());
+  starter.join();
+  attack.stop();
+  const testing::MixedAttack::Figures f = attack.figures();
+  // The attackers are gone: the heap comes back (read for up to 10 s).
+  int heap_after = -1;
+  for (int i = 0; i < 20; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    heap_after = health_from("127.0.0.5", m.http_port).second;
+    if (heap_after >= 0 && heap_after <= heap_before + 10) break;
+  }
+  done = true;
+  operator_.join();
+  m.process.reset();  // the stream ends: the reader returns
+  reader.join();
+
+  std::lock_guard lock(view.mu);
+  const auto max_of = [](const std::vector<double>& v) {
+    return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end());
+  };
+  std::vector<double> gaps = view.stream_gaps_ms;
+  std::sort(gaps.begin(), gaps.end());
+  std::vector<double> quiet(
+      view.quiet_gaps_ms.begin() + std::min<std::size_t>(5, view.quiet_gaps_ms.size()),
+      view.quiet_gaps_ms.end());
+  std::sort(quiet.begin(), quiet.end());
+  const int heap_max =
+      view.heap_mib.empty() ? -1 : *std::max_element(view.heap_mib.begin(), view.heap_mib.end());
+  std::printf(
+      "[ attack ] ping flood %.1f MB (%llu drops), idle connections held %d (%llu opened), "
+      "wrong-token POSTs 401x%d 429x%d, cross-origin upgrades 403x%d other %zu\n",
+      static_cast<double>(f.ping_bytes) / 1e6, static_cast<unsigned long long>(f.ping_reconnects),
+      f.idle_held_max, static_cast<unsigned long long>(f.idle_opened),
+      f.wrong_posts.count(401) ? f.wrong_posts.at(401) : 0,
+      f.wrong_posts.count(429) ? f.wrong_posts.at(429) : 0,
+      f.cross_origin.count(403) ? f.cross_origin.at(403) : 0, f.cross_origin.size());
+  const auto print_gaps = [&](const char* when, const std::vector<double>& g) {
+    std::printf("[ attack ] stream %s: %zu lines, gap median %.1f ms p99 %.1f ms max %.1f ms\n",
+                when, g.size(), g.empty() ? 0.0 : g[g.size() / 2],
+                g.empty() ? 0.0 : g[g.size() * 99 / 100], max_of(g));
+  };
+  print_gaps("before the attack", quiet);
+  print_gaps("under attack", gaps);
+  std::printf("[ attack ] /health slowest %.0f ms of %zu; heap %d MiB before, %d max, %d after\n",
+              max_of(view.health_ms), view.health_ms.size(), heap_before, heap_max, heap_after);
+  // Every attack reached the box and was turned away.
+  EXPECT_GT(f.ping_bytes, 10'000'000u);
+  EXPECT_GT(f.idle_opened, 500u);
+  EXPECT_EQ(f.wrong_posts.size(), f.wrong_posts.count(401) + f.wrong_posts.count(429))
+      << "wrong tokens got something else than 401/429";
+  EXPECT_GT(f.wrong_posts.count(429) ? f.wrong_posts.at(429) : 0, 0);
+  EXPECT_EQ(f.cross_origin.size(), 1u);
+  EXPECT_GT(f.cross_origin.count(403) ? f.cross_origin.at(403) : 0, 100);
+  // The operator: every /health answered within 1 s, the token worked every time.
+  EXPECT_EQ(view.health_status.size(), 1u);
+  EXPECT_GT(view.health_status[200], 100);
+  EXPECT_LT(max_of(view.health_ms), 1000.0);
+  EXPECT_EQ(view.token_status.size(), 1u);
+  EXPECT_GT(view.token_status[200], 50);
+  // The stream kept its rate (30 Hz: ~1800 lines a minute); its largest gaps are printed above.
+  EXPECT_GT(gaps.size(), 1500u);
+  EXPECT_LT(max_of(gaps), 500.0) << "the stream stalled";
+  // The page drew frames the whole minute.
+  ASSERT_TRUE(page.is_object());
+  ASSERT_GE(page["samples"].size(), 10u);
+  EXPECT_GT(
+      page["samples"].back()["rendered"].get<int>() - page["samples"][1]["rendered"].get<int>(),
+      500);
+  // The heap is back within 10 MiB of where it started.
+  EXPECT_LE(heap_after, heap_before + 10);
 }
 
 // A fusion node's page with two detector nodes over DDS on loopback (as tests/dds/scaleout_test),

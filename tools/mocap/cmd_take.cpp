@@ -137,7 +137,7 @@ int run_list(Args args) {
         "%-32s %-12s %10llu  %s\n", t.value("name", "").c_str(), t.value("status", "").c_str(),
         static_cast<unsigned long long>(t.value("frames", 0ULL)), t.value("reason", "").c_str());
   }
-  std::printf("%zu takes in %s\n", (*j)["takes"].size(), j->value("dir", "").c_str());
+  std::printf("%zu takes\n", (*j)["takes"].size());
   return 0;
 }
 

@@ -17,8 +17,9 @@ void append(std::vector<OptionSpec>& v, std::vector<OptionSpec> more) {
 void add_network_and_sources(std::vector<OptionSpec>& v) {
   // Network
   append(v, nested(&DaemonConfig::server, net::StreamServerOptions::params(),
-                   {"bind_address", "stream_port", "http_port", "max_clients", "client_backlog_kib",
-                    "token_for_reading"}));
+                   {"bind_address", "stream_port", "http_port", "max_stream_clients",
+                    "max_websocket_clients", "max_http_connections", "max_connections_per_address",
+                    "client_backlog_kib", "allowed_hosts", "token_for_reading"}));
   // Sources
   v.push_back(
       string_param("replay", "path",

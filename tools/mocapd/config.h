@@ -39,7 +39,7 @@ enum class DropPolicyChoice { kAuto, kDropOldest, kBlock };
 enum class Role { kStandalone, kDetector, kFusion };
 
 struct DaemonConfig {
-  // Network: bind_address, stream_port, http_port, max_clients, client_backlog_kib,
+  // Network: bind_address, stream_port, http_port, the connection budgets, client_backlog_kib,
   // token_for_reading (declared in runtime/net/server_options.h; the token itself is set by
   // the daemon from <state_dir>/token)
   net::StreamServerOptions server;

@@ -409,7 +409,8 @@ Status Daemon::start() {
   // The server first (GET /health may come at once: it reads the pipeline through
   // pipeline_view_), then the sinks that publish to it, then the pipeline.
   net::StreamServerOptions so = config_.server;
-  so.access.token = token_ = access_token();
+  so.access = access_options(so.access);
+  token_ = so.access.token;
   auto srv = net::StreamServer::start(
       so, [this] { return health_json(); },
       [this](const net::HttpRequest& req) { return handle_http(req); });
@@ -477,9 +478,11 @@ Status Daemon::start() {
   return {};
 }
 
-// The token in <state_dir>/token, made on the first start and printed in the journal. A state
-// folder that cannot keep it still gets one for this run (a problem says why).
-std::string Daemon::access_token() {
+// The token in <state_dir>/token, made on the first start and printed in the journal then.
+// A state folder that cannot keep one leaves the box locked (fails closed): every action, and
+// reading with token_for_reading, is refused with the reason; /health says why and what to do,
+// and never a token.
+net::AccessOptions Daemon::access_options(net::AccessOptions access) {
   const fs::path file = fs::path(config_.state_dir) / "token";
   auto t = net::load_or_create_token(file);
   if (t.ok()) {
@@ -490,13 +493,21 @@ std::string Daemon::access_token() {
     } else {
       MOCAP_LOG(Daemon, Info) << "access token: " << file.string() << " (`mocap token` prints it)";
     }
-    return t->token;
+    access.token = t->token;
+    return access;
   }
-  auto fresh = net::random_token();
-  const std::string token = fresh.ok() ? *fresh : std::string();
-  add_problem(box::ProblemCode::kAccessToken,
-              t.error().message() + "; a token for this run only: " + token);
-  return token;
+  MOCAP_LOG(Daemon, Error) << t.error().message() << ": actions are refused until it is fixed";
+  // The folder's path stays in the journal; strangers read /health too.
+  std::string why = t.error().message();
+  for (std::size_t at = why.find(file.string()); at != std::string::npos;
+       at = why.find(file.string(), at)) {
+    why.replace(at, file.string().size(), "<state_dir>/token");
+  }
+  access.token.clear();
+  access.locked_reason = "the box has no usable access token (" + why +
+                         "); fix that on the box and restart mocapd (`systemctl restart mocapd`)";
+  add_problem(box::ProblemCode::kAccessToken, access.locked_reason);
+  return access;
 }
 
 void Daemon::log_status() const {

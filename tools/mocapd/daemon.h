@@ -153,7 +153,7 @@ class Daemon {
   // What a new take records about the box (Outputs::MetadataProvider).
   out::TakeMetadata take_metadata() const;
   void log_status() const;
-  std::string access_token();
+  net::AccessOptions access_options(net::AccessOptions access);
 
   DaemonConfig config_;
   DaemonHooks hooks_;

@@ -2,11 +2,14 @@
 
 #include <array>
 
+#include "runtime/core/log.h"
 #include "tools/common/paths.h"
 
 #ifndef MOCAP_SOURCE_DIR
 #error "MOCAP_SOURCE_DIR must be defined by the build"
 #endif
+
+MOCAP_LOG_CATEGORY(Web)
 
 namespace mocap::daemon {
 
@@ -29,6 +32,14 @@ constexpr std::array<WebAsset, 7> kAssets = {{
     {"/vendor/OrbitControls.js", "vendor/OrbitControls.js",
      "tools/web/node_modules/three/examples/jsm/controls/OrbitControls.js", kJs},
 }};
+
+// The page's policy: its own files only, the import map in index.html by its hash (the
+// browser test loads the page under it and fails on any violation; tests/web/check_csp_hash.py
+// fails when index.html's import map changes without this hash).
+constexpr std::string_view kPagePolicy =
+    "default-src 'none'; script-src 'self' 'sha256-u72gRBPQdtAASr3BdV68nUiVv+3hmu0OFXPGwl6WEZw='; "
+    "style-src 'self'; img-src 'self' data: blob:; connect-src 'self'; base-uri 'none'; "
+    "form-action 'none'; frame-ancestors 'none'";
 
 const WebAsset* find_asset(std::string_view url) {
   for (const WebAsset& a : kAssets) {
@@ -63,12 +74,16 @@ std::optional<net::HttpReply> WebAssets::reply(std::string_view url) const {
     net::HttpReply r;
     r.status = 404;
     r.content_type = "text/plain; charset=utf-8";
-    r.body = std::string(url) + ": " + path.string() +
-             " is missing (the page's files and three.js are installed by tools/setup.sh; an "
-             "installed box has them under share/mocap-box/web)\n";
+    // The path stays in the journal: a stranger learns nothing of the box's folders.
+    MOCAP_LOG(Web, Warn) << "the page's file " << path.string()
+                         << " is missing (tools/setup.sh installs the page and three.js)";
+    r.body = std::string(url) +
+             " is missing on this box (the page's files and three.js are installed by "
+             "tools/setup.sh; the journal names the file)\n";
     return r;
   }
   net::HttpReply r;
+  r.headers.emplace_back("Content-Security-Policy", std::string(kPagePolicy));
   r.content_type = std::string(a->content_type);
   r.file = path.string();
   return r;

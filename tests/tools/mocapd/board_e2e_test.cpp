@@ -231,7 +231,7 @@ TEST(MocapdBoardCalibration, CaliscopeWebcamsCalibratedFromOutside) {
     std::this_thread::sleep_for(std::chrono::milliseconds(250));
   }
   EXPECT_EQ(h["calibration"]["state"], "ok") << h.dump();
-  EXPECT_EQ(h["calibration"]["file"], saved.string());
+  EXPECT_EQ(h["calibration"]["file"], saved.filename().string());  // no folder on /health
   EXPECT_EQ(h["calibration"]["board"]["cameras"].size(), 4u);
   EXPECT_EQ(h["problems"].dump().find("no calibration"), std::string::npos) << h.dump();
   EXPECT_EQ(get(port, "/scene").body["cameras"].size(), 4u);

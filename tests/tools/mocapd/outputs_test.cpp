@@ -14,8 +14,10 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <mutex>
+#include <regex>
 #include <thread>
 
 #include "runtime/out/humanoid.h"
@@ -39,7 +41,7 @@ using nlohmann::json;
 json http(int port, const std::string& method, const std::string& target, int* status = nullptr,
           const std::string& token = {}) {
   testing::LineClient c(port);
-  c.send(method + " " + target + " HTTP/1.1\r\nHost: x\r\n" +
+  c.send(method + " " + target + " HTTP/1.1\r\nHost: localhost\r\n" +
          (token.empty() ? std::string() : "X-Mocap-Token: " + token + "\r\n") +
          "Content-Length: 0\r\n\r\n");
   const std::string r = c.read_all(10000);
@@ -225,6 +227,10 @@ TEST(DaemonOutputs, TakesStartStopListAndRefusals) {
   EXPECT_EQ(status, 400) << r.dump();
   r = http(port, "POST", "/takes/start?name=walk%201", &status, (*d)->token());
   EXPECT_EQ(status, 400) << "a space is not allowed: " << r.dump();
+  // Bytes that are not UTF-8 in the name: a 400 naming them, not a 500 with an exception.
+  r = http(port, "POST", "/takes/start?name=walk%FF%FE", &status, (*d)->token());
+  EXPECT_EQ(status, 400) << r.dump();
+  EXPECT_NE(r.value("error", "").find("walk\\xff\\xfe"), std::string::npos) << r.dump();
   r = http(port, "POST", "/takes/start?name=walk1", &status, (*d)->token());
   ASSERT_EQ(status, 201) << r.dump();
   r = http(port, "POST", "/takes/start?name=walk2", &status, (*d)->token());
@@ -241,6 +247,13 @@ TEST(DaemonOutputs, TakesStartStopListAndRefusals) {
   ASSERT_EQ(r["takes"].size(), 1u) << r.dump();
   EXPECT_EQ(r["takes"][0]["name"], "walk1");
   EXPECT_EQ(r["takes"][0]["status"], "complete");
+  // What anyone on the network reads names none of the box's folders.
+  EXPECT_EQ(r.dump().find(c.state_dir), std::string::npos) << r.dump();
+  testing::LineClient health(port);
+  health.send("GET /health HTTP/1.1\r\nHost: localhost\r\n\r\n");
+  const std::string h = health.read_all(10000);
+  EXPECT_NE(h.find("200 OK"), std::string::npos);
+  EXPECT_EQ(h.find(c.state_dir), std::string::npos) << h;
   (*d)->stop();
   auto take = out::read_take(fs::path(c.state_dir) / "takes" / "walk1");
   ASSERT_TRUE(take.ok()) << take.error().message();
@@ -248,6 +261,45 @@ TEST(DaemonOutputs, TakesStartStopListAndRefusals) {
   EXPECT_EQ(take->partial_lines, 0);
   EXPECT_EQ(take->metadata["software"], std::string("mocapd ") + kDaemonVersion);
   EXPECT_EQ(take->metadata["topology"], "body19");
+}
+
+// A token file that cannot be used (readable by others) leaves the box locked: no token is
+// made for the run and shown on /health (it was, and a stranger acted with it); every action is
+// refused with the reason, whatever it presents; /health says why and what to do.
+TEST(DaemonOutputs, AnUnusableTokenFileLocksTheBoxAndHealthShowsNoToken) {
+  testing::TestTempDir dir("mocapd-token");
+  const DaemonConfig c = sim_config(dir);
+  fs::create_directories(c.state_dir);
+  const fs::path token_file = fs::path(c.state_dir) / "token";
+  const std::string written(64, 'b');
+  {
+    std::ofstream out(token_file);
+    out << written << "\n";
+  }
+  fs::permissions(token_file, fs::perms::owner_read | fs::perms::owner_write |
+                                  fs::perms::group_read | fs::perms::others_read);
+  auto d = Daemon::create(c);
+  ASSERT_TRUE(d.ok()) << d.error().message();
+  ASSERT_TRUE((*d)->start().ok());
+  const int port = (*d)->http_port();
+  testing::LineClient health(port);
+  health.send("GET /health HTTP/1.1\r\nHost: localhost\r\n\r\n");
+  const std::string h = health.read_all(10000);
+  const json body = json::parse(testing::http_body(h), nullptr, false);
+  ASSERT_TRUE(body.is_object()) << h;
+  const std::string problems = body["problems"].dump();
+  EXPECT_NE(problems.find("chmod 600"), std::string::npos) << problems;
+  EXPECT_NE(problems.find("restart mocapd"), std::string::npos) << problems;
+  // No 64-hex-digit run anywhere in the status: no token for the run is published.
+  EXPECT_FALSE(std::regex_search(h, std::regex("[0-9a-f]{64}"))) << h;
+  EXPECT_EQ(h.find(c.state_dir), std::string::npos) << h;
+  int status = 0;
+  for (const std::string& token : {std::string(), written, std::string(64, 'c')}) {
+    json r = http(port, "POST", "/takes/start?name=pwned", &status, token);
+    EXPECT_EQ(status, 503) << r.dump();
+  }
+  EXPECT_FALSE(fs::exists(fs::path(c.state_dir) / "takes" / "pwned"));
+  (*d)->stop();
 }
 
 TEST(DaemonOutputs, FullDiskStopsTheTakeNotTheStreamReadOnlyDiskRefusesOne) {

@@ -36,7 +36,7 @@ struct Answer {
 Answer request(int port, const std::string& method, const std::string& target,
                const std::string& token = {}, const std::string& extra = {}) {
   testing::LineClient c(port);
-  c.send(method + " " + target + " HTTP/1.1\r\nHost: x\r\n" +
+  c.send(method + " " + target + " HTTP/1.1\r\nHost: localhost\r\n" +
          (token.empty() ? std::string() : "X-Mocap-Token: " + token + "\r\n") + extra +
          "Content-Length: 0\r\n\r\n");
   const std::string r = c.read_all(15000);
