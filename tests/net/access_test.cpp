@@ -3,6 +3,7 @@
 // wrong tokens are counted and throttled, the token file is 0600; and the server's file
 // replies (downloads) stream any size intact.
 #include "runtime/net/access.h"
+#include "runtime/net/admission.h"
 
 #include <gtest/gtest.h>
 #include <sys/stat.h>
@@ -325,6 +326,93 @@ TEST(HttpRequest, QueryValuesAreDecodedAndBadEscapesRefused) {
   EXPECT_EQ(r.query_value("none").value(), "");
   EXPECT_FALSE(r.query_value("bad").has_value());
   EXPECT_FALSE(r.query_value("end").has_value());
+}
+
+// ------------------------------------------------------------------ admission (admission.h)
+
+TEST(Admission, HostAndOriginAreParsedStrictly) {
+  EXPECT_EQ(host_of("Box.Local:8080"), "box.local");
+  EXPECT_EQ(host_of("box.local."), "box.local");
+  EXPECT_EQ(host_of("[FE80::1]:80"), "fe80::1");
+  EXPECT_EQ(host_of("10.0.0.5"), "10.0.0.5");
+  EXPECT_EQ(host_of("evil.example:80:80"), "");
+  EXPECT_EQ(host_of("user@box"), "");
+  EXPECT_EQ(host_of("box:"), "");
+  EXPECT_EQ(host_of("[::1"), "");
+  EXPECT_EQ(origin_host("http://box.local:8080"), "box.local");
+  EXPECT_EQ(origin_host("HTTPS://10.0.0.5"), "10.0.0.5");
+  EXPECT_EQ(origin_host("null"), "");
+  EXPECT_EQ(origin_host("file://"), "");
+  EXPECT_EQ(origin_host("http://box/path"), "");
+}
+
+TEST(Admission, TheAllowListHasTheBoxsNamesAndWhatIsConfigured) {
+  HostAllowList hosts({"Studio.Example:443", "10.9.8.7"});
+  const auto now = HostAllowList::Clock::now();
+  for (const char* ok : {"localhost", "cams.localhost", "127.0.0.1", "127.3.2.1", "::1",
+                         "studio.example", "10.9.8.7"}) {
+    EXPECT_TRUE(hosts.allows(ok, now)) << ok;
+  }
+  char name[256] = {};
+  ASSERT_EQ(::gethostname(name, sizeof name - 1), 0);
+  EXPECT_TRUE(hosts.allows(lower(name), now)) << name;
+  EXPECT_TRUE(hosts.allows(lower(name) + ".local", now));
+  for (const char* no :
+       {"evil.example", "", "studio.example.evil.example", "10.9.8.8", "localhost.evil.example"}) {
+    EXPECT_FALSE(hosts.allows(no, now)) << no;
+  }
+}
+
+TEST(Admission, BudgetsPerKindAndPerAddressWithTheBoxsReserve) {
+  ConnectionBudgets b;
+  b.max_stream_clients = 2;
+  b.max_websocket_clients = 1;
+  b.max_http_connections = 3;
+  b.max_connections_per_address = 4;
+  b.local_http_reserve = 2;
+  EXPECT_FALSE(
+      refuse_connection(b, {.stream = 1, .from_address = 3}, ClientKind::kStream, "10.0.0.2"));
+  EXPECT_EQ(refuse_connection(b, {.stream = 2}, ClientKind::kStream, "10.0.0.2"), Refusal::kBudget);
+  EXPECT_EQ(refuse_connection(b, {.from_address = 4}, ClientKind::kHttp, "10.0.0.2"),
+            Refusal::kPerAddress);
+  // The box itself: no per-address cap, and two HTTP connections beyond the budget.
+  EXPECT_FALSE(
+      refuse_connection(b, {.http = 4, .from_address = 40}, ClientKind::kHttp, "127.0.0.1"));
+  EXPECT_EQ(refuse_connection(b, {.http = 5}, ClientKind::kHttp, "127.0.0.1"), Refusal::kBudget);
+  EXPECT_EQ(refuse_connection(b, {.websocket = 1}, ClientKind::kWebSocket, "127.0.0.1"),
+            Refusal::kBudget);
+}
+
+TEST(Admission, RequestsWithForeignHostOrOriginAreRefusedNamingIt) {
+  HostAllowList hosts({});
+  const auto now = HostAllowList::Clock::now();
+  auto req = [](std::string method, std::vector<std::pair<std::string, std::string>> headers) {
+    HttpRequest r;
+    r.method = std::move(method);
+    r.path = "/x";
+    r.headers = std::move(headers);
+    return r;
+  };
+  EXPECT_FALSE(check_host_and_origin(req("GET", {}), hosts, now));  // curl --http1.0
+  EXPECT_FALSE(check_host_and_origin(req("GET", {{"host", "localhost:9871"}}), hosts, now));
+  const auto rebound = check_host_and_origin(req("GET", {{"host", "evil.example"}}), hosts, now);
+  ASSERT_TRUE(rebound);
+  EXPECT_EQ(rebound->status, 403);
+  EXPECT_NE(rebound->message.find("'evil.example'"), std::string::npos) << rebound->message;
+  // Reading with a foreign Origin is the browser's business (it will not show the answer);
+  // acting or upgrading is refused.
+  EXPECT_FALSE(check_host_and_origin(
+      req("GET", {{"host", "localhost"}, {"origin", "http://evil.example"}}), hosts, now));
+  EXPECT_TRUE(check_host_and_origin(
+      req("POST", {{"host", "localhost"}, {"origin", "http://evil.example"}}), hosts, now));
+  EXPECT_TRUE(
+      check_host_and_origin(req("POST", {{"host", "localhost"}, {"origin", "null"}}), hosts, now));
+  EXPECT_FALSE(check_host_and_origin(
+      req("POST", {{"host", "localhost"}, {"origin", "http://localhost:9871"}}), hosts, now));
+  EXPECT_TRUE(check_host_and_origin(
+      req("GET",
+          {{"host", "localhost"}, {"upgrade", "websocket"}, {"origin", "http://evil.example"}}),
+      hosts, now));
 }
 
 }  // namespace

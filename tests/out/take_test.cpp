@@ -510,6 +510,18 @@ TEST(TakeList, CompleteInterruptedLiveAndUnreadable) {
   ASSERT_TRUE(killed.ok()) << killed.error().to_string();
   EXPECT_EQ(killed->frames.size(), 4u);
   EXPECT_EQ(killed->partial_lines, 0);
+  // Its lines are counted once per version of the file (GET /takes lists on the server
+  // thread): listed again it says the same; grown (another file version) it is counted again.
+  auto again = list_takes(takes);
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ((*again)[2].frames, 4u);
+  {
+    std::ofstream grow(takes / "a_killed" / "skeletons.ndjson", std::ios::app);
+    grow << "{}\n{}\n";
+  }
+  auto grown = list_takes(takes);
+  ASSERT_TRUE(grown.ok());
+  EXPECT_EQ((*grown)[2].frames, 6u);
 }
 
 // In a child process: a take whose file may grow to `limit_bytes` (RLIMIT_FSIZE, SIGXFSZ

@@ -102,6 +102,21 @@ async function pageMode(a, browser, result) {
   const png = await view.screenshot({ encoding: "base64" });
   fs.writeFileSync(path.join(a.out, "view.png"), Buffer.from(png, "base64"));
   result.colour_pixels = await countColours(page, png, persons.map((p) => p.colour));
+  // The camera tiles draw each person's limbs in the person's colour over the keypoints.
+  result.tile_limb_pixels = await page.evaluate((colours) => {
+    const rgb = colours.map((c) => [1, 3, 5].map((i) => parseInt(c.slice(i, i + 2), 16)));
+    let n = 0;
+    for (const cv of document.querySelectorAll("#cameras canvas")) {
+      if (!cv.width || !cv.height) continue;
+      const d = cv.getContext("2d").getImageData(0, 0, cv.width, cv.height).data;
+      for (let i = 0; i < d.length; i += 4) {
+        if (d[i + 3] > 200 && rgb.some((c) =>
+          Math.abs(c[0] - d[i]) + Math.abs(c[1] - d[i + 1]) + Math.abs(c[2] - d[i + 2]) < 40)) n++;
+      }
+    }
+    return n;
+  }, persons.map((p) => p.colour));
+  result.summary = await page.$eval("#summary", (e) => e.textContent);
   await page.screenshot({ path: path.join(a.out, "page.png"), fullPage: true });
 
   // A camera tile with its thumbnail.

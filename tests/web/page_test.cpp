@@ -130,6 +130,12 @@ TEST_F(Browser, PageShowsEachPersonCamerasAndTakesWithTheToken) {
   EXPECT_TRUE(r["csp_violations"].is_array() && r["csp_violations"].empty())
       << r["csp_violations"].dump();
   ASSERT_EQ(r["persons"].size(), 2u) << r.dump();
+  // The camera tiles draw the limbs (the skeletons seen through each camera), and the header
+  // says where the CNN runs in words.
+  EXPECT_GT(r.value("tile_limb_pixels", 0), 200) << r.dump();
+  EXPECT_NE(r.value("summary", "").find("no CNN: the simulator gives detections"),
+            std::string::npos)
+      << r.value("summary", "");
   for (std::size_t i = 0; i < r["persons"].size(); ++i) {
     const int pixels = r["colour_pixels"][i].get<int>();
     std::printf("[ browser ] person %d %s: %d pixels\n", r["persons"][i]["id"].get<int>(),

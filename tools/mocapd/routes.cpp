@@ -67,6 +67,15 @@ json Daemon::scene_json() const {
     for (const Limb& l : topology->limbs()) bones.push_back({l.joint_a, l.joint_b});
     j["bones"] = bones;
   }
+  // The bones of every topology a frame may carry (its "topology" field): the page draws a
+  // skeleton before the calibration names one, and a frame of another topology.
+  json skeletons = json::object();
+  for (const SkeletonTopology* t : {&body19_topology(), &coco17_topology(), &body25_topology()}) {
+    json b = json::array();
+    for (const Limb& l : t->limbs()) b.push_back({l.joint_a, l.joint_b});
+    skeletons[std::string(t->name())] = b;
+  }
+  j["skeletons"] = skeletons;
   return j;
 }
 

@@ -51,7 +51,8 @@ const view = {
   camera: null,
   controls: null,
   persons: new Map(),  // id -> {group, joints: [Mesh], bones: [Mesh], label: div, seen}
-  bones: [],           // [[a, b]] joint index pairs of the topology
+  bones: [],           // [[a, b]] joint index pairs of the calibration's topology
+  skeletons: {},       // topology name -> its bones (/scene): a frame draws its own topology's
   frustums: new THREE.Group(),
 };
 
@@ -112,7 +113,12 @@ const jointGeometry = new THREE.SphereGeometry(0.045, 12, 8);
 const boneGeometry = new THREE.CylinderGeometry(0.022, 0.022, 1, 8);  // along +y, unit length
 const UP = new THREE.Vector3(0, 1, 0);
 
-function personObject(id, jointCount) {
+// The bones of a frame's topology (its "topology" field), else the calibration's.
+function bonesOf(msg) {
+  return view.skeletons[msg?.topology] || view.bones;
+}
+
+function personObject(id, jointCount, boneCount) {
   const material = new THREE.MeshBasicMaterial({ color: colourOf(id) });
   const group = new THREE.Group();
   const joints = [], bones = [];
@@ -121,7 +127,7 @@ function personObject(id, jointCount) {
     joints.push(m);
     group.add(m);
   }
-  for (let b = 0; b < view.bones.length; b++) {
+  for (let b = 0; b < boneCount; b++) {
     const m = new THREE.Mesh(boneGeometry, material);
     bones.push(m);
     group.add(m);
@@ -145,10 +151,15 @@ function dropPerson(id) {
 const tmpA = new THREE.Vector3(), tmpB = new THREE.Vector3(), tmpD = new THREE.Vector3();
 
 function applyFrame(msg, frameNo) {
+  const bones = bonesOf(msg);
   for (const person of msg.persons || []) {
     let p = view.persons.get(person.id);
+    if (p && (p.bones.length !== bones.length || p.joints.length !== person.joints.length)) {
+      dropPerson(person.id);  // another topology: rebuilt
+      p = null;
+    }
     if (!p) {
-      p = personObject(person.id, person.joints.length);
+      p = personObject(person.id, person.joints.length, bones.length);
       view.persons.set(person.id, p);
     }
     p.seen = frameNo;
@@ -159,7 +170,7 @@ function applyFrame(msg, frameNo) {
       m.visible = j.x !== null && j.y !== null && j.z !== null;
       if (m.visible) m.position.set(j.x, j.y, j.z);
     });
-    view.bones.forEach(([a, b], i) => {
+    bones.forEach(([a, b], i) => {
       const m = p.bones[i], ja = js[a], jb = js[b];
       if (!m || !ja || !jb || ja.x === null || jb.x === null) { if (m) m.visible = false; return; }
       tmpA.set(ja.x, ja.y, ja.z);
@@ -274,14 +285,27 @@ function updatePersonList(msg) {
 
 const fmt = (v, d = 1) => (typeof v === "number" && isFinite(v) ? v.toFixed(d) : "–");
 
+// Where the CNN runs, in words: "CNN on NVIDIA RTX A2000", "CNN on the CPU (software Vulkan,
+// llvmpipe)", "no CNN: the simulator gives detections".
+function cnnText(g) {
+  if (!g) return "CNN ?";
+  const device = String(g.device || "");
+  if (g.backend === "none") return "no CNN" + (device ? ": " + device.replace(/^not used: /, "") : "");
+  const name = device.replace(/^Vulkan on /, "").split(" (")[0];
+  if (g.backend === "vulkan") {
+    return /llvmpipe|lavapipe|swiftshader/i.test(name)
+      ? `CNN on the CPU (software Vulkan, ${name})` : `CNN on ${name || "the GPU"}`;
+  }
+  return "CNN on the CPU";
+}
+
 function showHealth(h) {
   const badge = $("status");
   badge.textContent = h.status;
   badge.className = "badge " + h.status;
   const p = h.pipeline || {};
   $("summary").textContent =
-    `${fmt(p.fps)} fps · ${h.persons ?? 0} persons · ${h.source?.kind ?? "?"}` +
-    ` · GPU ${h.gpu?.backend ?? "?"} ${h.gpu?.device ?? ""}`;
+    `${fmt(p.fps)} fps · ${h.persons ?? 0} persons · ${h.source?.kind ?? "?"} · ${cnnText(h.gpu)}`;
   const problems = h.problems || [];
   $("problems").replaceChildren(...(problems.length ? problems : ["none"]).map((t) => {
     const li = document.createElement("li");
@@ -298,8 +322,14 @@ function showHealth(h) {
   const s = h.stream || {};
   rows.push(["stream clients (tcp / ws)", `${s.clients ?? 0} / ${s.websocket_clients ?? 0}`]);
   rows.push(["page: drawn / skipped", `${stats.rendered} / ${stats.skipped}`]);
-  const lag = stats.lag_ms.slice(-60).sort((a, b) => a - b);
-  if (lag.length) rows.push(["page: capture→drawn ms", fmt(lag[Math.floor(lag.length / 2)])]);
+  // A replay's frames carry the times they were recorded at: capture→drawn means nothing
+  // there, the page's own delay (arrival→drawn) does.
+  const replay = h.source?.kind === "replay";
+  const lag = (replay ? stats.arrival_lag_ms : stats.lag_ms).slice(-60).sort((a, b) => a - b);
+  if (lag.length) {
+    rows.push([replay ? "page: arrival→drawn ms (replay)" : "page: capture→drawn ms",
+               fmt(lag[Math.floor(lag.length / 2)])]);
+  }
   $("pipeline").tBodies[0].replaceChildren(...rows.map(([k, v]) => {
     const tr = document.createElement("tr");
     const a = document.createElement("td"), b = document.createElement("td");
@@ -452,6 +482,35 @@ function drawKeypoints(canvas, v, i) {
     g.beginPath();
     g.arc(j[0] / v.width_px * w, j[1] / v.height_px * h, 3, 0, 2 * Math.PI);
     g.fill();
+  }
+  drawLimbs(g, w, h, i);
+}
+
+// Each person's skeleton of the frame drawn last, seen through camera i (its calibration from
+// /scene): the limbs over the camera's keypoints, in the person's colour.
+function drawLimbs(g, w, h, i) {
+  const cam = scene?.cameras?.[i];
+  const msg = drawnFrame;
+  if (!cam || !cam.width_px || !msg || msg.type !== "skeletons") return;
+  const K = cam.K, R = cam.R, t = cam.t_m;
+  const project = (j) => {
+    if (!j || j.x === null || j.y === null || j.z === null) return null;
+    const c = [0, 1, 2].map((r) => R[r][0] * j.x + R[r][1] * j.y + R[r][2] * j.z + t[r]);
+    if (c[2] < 0.05) return null;  // behind the camera
+    return [(K[0][0] * c[0] / c[2] + K[0][2]) / cam.width_px * w,
+            (K[1][1] * c[1] / c[2] + K[1][2]) / cam.height_px * h];
+  };
+  g.lineWidth = 2;
+  for (const person of msg.persons || []) {
+    const pts = person.joints.map(project);
+    g.strokeStyle = colourOf(person.id);
+    g.beginPath();
+    for (const [a, b] of bonesOf(msg)) {
+      if (!pts[a] || !pts[b]) continue;
+      g.moveTo(pts[a][0], pts[a][1]);
+      g.lineTo(pts[b][0], pts[b][1]);
+    }
+    g.stroke();
   }
 }
 
@@ -678,10 +737,12 @@ let scene = null;
 async function refreshScene() {
   const r = await box.call("GET", "/scene");
   if (r.status !== 200 || !r.body) return;
-  const key = JSON.stringify(r.body.cameras) + (r.body.bones || []).length;
-  if (scene && JSON.stringify(scene.cameras) + (scene.bones || []).length === key) return;
+  const keyOf = (b) => JSON.stringify(b.cameras) + (b.bones || []).length +
+    Object.keys(b.skeletons || {}).join();
+  if (scene && keyOf(scene) === keyOf(r.body)) return;
   scene = r.body;
   view.bones = scene.bones || [];
+  view.skeletons = scene.skeletons || {};
   for (const id of [...view.persons.keys()]) dropPerson(id);  // rebuilt with the new bones
   showCameras(scene.cameras || []);
 }
