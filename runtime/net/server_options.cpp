@@ -107,6 +107,11 @@ Status StreamServerOptions::validate() const {
                                                    "mocap.studio.example, 10.0.0.5)");
     }
   }
+  if (stall_timeout_ms < 100 || stall_timeout_ms > 3600000) {
+    return invalid_argument(
+        "stream server",
+        "stall_timeout_ms " + std::to_string(stall_timeout_ms) + " is outside [100, 3600000]");
+  }
   if (max_request_bytes < 256 || max_request_bytes > (std::size_t{1} << 20)) {
     return invalid_argument(
         "stream server",

@@ -27,7 +27,10 @@ struct StreamServerOptions {
   std::string allowed_hosts;  // comma-separated names besides the box's own (a proxy's, NAT's)
   std::size_t max_client_backlog_bytes = std::size_t{4} << 20;  // parameter client_backlog_kib
   std::size_t max_request_bytes = 8192;  // largest HTTP request head, [256, 1 MiB]
-  AccessOptions access;                  // the token (runtime/net/access.h)
+  // A stream or WebSocket client that takes nothing this long while data waits for it is
+  // dropped, its backlog not yet full: a held slot must be a reading client. [100, 3600000]
+  int stall_timeout_ms = 30000;
+  AccessOptions access;  // the token (runtime/net/access.h)
   // The declared ranges, an IPv4 bind address, two different ports; the error names the field.
   Status validate() const;
   // bind_address, stream_port, http_port, the budgets, client_backlog_kib, allowed_hosts,

@@ -50,9 +50,6 @@ constexpr auto kRequestTimeout = std::chrono::seconds(10);     // the whole HTTP
 constexpr auto kFlushTimeout = std::chrono::seconds(10);       // sending the last answer
 constexpr auto kLingerTimeout = std::chrono::seconds(2);       // reading after our FIN
 constexpr auto kAcceptPause = std::chrono::milliseconds(100);  // after EMFILE/ENFILE
-// A stream or WebSocket client that takes nothing for this long while data waits is dropped,
-// whatever its backlog: a held slot must be a reading client.
-constexpr auto kStallTimeout = std::chrono::seconds(30);
 // What a subscriber may send: a browser's WebSocket sends nothing but a rare ping, a stream
 // client its token line. Over this (a token bucket per connection) it is closed and its
 // address refused for kFloodCooldown: a ping flood cost the poll thread a core (666 MB/s).
@@ -112,7 +109,7 @@ struct Connection {
   bool peer_closed = false;        // read EOF
   bool dead = false;               // close at the next sync
   bool dropped_slow = false;       // for the log line: over its backlog
-  bool stalled = false;            // for the log line: took nothing for kStallTimeout
+  bool stalled = false;            // for the log line: took nothing for stall_timeout_ms
   bool pong_queued = false;        // a pong is in `out`, not yet wholly sent
   std::shared_ptr<Outbox> outbox;  // stream and WebSocket clients
   std::optional<Clock::time_point> deadline;
@@ -484,7 +481,7 @@ void StreamServer::Impl::reap() {
     }
     if (c->dead && c->stalled) {
       MOCAP_LOG(Net, Info) << kind_name(*c) << " client " << c->peer
-                           << " dropped: took nothing for " << kStallTimeout.count() << " s";
+                           << " dropped: took nothing for " << options.stall_timeout_ms << " ms";
       freed = true;
     }
   }
@@ -536,7 +533,7 @@ void StreamServer::Impl::expire(Clock::time_point now) {
     if (c.phase == Phase::kHttpRequest) {
       respond(c, text_response(408, "request head not received in time\n"));
     } else if (c.phase == Phase::kStream || c.phase == Phase::kWebSocket) {
-      ++local.dropped_slow;  // its send deadline (kStallTimeout) passed
+      ++local.dropped_slow;  // its send deadline (stall_timeout_ms) passed
       c.stalled = true;
       c.dead = true;
     } else {
@@ -664,7 +661,9 @@ void StreamServer::Impl::flush(Connection& c) {
       const int err = errno;
       if (err == EINTR) continue;
       if (err == EAGAIN || err == EWOULDBLOCK) {
-        if (subscriber && !c.deadline) c.deadline = Clock::now() + kStallTimeout;
+        if (subscriber && !c.deadline) {
+          c.deadline = Clock::now() + std::chrono::milliseconds(options.stall_timeout_ms);
+        }
         return;
       }
       MOCAP_LOG(Net, Debug) << kind_name(c) << " client " << c.peer << ": " << errno_text(err);

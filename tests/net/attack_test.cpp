@@ -205,6 +205,33 @@ TEST(Attack, OneAddressCannotTakeEverySlot) {
   EXPECT_EQ(lines.next().value_or(""), "{\"seq\":1}");
 }
 
+// A stream client that holds its slot and reads nothing is dropped once data has waited for it
+// stall_timeout_ms, its backlog still far from full; a reading client is not.
+TEST(Attack, AStreamClientThatNeverReadsLosesItsSlotAfterTheStallTimeout) {
+  StreamServerOptions o;
+  o.max_client_backlog_bytes = std::size_t{256} << 20;  // the backlog never decides here
+  o.stall_timeout_ms = 500;
+  auto server = serve(o);
+  ASSERT_TRUE(server);
+  Socket stuck = connect_from("127.0.0.2", server->stream_port(), /*rcvbuf=*/4096);
+  Socket good = connect_from("127.0.0.3", server->stream_port());
+  ASSERT_TRUE(stuck.valid() && good.valid());
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 2; }));
+  LineReader reader(good);
+  const std::string pad(16 * 1024, 'x');
+  for (int i = 0; i < 1500 && server->stats().stream_clients == 2; ++i) {  // up to ~24 MB
+    server->publish("{\"seq\":" + std::to_string(i) + ",\"pad\":\"" + pad + "\"}");
+    ASSERT_TRUE(reader.next().has_value()) << i;
+    if (i % 100 == 99) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_TRUE(wait_until([&] { return server->stats().stream_clients == 1; }));
+  EXPECT_EQ(server->stats().dropped_slow, 1u);
+  EXPECT_LT(server->stats().backlog_bytes, o.max_client_backlog_bytes / 4);
+  EXPECT_NE(read_to_end(stuck), End::kTimedOut);  // closed by the server
+  server->publish("{\"seq\":\"after\"}");
+  EXPECT_EQ(reader.next().value_or(""), "{\"seq\":\"after\"}");
+}
+
 // ------------------------------------------------------- (4) nobody locks the operator out
 
 // A web page open in the operator's browser posts forms (no token) and opens WebSockets

@@ -158,6 +158,9 @@ TEST(StreamServerOptions, DefaultsAreValidAndErrorsNameTheField) {
   o.allowed_hosts = "studio.example, bad/host";
   expect_error(o, "allowed_hosts");
   o = {};
+  o.stall_timeout_ms = 50;
+  expect_error(o, "stall_timeout_ms");
+  o = {};
   o.max_client_backlog_bytes = 100;
   expect_error(o, "client_backlog_kib");
   o = {};
