@@ -347,6 +347,17 @@ TEST(DaemonOutputs, FullDiskStopsTheTakeNotTheStreamReadOnlyDiskRefusesOne) {
   auto take = out::read_take(fs::path(c.state_dir) / "takes" / "long");
   ASSERT_TRUE(take.ok()) << take.error().message();
   EXPECT_GT(take->frames.size(), 5u);
+  // The exports the stop asked for are written in the background (and fail: the disk is
+  // full). A file open for writing makes the remount below EBUSY (seen once under ASan): wait
+  // until the take is no longer exporting.
+  bool exported = false;
+  for (int i = 0; i < 300 && !exported; ++i) {
+    const json list = http(port, "GET", "/takes", &status);
+    exported =
+        list.is_object() && list["takes"].size() == 1 && !list["takes"][0].value("exporting", true);
+    if (!exported) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_TRUE(exported) << "the take's exports did not finish in 30 s";
   // Read-only: a take cannot start, and says where.
   ASSERT_EQ(mount(nullptr, c.state_dir.c_str(), nullptr, MS_REMOUNT | MS_RDONLY, nullptr), 0)
       << strerror(errno);
