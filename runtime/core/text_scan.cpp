@@ -141,17 +141,23 @@ std::string TextScanner::last_token_for_message() const {
   const bool cut = e - token_ > kMaxShown;
   if (cut) e = token_ + kMaxShown;
   std::string s = "'";
-  for (const char* c = token_; c < e; ++c) {
-    const auto u = static_cast<unsigned char>(*c);
+  s += printable_bytes(std::string_view(token_, static_cast<std::size_t>(e - token_)));
+  s += cut ? "...'" : "'";
+  return s;
+}
+
+std::string printable_bytes(std::string_view bytes) {
+  std::string s;
+  for (const char c : bytes) {
+    const auto u = static_cast<unsigned char>(c);
     if (u >= 0x20 && u < 0x7f) {
-      s += *c;
+      s += c;
     } else {
       char hex[8];
       std::snprintf(hex, sizeof(hex), "\\x%02x", static_cast<unsigned>(u));
       s += hex;
     }
   }
-  s += cut ? "...'" : "'";
   return s;
 }
 

@@ -70,4 +70,7 @@ class TextScanner {
 // A readable reason for a failed read, quoting the offending token.
 std::string describe(ScanStatus status, const TextScanner& scan);
 
+// `bytes` for a message: printable ASCII as it is, every other byte as \xNN.
+std::string printable_bytes(std::string_view bytes);
+
 }  // namespace mocap

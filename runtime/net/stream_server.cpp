@@ -135,15 +135,15 @@ ClientKind client_kind(const Connection& c) {
 }
 
 const char* kind_name(const Connection& c) {
-  switch (c.phase) {
-    case Phase::kStream:
-    case Phase::kStreamAuth:
+  switch (client_kind(c)) {
+    case ClientKind::kStream:
       return "stream";
-    case Phase::kWebSocket:
+    case ClientKind::kWebSocket:
       return "websocket";
-    default:
-      return "http";
+    case ClientKind::kHttp:
+      break;
   }
+  return "http";
 }
 
 std::string format_address(const sockaddr_in& addr) {
@@ -311,6 +311,7 @@ struct StreamServer::Impl {
   bool admit_websocket(Connection& c);
   void upgrade(Connection& c, const HttpRequest& req, std::size_t head_end);
   void fail_overflowing(Connection& c);
+  void close_for_policy(Connection& c);
   void reply(Connection& c, HttpReply r);
   void read_request(Connection& c);
   void read_websocket(Connection& c);
@@ -494,6 +495,12 @@ void StreamServer::Impl::reap() {
 // WebSocket is told why (close 1008) should it read again within kFlushTimeout.
 void StreamServer::Impl::fail_overflowing(Connection& c) {
   c.dropped_slow = true;
+  close_for_policy(c);
+}
+
+// A subscriber that broke a limit: its unsent data let go; a WebSocket is told why (close
+// 1008, sent within kFlushTimeout if it reads at all), a stream client closed at once.
+void StreamServer::Impl::close_for_policy(Connection& c) {
   if (c.phase == Phase::kWebSocket) {
     drop_unsent(c);
     respond(c, websocket_close_frame(kWsPolicyViolation));
@@ -751,12 +758,7 @@ bool StreamServer::Impl::within_input_budget(Connection& c, std::size_t bytes) {
       std::erase_if(cooldowns, [&](const auto& e) { return e.second <= now; });
     if (cooldowns.size() < kMaxCooldowns) cooldowns[c.address] = now + kFloodCooldown;
   }
-  if (c.phase == Phase::kWebSocket) {
-    drop_unsent(c);
-    respond(c, websocket_close_frame(kWsPolicyViolation));
-  } else {
-    c.dead = true;
-  }
+  close_for_policy(c);
   return false;
 }
 

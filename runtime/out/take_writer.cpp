@@ -14,6 +14,7 @@
 #include <system_error>
 
 #include "runtime/core/atomic_file.h"
+#include "runtime/core/text_scan.h"
 
 namespace mocap::out {
 namespace {
@@ -116,18 +117,8 @@ Status validate_take_name(std::string_view name) {
   bool ok = !name.empty() && name.size() <= 64 && name.front() != '.';
   for (char c : name) ok = ok && valid_name_char(c);
   if (ok) return {};
-  std::string shown;  // the name as given, its bytes outside printable ASCII as \xNN
-  for (const char c : name.substr(0, 80)) {
-    if (c >= ' ' && c < 0x7f) {
-      shown += c;
-    } else {
-      static constexpr char kHex[] = "0123456789abcdef";
-      const auto b = static_cast<unsigned char>(c);
-      shown += std::string("\\x") + kHex[b >> 4] + kHex[b & 15];
-    }
-  }
   return Error(ErrorCode::kInvalidArgument,
-               "invalid take name '" + shown +
+               "invalid take name '" + printable_bytes(name.substr(0, 80)) +
                    "': use 1 to 64 characters of A-Z a-z 0-9 . _ -, not starting with '.'");
 }
 
