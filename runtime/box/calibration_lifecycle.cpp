@@ -46,18 +46,6 @@ std::string_view to_string(CalibrationState state) {
   return "unknown";
 }
 
-Status CalibrationLifecycleOptions::validate() const {
-  if (self_calibration_frames < 30) {
-    return invalid_argument(kStage, "self_calibration_frames " +
-                                        std::to_string(self_calibration_frames) +
-                                        " must be at least 30");
-  }
-  if (state_file.empty()) {
-    return invalid_argument(kStage, "state_file (<state_dir>/calibration.json) is empty");
-  }
-  return {};
-}
-
 CalibrationLifecycle::CalibrationLifecycle(CalibrationLifecycleOptions options,
                                            ProblemList& problems)
     : options_(std::move(options)), problems_(problems) {}

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "runtime/assoc/engine.h"
+#include "runtime/box/calibration_lifecycle_options.h"
 #include "runtime/box/problems.h"
 #include "runtime/calib/background.h"
 #include "runtime/calib/monitor.h"
@@ -45,18 +46,6 @@ inline constexpr std::array<CalibrationState, 5> kCalibrationStates = {
     CalibrationState::kOk, CalibrationState::kMissing, CalibrationState::kInvalid,
     CalibrationState::kMismatch, CalibrationState::kCalibrating};
 std::string_view to_string(CalibrationState state);  // "ok", "missing", ...
-
-struct CalibrationLifecycleOptions {
-  bool self_calibrate = true;         // cameras without a calibration calibrate from people
-  bool calibration_check = true;      // watch residuals; re-solve a camera that moved
-  int self_calibration_frames = 250;  // frames before each self-calibration attempt, >= 30
-  // Where a self-calibration is written (<state_dir>/calibration.json).
-  std::filesystem::path state_file;
-  // Whether a re-solved camera is written there too: not over a calibration the user named,
-  // not for a recording's or the simulator's own.
-  bool persist_resolved_cameras = false;
-  Status validate() const;
-};
 
 // A recalibration request's answer.
 enum class RecalibrationAnswer {

@@ -5,8 +5,10 @@
 
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "runtime/core/error.h"
+#include "runtime/core/params.h"
 
 namespace mocap::gpu {
 
@@ -56,5 +58,23 @@ enum class BackendRequest { kAuto, kVulkan, kCpu };
 std::string_view to_string(BackendRequest request);  // "auto", "vulkan", "cpu"
 // "auto", "vulkan" or "cpu"; the error lists them.
 Result<BackendRequest> parse_backend_request(std::string_view name);
+
+// The CNN as a user chooses it, declared once (runtime/core/params.h): mocapd's model,
+// input_size_px, input_fit, crops, crop_input_size_px, gpu and gpu_device are these parameters.
+// Turned into CnnOptions by the program that opens the detector (it knows where models live).
+struct CnnChoice {
+  std::string model;      // empty = the installed models/movenet-multipose.mcnn
+  int input_size_px = 0;  // 0 = the model's default (PoseNet 353, MoveNet 448)
+  InputFit input_fit = InputFit::kAuto;
+  // 3D-guided crops (runtime/crops/crop_plan.h): auto (thunder on a hardware GPU, none on a
+  // software device), none, thunder, lightning or a model file; on only with a calibration.
+  std::string crops = "auto";
+  int crop_input_size_px = 0;  // 0 = the crop model's (Thunder 256, Lightning 192)
+  BackendRequest backend = BackendRequest::kAuto;
+  std::string device;  // empty = the board's preferred GPU, else the best one
+  // The declared ranges, and input_size_px 0 or at least kMinInputSizePx.
+  Status validate() const;
+  static const std::vector<Param<CnnChoice>>& params();
+};
 
 }  // namespace mocap::gpu

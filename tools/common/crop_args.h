@@ -36,6 +36,19 @@ inline Status set_crops(const std::string& crops, int size_px, gpu::CnnOptions& 
   return Status::Ok();
 }
 
+// The detector's options from a user's choice (mocapd's CNN options): the model (empty: the
+// installed MoveNet MultiPose), backend, device (empty: preferred_device), input size and fit,
+// and the crops.
+inline Status apply_cnn_choice(const gpu::CnnChoice& choice, const std::string& preferred_device,
+                               gpu::CnnOptions& cnn) {
+  cnn.model = choice.model.empty() ? default_model_path() : std::filesystem::path(choice.model);
+  cnn.backend = choice.backend;
+  cnn.device = choice.device.empty() ? preferred_device : choice.device;
+  cnn.input_size_px = choice.input_size_px;
+  cnn.input_fit = choice.input_fit;
+  return set_crops(choice.crops, choice.crop_input_size_px, cnn);
+}
+
 struct CropArgs {
   std::string crops = "auto";
   int size_px = 0;

@@ -58,49 +58,9 @@ void add_network_and_sources(std::vector<OptionSpec>& v) {
 
 void add_detector_pipeline_and_outputs(std::vector<OptionSpec>& v) {
   // CNN
-  v.push_back(
-      string_param("model", "path",
-                   "pose network (.mcnn or TF.js model.json); empty = the installed "
-                   "models/movenet-multipose.mcnn (MoveNet MultiPose), else the source tree's; "
-                   "PoseNet: models/posenet.mcnn",
-                   &DaemonConfig::model));
-  v.push_back(int_param("input_size_px", "px", {0, gpu::kMaxInputSizePx},
-                        "network input size, the long side with input_fit frame (PoseNet: 16k+1, "
-                        "e.g. 257, 353, 513; MoveNet: a multiple of 32); 0 = the model's default "
-                        "(PoseNet 353, MoveNet 448)",
-                        &DaemonConfig::input_size_px));
-  v.push_back(enum_param(
-      "input_fit", "shape",
-      "auto (the model's: frame for MoveNet, square for PoseNet), frame (the short side fitted "
-      "to the calibrated frames' aspect: no letterbox border) or square",
-      &DaemonConfig::input_fit,
-      std::vector<std::pair<std::string, gpu::InputFit>>{{"auto", gpu::InputFit::kAuto},
-                                                         {"frame", gpu::InputFit::kFrame},
-                                                         {"square", gpu::InputFit::kSquare}}));
-  v.push_back(string_param(
-      "crops", "model",
-      "3D-guided crops: each tracked person's skeleton, projected into every view, gives a crop "
-      "that a single-person model refines: auto (thunder on a hardware GPU, none on the CPU "
-      "or a software device such as lavapipe), none, thunder (MoveNet Thunder), lightning "
-      "(the fast one) or a model file; needs a calibration",
-      &DaemonConfig::crops));
-  v.push_back(int_param("crop_input_size_px", "px", {0, 1024},
-                        "crop model input size, a multiple of 32; 0 = the model's (Thunder 256, "
-                        "Lightning 192)",
-                        &DaemonConfig::crop_input_size_px));
-  using gpu::BackendRequest;
-  v.push_back(enum_param(
-      "gpu", "backend",
-      "auto (Vulkan, the CPU with a warning when no device opens), vulkan "
-      "(fail without one) or cpu",
-      &DaemonConfig::gpu,
-      std::vector<std::pair<std::string, BackendRequest>>{{"auto", BackendRequest::kAuto},
-                                                          {"vulkan", BackendRequest::kVulkan},
-                                                          {"cpu", BackendRequest::kCpu}}));
-  v.push_back(string_param("gpu_device", "name",
-                           "Vulkan device index or name substring; empty = the board's preferred "
-                           "GPU, else the best one",
-                           &DaemonConfig::gpu_device));
+  append(v, nested(&DaemonConfig::cnn, gpu::CnnChoice::params(),
+                   {"model", "input_size_px", "input_fit", "crops", "crop_input_size_px", "gpu",
+                    "gpu_device"}));
   // Pipeline
   append(v, nested(&DaemonConfig::pipeline, pipeline::PipelineOptions::params(), {"queue_depth"}));
   v.push_back(enum_param("drop_policy", "policy",
@@ -125,40 +85,14 @@ void add_detector_pipeline_and_outputs(std::vector<OptionSpec>& v) {
 }
 
 void add_simulator_and_calibration(std::vector<OptionSpec>& v) {
-  // Simulator
-  v.push_back(int_param("sim_people", "persons", {0, 16}, "simulator board: people in the scene",
-                        &DaemonConfig::sim_people));
-  v.push_back(int_param("sim_views", "cameras", {2, 16}, "simulator board: virtual cameras",
-                        &DaemonConfig::sim_views));
-  v.push_back(
-      int_param("sim_bump_view", "camera", {-1, 15},
-                "simulator board: turn this virtual camera mid-run, as if bumped (-1: none)",
-                &DaemonConfig::sim_bump_view));
-  v.push_back(double_param("sim_bump_after_s", "s", {0, 86400},
-                           "simulator board: when the camera is turned",
-                           &DaemonConfig::sim_bump_after_s));
-  v.push_back(
-      double_param("sim_bump_deg", "degrees", {-90, 90},
-                   "simulator board: how far the camera is turned (about its vertical axis)",
-                   &DaemonConfig::sim_bump_deg));
-  v.push_back(bool_param("calibration_check",
-                         "watch each camera's reprojection residuals against the skeletons; a "
-                         "camera that moved is named in /health and its pose solved again in the "
-                         "background and swapped in (saved to <state_dir>/calibration.json unless "
-                         "the calibration was named)",
-                         &DaemonConfig::calibration_check));
-  v.push_back(bool_param("sim_calibrated",
-                         "simulator board: hand mocapd the virtual rig's calibration (false: the "
-                         "box calibrates itself from the simulated people, as with real cameras)",
-                         &DaemonConfig::sim_calibrated));
-  v.push_back(bool_param("self_calibrate",
-                         "cameras without a usable calibration calibrate themselves from people "
-                         "walking in the room (docs/self-calibration.md), streaming 2D detections "
-                         "meanwhile; the result is written to <state_dir>/calibration.json",
-                         &DaemonConfig::self_calibrate));
-  v.push_back(int_param("self_calibration_frames", "frames", {30, 100000},
-                        "frames collected before each self-calibration attempt",
-                        &DaemonConfig::self_calibration_frames));
+  append(v,
+         nested(&DaemonConfig::sim, sim::SimBoardOptions::params(),
+                {"sim_people", "sim_views", "sim_bump_view", "sim_bump_after_s", "sim_bump_deg"}));
+  append(v, nested(&DaemonConfig::lifecycle, box::CalibrationLifecycleOptions::params(),
+                   {"calibration_check"}));
+  append(v, nested(&DaemonConfig::sim, sim::SimBoardOptions::params(), {"sim_calibrated"}));
+  append(v, nested(&DaemonConfig::lifecycle, box::CalibrationLifecycleOptions::params(),
+                   {"self_calibrate", "self_calibration_frames"}));
 }
 
 void add_scale_out_and_status(std::vector<OptionSpec>& v) {
@@ -176,26 +110,9 @@ void add_scale_out_and_status(std::vector<OptionSpec>& v) {
                    {"node_name", "stage", "dds_domain", "node_lease_s"}));
   append(v, nested(&DaemonConfig::grouping, fusion::FrameGrouperOptions::params(),
                    {"fusion_max_wait_ms"}));
-  v.push_back(int_param("sim_rig_views", "cameras", {0, 64},
-                        "simulated stage: cameras of the whole stage's ring (a detector node "
-                        "renders sim_views of them from sim_first_view on); 0 = sim_views",
-                        &DaemonConfig::sim_rig_views));
-  v.push_back(int_param("sim_first_view", "camera", {0, 63},
-                        "simulated stage: a detector node's first camera in the stage ring",
-                        &DaemonConfig::sim_first_view));
-  v.push_back(int_param("sim_epoch_unix_ms", "ms", {0, 1e15},
-                        "simulated stage: Unix time (ms) the scene starts at, the same on every "
-                        "node; 0 = this node's start (a single node)",
-                        &DaemonConfig::sim_epoch_unix_ms));
-  v.push_back(double_param("sim_stall_after_s", "s", {0, 86400},
-                           "simulator: its cameras stall this long after the start (tests)",
-                           &DaemonConfig::sim_stall_after_s));
-  v.push_back(double_param("sim_stall_s", "s", {0, 3600},
-                           "simulator: how long the cameras stall; 0 = never",
-                           &DaemonConfig::sim_stall_s));
-  v.push_back(double_param("sim_clock_offset_ms", "ms", {-1e6, 1e6},
-                           "detector node: added to this node's clock, as if PTP were off (tests)",
-                           &DaemonConfig::sim_clock_offset_ms));
+  append(v, nested(&DaemonConfig::sim, sim::SimBoardOptions::params(),
+                   {"sim_rig_views", "sim_first_view", "sim_epoch_unix_ms", "sim_stall_after_s",
+                    "sim_stall_s", "sim_clock_offset_ms"}));
   // Status
   v.push_back(double_param("status_log_interval_s", "s", {0, 86400},
                            "how often a status line is logged; 0 = never",
@@ -261,11 +178,7 @@ Status validate(const DaemonConfig& c) {
     }
   }
   if (c.state_dir.empty()) return err("state_dir must not be empty");
-  if (c.input_size_px != 0 && c.input_size_px < gpu::kMinInputSizePx) {
-    return err("input_size_px " + std::to_string(c.input_size_px) + " must be 0 (the model's " +
-               "default) or in [" + std::to_string(gpu::kMinInputSizePx) + ", " +
-               std::to_string(gpu::kMaxInputSizePx) + "]");
-  }
+  if (Status s = c.cnn.validate(); !s.ok()) return s;
   return {};
 }
 

@@ -15,6 +15,7 @@
 #include <string_view>
 #include <vector>
 
+#include "runtime/box/calibration_lifecycle_options.h"
 #include "runtime/core/box_defaults.h"
 #include "runtime/core/error.h"
 #include "runtime/core/params.h"
@@ -24,6 +25,7 @@
 #include "runtime/net/server_options.h"
 #include "runtime/out/vmc_options.h"
 #include "runtime/pipeline/pipeline_options.h"
+#include "runtime/sim/sim_board_options.h"
 
 namespace mocap::daemon {
 
@@ -54,31 +56,18 @@ struct DaemonConfig {
   std::string dev_dir = "/dev";
   int max_cameras = 8;
   double frame_rate_hz = 0;  // 0 = the board's
-  // CNN
-  std::string model;      // empty = the installed models/movenet-multipose.mcnn
-  int input_size_px = 0;  // 0 = the model's default (PoseNet 353, MoveNet 448)
-  gpu::InputFit input_fit = gpu::InputFit::kAuto;
-  // 3D-guided crops (runtime/crops/crop_plan.h): auto (thunder on a hardware GPU, none on a
-  // software device), none, thunder, lightning or a model file; on only when the cameras are
-  // calibrated.
-  std::string crops = "auto";
-  int crop_input_size_px = 0;  // 0 = the crop model's (Thunder 256, Lightning 192)
-  gpu::BackendRequest gpu = gpu::BackendRequest::kAuto;
-  std::string gpu_device;  // empty = the board's preferred GPU, else the best one
+  // The CNN: model, input_size_px, input_fit, crops, crop_input_size_px, gpu, gpu_device
+  // (runtime/gpu/cnn_options.h)
+  gpu::CnnChoice cnn;
   // Pipeline: queue_depth, realtime_priority, max_frames (runtime/pipeline/pipeline_options.h;
   // the drop policy below is mocapd's, with its auto choice)
   pipeline::PipelineOptions pipeline;
   DropPolicyChoice drop_policy = DropPolicyChoice::kAuto;
-  // Simulator (no camera)
-  int sim_people = 2;
-  int sim_views = 4;
-  int sim_bump_view = -1;         // simulator: this virtual camera is turned mid-run (-1: none)
-  double sim_bump_after_s = 10;   // ... this many seconds after the start
-  double sim_bump_deg = 3;        // ... by this many degrees about its vertical axis
-  bool calibration_check = true;  // watch each camera's residuals; re-solve a bumped one
-  bool sim_calibrated = true;     // false: the simulator keeps its rig to itself (self-calibration)
-  bool self_calibrate = true;     // cameras without a calibration calibrate from people walking
-  int self_calibration_frames = 250;  // frames collected before each self-calibration attempt
+  // The simulator board (no camera): sim_* (runtime/sim/sim_board_options.h)
+  sim::SimBoardOptions sim;
+  // calibration_check, self_calibrate, self_calibration_frames (its state_file is set from
+  // state_dir; runtime/box/calibration_lifecycle_options.h)
+  box::CalibrationLifecycleOptions lifecycle;
   // Outputs (docs/outputs.md)
   std::string vmc_targets;  // "HOST:PORT[,HOST:PORT...]": VMC to each, person k on PORT+k
   out::VmcOptions vmc;      // vmc_slots, vmc_slot_release_s (runtime/out/vmc_options.h)
@@ -86,12 +75,6 @@ struct DaemonConfig {
   Role role = Role::kStandalone;
   dds::StageOptions dds;  // node_name, stage, dds_domain, node_lease_s (dds/stage_options.h)
   fusion::FrameGrouperOptions grouping;  // fusion_max_wait_ms (fusion/grouper_options.h)
-  int sim_rig_views = 0;   // detector/fusion simulator: cameras of the stage (0 = sim_views)
-  int sim_first_view = 0;  // detector simulator: its first camera in the stage rig
-  std::int64_t sim_epoch_unix_ms = 0;  // simulated stage: when the scene starts (0 = now)
-  double sim_stall_after_s = 0;        // simulator: its cameras stall this long after the start ...
-  double sim_stall_s = 0;              // ... for this long (0: never)
-  double sim_clock_offset_ms = 0;      // detector: a wrong clock, for tests
   // Status
   double status_log_interval_s = 30;
   std::string log;  // MOCAP_LOG syntax, e.g. "*:info,Pipeline:debug"

@@ -81,11 +81,9 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
   d->config_ = config;
   d->hooks_ = std::move(hooks);
   d->unix_offset_ns_ = realtime_offset_ns();
-  box::CalibrationLifecycleOptions lo;
-  lo.self_calibrate = config.self_calibrate;
+  box::CalibrationLifecycleOptions lo = config.lifecycle;
   // A recording's calibration is not checked: a replay gives the same skeletons every time.
-  lo.calibration_check = config.calibration_check && config.replay.empty();
-  lo.self_calibration_frames = config.self_calibration_frames;
+  lo.calibration_check = lo.calibration_check && config.replay.empty();
   lo.state_file = fs::path(config.state_dir) / "calibration.json";
   if (Status s = lo.validate(); !s.ok()) return s.error();
   d->lifecycle_ = std::make_unique<box::CalibrationLifecycle>(lo, d->problems_);
@@ -117,14 +115,7 @@ Status Daemon::open_replay() {
   o.source.dir = config_.replay;
   o.source.loop = config_.loop;
   o.source.realtime = config_.replay_realtime;
-  o.cnn.model = config_.model.empty() ? tools::default_model_path() : fs::path(config_.model);
-  o.cnn.backend = config_.gpu;
-  o.cnn.device = config_.gpu_device;
-  o.cnn.input_size_px = config_.input_size_px;
-  o.cnn.input_fit = config_.input_fit;
-  if (Status s = tools::set_crops(config_.crops, config_.crop_input_size_px, o.cnn); !s.ok()) {
-    return s;
-  }
+  if (Status s = tools::apply_cnn_choice(config_.cnn, "", o.cnn); !s.ok()) return s;
   o.source.calibration_optional = true;  // a fresh recording: calibrated while it plays
   auto parts = tools::open_replay(o);
   if (!parts.ok()) return parts.error().with_context("replay");
@@ -147,9 +138,9 @@ Status Daemon::open_replay() {
                     " have no calibration (no calibration.json): streaming 2D detections only; use "
                     "\"Calibrate with a board\" on the web page, or let the box calibrate itself "
                     "from the people");
-    if (!config_.crops.empty() && config_.crops != "auto" && config_.crops != "off") {
+    if (!config_.cnn.crops.empty() && config_.cnn.crops != "auto" && config_.cnn.crops != "none") {
       add_problem(box::ProblemCode::kCropsOff,
-                  "crops " + config_.crops + " are off: they need calibrated cameras");
+                  "crops " + config_.cnn.crops + " are off: they need calibrated cameras");
     }
     std::vector<int> ids;
     std::vector<calib::CameraPrior> priors;
@@ -188,22 +179,9 @@ Status Daemon::open_board(const fs::path& board_dir) {
 }
 
 Status Daemon::open_simulator(double rate_hz) {
-  sim::SimulatorSourceOptions so;
-  so.people = config_.sim_people;
-  so.views = config_.sim_views;
-  so.frame_rate_hz = rate_hz;
-  so.bump_view = config_.sim_bump_view;
-  so.bump_frame = static_cast<std::int64_t>(config_.sim_bump_after_s * rate_hz);
-  so.bump_deg = config_.sim_bump_deg;
-  so.stall_after_s = config_.sim_stall_after_s;
-  so.stall_s = config_.sim_stall_s;
-  if (config_.role == Role::kDetector) {
-    // This node's share of a simulated stage, on the stage's clock.
-    so.rig_views = config_.sim_rig_views;
-    so.first_view = config_.sim_first_view;
-    so.stage_clock = true;
-    so.epoch_unix_ms = config_.sim_epoch_unix_ms;
-  }
+  // A detector node renders its share of a simulated stage, on the stage's clock.
+  const sim::SimulatorSourceOptions so =
+      config_.sim.source(rate_hz, config_.role == Role::kDetector);
   frame_rate_hz_ = rate_hz;
   auto src = sim::SimulatorSource::open(so);
   if (!src.ok()) return src.error().with_context("simulator");
@@ -219,7 +197,7 @@ Status Daemon::open_simulator(double rate_hz) {
   const SkeletonTopology& topology = (*src)->topology();
   for (const Camera& cam : calibration.cameras) camera_names_.push_back(cam.name());
   pending_source_ = std::move(*src);
-  if (!config_.sim_calibrated) {
+  if (!config_.sim.calibrated) {
     // The box calibrates itself from the simulated people, as it would with real cameras.
     lifecycle_->set_recipe(topology, assoc::AssociationOptions{});
     lifecycle_->set_uncalibrated(CalibrationState::kMissing, "");
@@ -319,7 +297,7 @@ net::HttpReply Daemon::request_recalibration() {
 // recording's or the simulator's own.
 bool Daemon::persists_calibration() const {
   return config_.calibration.empty() && source_kind_ != box::SourceKind::kReplay &&
-         !(source_kind_ == box::SourceKind::kSimulator && config_.sim_calibrated);
+         !(source_kind_ == box::SourceKind::kSimulator && config_.sim.calibrated);
 }
 
 void Daemon::add_problem(box::ProblemCode code, std::string text, std::string fix,
@@ -348,22 +326,15 @@ Status Daemon::open_trigger(const hal::Discovery& disc, double rate_hz) {
 Status Daemon::open_cnn(int views, const std::string& preferred_gpu,
                         const std::vector<Camera>& sized_views) {
   gpu::CnnOptions o;
-  o.model = config_.model.empty() ? tools::default_model_path() : fs::path(config_.model);
   o.model_reader = nn::tfjs_reader();  // a model.json is accepted too (docs/mocapd.md)
-  o.backend = config_.gpu;
-  o.device = config_.gpu_device.empty() ? preferred_gpu : config_.gpu_device;
-  o.input_size_px = config_.input_size_px;
-  o.input_fit = config_.input_fit;
   tools::set_frame_size(o, sized_views);
   o.max_views = std::max(views, 1);
-  if (Status s = tools::set_crops(config_.crops, config_.crop_input_size_px, o); !s.ok()) {
-    return s;
-  }
+  if (Status s = tools::apply_cnn_choice(config_.cnn, preferred_gpu, o); !s.ok()) return s;
   if (!o.crop_model.empty()) {
     if (sized_views.empty()) {
-      if (config_.crops != "auto") {
+      if (config_.cnn.crops != "auto") {
         add_problem(box::ProblemCode::kCropsOff,
-                    "crops " + config_.crops +
+                    "crops " + config_.cnn.crops +
                         " are off: they need calibrated cameras (the tracked skeletons are "
                         "projected into the views)");
       }

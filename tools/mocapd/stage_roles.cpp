@@ -29,8 +29,8 @@ Status Daemon::join_stage(double rate_hz) {
 
 Status Daemon::become_detector_node() {
   // Association, calibration and the outputs are the fusion node's.
-  config_.calibration_check = false;
-  config_.self_calibrate = false;
+  config_.lifecycle.calibration_check = false;
+  config_.lifecycle.self_calibrate = false;
   lifecycle_->hand_over("(the fusion node's: stage " + config_.dds.stage + ")");
   if (Status s = join_stage(frame_rate_hz_); !s.ok()) return s;
   std::vector<std::string> names = camera_names_;
@@ -41,7 +41,7 @@ Status Daemon::become_detector_node() {
   dds::DetectionPublisherOptions po;
   po.cameras = names;
   po.frame_rate_hz = frame_rate_hz_;
-  po.clock_offset_ns = static_cast<std::int64_t>(config_.sim_clock_offset_ms * 1e6);
+  po.clock_offset_ns = static_cast<std::int64_t>(config_.sim.clock_offset_ms * 1e6);
   po.version = kDaemonVersion;
   auto pub = dds::DetectionPublisher::create(*stage_, po);
   if (!pub.ok()) return pub.error();
@@ -60,10 +60,10 @@ Result<Calibration> Daemon::fusion_calibration(const SkeletonTopology*& topology
     file = config_.calibration;
     return load_calibration(config_.calibration);
   }
-  if (config_.sim_rig_views > 0) {
+  if (config_.sim.rig_views > 0) {
     topology = &body19_topology();
-    file = "(the simulated stage's ring of " + std::to_string(config_.sim_rig_views) + " cameras)";
-    return sim::simulator_ring(config_.sim_people, config_.sim_rig_views);
+    file = "(the simulated stage's ring of " + std::to_string(config_.sim.rig_views) + " cameras)";
+    return sim::simulator_ring(config_.sim.people, config_.sim.rig_views);
   }
   const fs::path path = fs::path(config_.state_dir) / "calibration.json";
   file = path.string();

@@ -36,10 +36,10 @@ TEST(DaemonConfig, DefaultsAreTheDocumentedPorts) {
   ASSERT_TRUE(c.ok()) << c.error().message();
   EXPECT_EQ(c->server.stream_port, 9870);
   EXPECT_EQ(c->server.http_port, 9871);
-  EXPECT_EQ(c->gpu, gpu::BackendRequest::kAuto);
+  EXPECT_EQ(c->cnn.backend, gpu::BackendRequest::kAuto);
   EXPECT_EQ(c->drop_policy, DropPolicyChoice::kAuto);
-  EXPECT_EQ(c->input_size_px, 0);  // the model's default
-  EXPECT_EQ(c->input_fit, gpu::InputFit::kAuto);
+  EXPECT_EQ(c->cnn.input_size_px, 0);  // the model's default
+  EXPECT_EQ(c->cnn.input_fit, gpu::InputFit::kAuto);
   EXPECT_TRUE(c->replay.empty());
 }
 
@@ -51,7 +51,7 @@ TEST(DaemonConfig, FileThenEnvironmentThenFlags) {
   ASSERT_TRUE(c.ok()) << c.error().message();
   EXPECT_EQ(c->server.stream_port, 7100);  // environment over file
   EXPECT_EQ(c->server.http_port, 7101);    // flag over file
-  EXPECT_EQ(c->sim_people, 3);             // file over default
+  EXPECT_EQ(c->sim.people, 3);             // file over default
   auto d = load({"--config", f, "--stream-port", "7200"}, {"MOCAPD_STREAM_PORT=7100"});
   ASSERT_TRUE(d.ok());
   EXPECT_EQ(d->server.stream_port, 7200);  // flag over environment
@@ -95,12 +95,12 @@ TEST(DaemonConfig, BadValuesNameTheSourceAndTheKey) {
 TEST(DaemonConfig, ChoicesBecomeEnumsAtTheBoundary) {
   auto c = load({"--gpu", "cpu", "--drop-policy=block"}, {"MOCAPD_INPUT_SIZE_PX=513"});
   ASSERT_TRUE(c.ok()) << c.error().message();
-  EXPECT_EQ(c->gpu, gpu::BackendRequest::kCpu);
+  EXPECT_EQ(c->cnn.backend, gpu::BackendRequest::kCpu);
   EXPECT_EQ(c->drop_policy, DropPolicyChoice::kBlock);
-  EXPECT_EQ(c->input_size_px, 513);
+  EXPECT_EQ(c->cnn.input_size_px, 513);
   auto d = load({"--gpu", "vulkan", "--drop-policy", "drop-oldest"});
   ASSERT_TRUE(d.ok()) << d.error().message();
-  EXPECT_EQ(d->gpu, gpu::BackendRequest::kVulkan);
+  EXPECT_EQ(d->cnn.backend, gpu::BackendRequest::kVulkan);
   EXPECT_EQ(d->drop_policy, DropPolicyChoice::kDropOldest);
   // Shown (and printed by --print-config) by name.
   EXPECT_NE(config_to_json(*d).find("\"drop_policy\": \"drop-oldest\""), std::string::npos);
@@ -115,7 +115,7 @@ TEST(DaemonConfig, ChoicesBecomeEnumsAtTheBoundary) {
       << small.error().message();
   auto fit = load({"--input-fit", "square"});
   ASSERT_TRUE(fit.ok()) << fit.error().message();
-  EXPECT_EQ(fit->input_fit, gpu::InputFit::kSquare);
+  EXPECT_EQ(fit->cnn.input_fit, gpu::InputFit::kSquare);
   auto bad_fit = load({"--input-fit", "wide"});
   ASSERT_FALSE(bad_fit.ok());
   EXPECT_NE(bad_fit.error().message().find("auto, frame, square"), std::string::npos)

@@ -122,8 +122,8 @@ bool wait_calibrated(const Daemon& d, int timeout_s, json& last) {
 TEST(DaemonSimulator, CalibratesItselfFromThePeopleThenStreamsSkeletons) {
   testing::TestTempDir dir("mocapd_selfcal");
   DaemonConfig c = sim_config(dir);
-  c.sim_calibrated = false;
-  c.self_calibration_frames = 300;
+  c.sim.calibrated = false;
+  c.lifecycle.self_calibration_frames = 300;
   auto d = Daemon::create(c);
   ASSERT_TRUE(d.ok()) << d.error().message();
   EXPECT_FALSE((*d)->calibrated());
@@ -195,8 +195,8 @@ TEST(DaemonSimulator, CalibratesItselfFromThePeopleThenStreamsSkeletons) {
 TEST(DaemonSimulator, SelfCalibrationThatCannotBeSavedIsNamedAndStillUsed) {
   testing::TestTempDir dir("mocapd_selfcal_ro");
   DaemonConfig c = sim_config(dir);
-  c.sim_calibrated = false;
-  c.self_calibration_frames = 300;
+  c.sim.calibrated = false;
+  c.lifecycle.self_calibration_frames = 300;
   const fs::path blocker = dir.path() / "not-a-folder";
   std::ofstream(blocker) << "x";
   c.state_dir = (blocker / "state").string();
@@ -220,9 +220,9 @@ TEST(DaemonSimulator, SelfCalibrationThatCannotBeSavedIsNamedAndStillUsed) {
 TEST(DaemonSimulator, ABumpedCameraIsNamedAndSolvedAgain) {
   testing::TestTempDir dir("mocapd_bump");
   DaemonConfig c = sim_config(dir);
-  c.sim_bump_view = 2;
-  c.sim_bump_after_s = 6;
-  c.sim_bump_deg = 3;
+  c.sim.bump_view = 2;
+  c.sim.bump_after_s = 6;
+  c.sim.bump_deg = 3;
   auto d = Daemon::create(c);
   ASSERT_TRUE(d.ok()) << d.error().message();
   const Eigen::Matrix3d before = (*d)->cameras()[2].R();
@@ -252,7 +252,7 @@ TEST(DaemonSimulator, ABumpedCameraIsNamedAndSolvedAgain) {
 TEST(DaemonSimulator, MisbehavingClientsNeitherStallThePipelineNorCostOthersMessages) {
   testing::TestTempDir dir("mocapd");
   DaemonConfig c = sim_config(dir);
-  c.sim_people = 4;  // ~10 KB per message
+  c.sim.people = 4;  // ~10 KB per message
   c.frame_rate_hz = 60;
   c.server.max_client_backlog_bytes = 64 * 1024;
   // Room for the churn below: closed connections are reaped by the poll thread a moment after

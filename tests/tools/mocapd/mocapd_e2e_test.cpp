@@ -72,8 +72,8 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
   DaemonConfig c;
   c.state_dir = (dir.path() / "state").string();  // its token, not the machine's
   c.replay = data.string();
-  c.model = model.string();
-  c.gpu = gpu::BackendRequest::kVulkan;
+  c.cnn.model = model.string();
+  c.cnn.backend = gpu::BackendRequest::kVulkan;
   c.server.bind_address = "127.0.0.1";
   c.server.stream_port = 0;
   c.server.http_port = 0;

@@ -306,7 +306,7 @@ TEST(DaemonOutputs, FullDiskStopsTheTakeNotTheStreamReadOnlyDiskRefusesOne) {
   if (geteuid() != 0) GTEST_SKIP() << "mounting a small tmpfs needs root";
   testing::TestTempDir dir("mocapd-full");
   DaemonConfig c = sim_config(dir);
-  c.sim_people = 4;  // ~10 KB per frame: 256 KiB fill in ~1 s
+  c.sim.people = 4;  // ~10 KB per frame: 256 KiB fill in ~1 s
   fs::create_directories(c.state_dir);
   if (mount("tmpfs", c.state_dir.c_str(), "tmpfs", 0, "size=256k") != 0) {
     GTEST_SKIP() << "cannot mount a tmpfs: " << strerror(errno);

@@ -26,8 +26,8 @@ inline DaemonConfig sim_config(const testing::TestTempDir& dir) {
   c.server.stream_port = 0;
   c.server.http_port = 0;
   c.status_log_interval_s = 0;
-  c.sim_people = 2;
-  c.sim_views = 4;
+  c.sim.people = 2;
+  c.sim.views = 4;
   return c;
 }
 

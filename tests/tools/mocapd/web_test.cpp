@@ -238,7 +238,7 @@ namespace {
 TEST(WebRecalibrate, SolvedAgainWhileStreamingThenSwappedInAndSaved) {
   testing::TestTempDir dir("mocapd-recal");
   DaemonConfig c = sim_config(dir);
-  c.self_calibration_frames = 150;
+  c.lifecycle.self_calibration_frames = 150;
   auto d = Daemon::create(c);
   ASSERT_TRUE(d.ok()) << d.error().message();
   ASSERT_TRUE((*d)->start().ok());
