@@ -13,7 +13,7 @@ set(runtime_areas
     "fit:core,geometry,skeleton"
     "assoc:core,fit,geometry,msg,skeleton"
     "calib:core,fit,geometry,image,msg,skeleton"
-    "boardcal:core,geometry,image,msg"
+    "boardcal:calib,core,geometry,image,msg"
     # the detector's network reader and CPU reference
     "nn:core,msg,skeleton"
     # the real-time pipeline (no network: the stream sink lives in net/)
@@ -31,7 +31,7 @@ set(runtime_areas
     "eval:assoc,core,fit,geometry,io,msg,pipeline,skeleton"
     "dds:core,fusion,msg,pipeline,skeleton"
     # the appliance: calibration lifecycle, status, outputs, takes
-    "box:assoc,calib,core,geometry,image,msg,net,nn,out,pipeline"
+    "box:assoc,calib,core,geometry,image,msg,net,nn,out,pipeline,skeleton"
     # model tools: the TF.js importer and where the npm package's graphs are cut
     "nn_import:core,nn")
 

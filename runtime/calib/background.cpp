@@ -186,8 +186,8 @@ Status write_calibration_durably(const Calibration& calibration, const fs::path&
   }
   if (Status s = write_file_atomically(path, *text, Durability::kDurable); !s.ok()) {
     return Error(ErrorCode::kIo, s.error().message() +
-                                     " (make the folder writable, or give mocapd another "
-                                     "state_dir)");
+                                     " (make the folder writable, or write it elsewhere: "
+                                     "mocapd's state_dir, the command's --out)");
   }
   return {};
 }

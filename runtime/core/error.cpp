@@ -18,6 +18,8 @@ std::string_view to_string(ErrorCode code) {
       return "device error";
     case ErrorCode::kDeviceLost:
       return "device lost";
+    case ErrorCode::kConflict:
+      return "conflict";
     case ErrorCode::kInternal:
       return "internal error";
   }

@@ -19,6 +19,7 @@ enum class ErrorCode {
   kUnsupported,      // a valid request the build or hardware cannot serve
   kDevice,           // hardware or driver failure
   kDeviceLost,       // the GPU device was lost (VK_ERROR_DEVICE_LOST): re-create its context
+  kConflict,         // a valid request the current state does not allow (HTTP 409)
   kInternal,         // a bug in this program
 };
 

@@ -106,4 +106,29 @@ Result<TokenFile> load_or_create_token(const std::filesystem::path& path) {
   return TokenFile{*token, true};
 }
 
+TokenAccess access_from_token_file(const std::filesystem::path& file, AccessOptions access) {
+  TokenAccess out;
+  auto t = load_or_create_token(file);
+  if (t.ok()) {
+    out.journal = t->created ? "access token made in " + file.string() + ": " + t->token +
+                                   " (actions on the web page and over HTTP need it; `mocap "
+                                   "token` prints it again)"
+                             : "access token: " + file.string() + " (`mocap token` prints it)";
+    access.token = t->token;
+    out.access = std::move(access);
+    return out;
+  }
+  out.journal = t.error().message() + ": actions are refused until it is fixed";
+  std::string why = t.error().message();
+  for (std::size_t at = why.find(file.string()); at != std::string::npos;
+       at = why.find(file.string(), at)) {
+    why.replace(at, file.string().size(), "<state_dir>/token");
+  }
+  access.token.clear();
+  access.locked_reason = "the box has no usable access token (" + why +
+                         "); fix that on the box and restart mocapd (`systemctl restart mocapd`)";
+  out.access = std::move(access);
+  return out;
+}
+
 }  // namespace mocap::net

@@ -7,6 +7,7 @@
 #include <string_view>
 
 #include "runtime/core/error.h"
+#include "runtime/net/access.h"
 
 namespace mocap::net {
 
@@ -26,5 +27,16 @@ Result<std::string> read_token(const std::filesystem::path& path);
 Result<std::string> parse_token_text(std::string_view text);
 // 64 hex digits from getrandom(2).
 Result<std::string> random_token();
+
+// A box's access from its token file. The box fails closed: a token file that cannot be used
+// (readable by others, empty, unreadable, a folder that cannot keep one) makes no token for
+// the run; `access.locked_reason` says why and what to do, with <state_dir>/token in place of
+// the path (strangers read /health too), and every request that needs a token is refused.
+struct TokenAccess {
+  AccessOptions access;  // `access` given, with the token or locked
+  std::string journal;   // for the log: where the token is, the token once when made, or why not
+  bool locked() const { return !access.locked_reason.empty(); }
+};
+TokenAccess access_from_token_file(const std::filesystem::path& file, AccessOptions access);
 
 }  // namespace mocap::net

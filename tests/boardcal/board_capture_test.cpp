@@ -6,13 +6,17 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <fstream>
 #include <random>
+#include <sstream>
 
 #include "runtime/boardcal/board_capture.h"
+#include "runtime/boardcal/board_session.h"
 #include "runtime/calib/compare.h"
 #include "tests/boardcal/board_render.h"
 #include "tests/boardcal/board_scene.h"
 #include "tests/support/frames.h"
+#include "tests/support/temp_dir.h"
 
 namespace mocap::boardcal {
 namespace {
@@ -211,6 +215,71 @@ TEST(BoardCaptureTest, CancelledSolveIsDiscarded) {
   cap->wait_idle();
   EXPECT_EQ(cap->phase(), CapturePhase::kCancelled);
   EXPECT_FALSE(cap->result().has_value());
+}
+
+// The box's board session (mocapd's routes are its HTTP face): what it refuses before a
+// capture and before a solve, as conflicts (409) or bad options (400), and its progress.
+TEST(BoardSessionTest, RefusesOutOfOrderActionsAsConflicts) {
+  LiveRig rig;
+  BoardSession session;
+  EXPECT_EQ(session.status_json()["phase"], "idle");
+  for (const Status& s : {session.solve(), session.cancel()}) {
+    ASSERT_FALSE(s.ok());
+    EXPECT_EQ(s.error().code(), ErrorCode::kConflict);
+    EXPECT_NE(s.error().message().find("POST /calibration/board/start"), std::string::npos);
+  }
+  testing::TestTempDir dir("board-session");
+  auto early = session.save(dir.path() / "calibration.json");
+  ASSERT_FALSE(early.ok());
+  EXPECT_EQ(early.error().code(), ErrorCode::kConflict);
+  BoardCaptureOptions bad;
+  bad.sample_interval_s = 0;
+  const Status refused = session.start(rig.board, {"0", "1", "2"}, bad);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code(), ErrorCode::kInvalidArgument);
+  ASSERT_TRUE(session.start(rig.board, {"0", "1", "2"}, BoardCaptureOptions{}).ok());
+  EXPECT_EQ(session.status_json()["phase"], "collecting");
+  auto unsolved = session.save(dir.path() / "calibration.json");
+  ASSERT_FALSE(unsolved.ok());
+  EXPECT_EQ(unsolved.error().code(), ErrorCode::kConflict);
+  EXPECT_NE(unsolved.error().message().find("collecting, not solved"), std::string::npos)
+      << unsolved.error().message();
+  const Status too_early = session.solve();  // nothing seen yet
+  ASSERT_FALSE(too_early.ok());
+  EXPECT_EQ(too_early.error().code(), ErrorCode::kConflict);
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "calibration.json"));
+}
+
+// One save for the box and `mocap calibrate board`: the calibration whole, the previous one
+// kept as .bak, the board's description beside it (read back as the same board).
+TEST(BoardSessionTest, SavingKeepsThePreviousFileAndWritesTheBoardBesideIt) {
+  LiveRig rig;
+  testing::TestTempDir dir("board-save");
+  const std::filesystem::path path = dir.path() / "state" / "calibration.json";
+  BoardCalibrationResult result;
+  result.calibration.cameras = rig.cams;
+  result.calibration.view_ids = {"0", "1", "2"};
+  auto first = save_board_calibration(result, rig.board, path);
+  ASSERT_TRUE(first.ok()) << first.error().message();
+  EXPECT_FALSE(first->backup.has_value());
+  EXPECT_EQ(first->board_file, path.parent_path() / "board.json");
+  auto read = load_calibration(path);
+  ASSERT_TRUE(read.ok()) << read.error().message();
+  EXPECT_EQ(read->view_ids, result.calibration.view_ids);
+  EXPECT_NEAR(read->cameras[1].fx(), rig.cams[1].fx(), 1e-9);
+  std::ifstream board_in(first->board_file);
+  std::stringstream board_text;
+  board_text << board_in.rdbuf();
+  auto board = parse_board_json(board_text.str(), "board.json");
+  ASSERT_TRUE(board.ok()) << board.error().message();
+  EXPECT_EQ(board->to_spec(), rig.board.to_spec());
+
+  result.calibration.view_ids = {"a", "b", "c"};
+  auto second = save_board_calibration(result, rig.board, path);
+  ASSERT_TRUE(second.ok()) << second.error().message();
+  ASSERT_TRUE(second->backup.has_value());
+  EXPECT_EQ(load_calibration(*second->backup)->view_ids, (std::vector<std::string>{"0", "1", "2"}));
+  EXPECT_EQ(load_calibration(path)->view_ids, (std::vector<std::string>{"a", "b", "c"}));
 }
 
 TEST(BoardCaptureTest, OptionsAreValidated) {

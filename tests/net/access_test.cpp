@@ -157,6 +157,36 @@ TEST(TokenFile, MadeOnceMode0600ThenReadAndBadFilesNamed) {
   EXPECT_FALSE(read_token(dir.path() / "none").ok());
 }
 
+// The box's access from its token file: the token and where it is once made; a file readable by
+// others locks the box, and the reason names <state_dir>/token, never the path or a token.
+TEST(TokenFile, AnUnusableFileLocksTheBoxAndTheReasonHidesThePath) {
+  testing::TestTempDir dir("token-access");
+  const fs::path file = dir.path() / "state" / "token";
+  AccessOptions base;
+  base.token_for_reading = true;
+  TokenAccess made = access_from_token_file(file, base);
+  ASSERT_FALSE(made.locked()) << made.access.locked_reason;
+  EXPECT_EQ(made.access.token.size(), 64u);
+  EXPECT_TRUE(made.access.token_for_reading);
+  EXPECT_NE(made.journal.find("made in " + file.string() + ": " + made.access.token),
+            std::string::npos)
+      << made.journal;
+  TokenAccess again = access_from_token_file(file, base);
+  EXPECT_EQ(again.access.token, made.access.token);
+  EXPECT_EQ(again.journal.find(made.access.token), std::string::npos) << again.journal;
+
+  ::chmod(file.c_str(), 0644);
+  TokenAccess locked = access_from_token_file(file, base);
+  ASSERT_TRUE(locked.locked());
+  EXPECT_TRUE(locked.access.token.empty());
+  EXPECT_NE(locked.access.locked_reason.find("<state_dir>/token"), std::string::npos)
+      << locked.access.locked_reason;
+  EXPECT_EQ(locked.access.locked_reason.find(dir.path().string()), std::string::npos)
+      << locked.access.locked_reason;
+  EXPECT_NE(locked.access.locked_reason.find("chmod 600"), std::string::npos);
+  EXPECT_NE(locked.journal.find(file.string()), std::string::npos) << locked.journal;
+}
+
 // Found by fuzz_access_token: an empty token file (or one with only a newline) was read as the
 // empty token, which AccessOptions takes as "no access control": the box was open to anyone.
 TEST(TokenFile, AnEmptyTokenFileIsAnErrorNotAnOpenBox) {

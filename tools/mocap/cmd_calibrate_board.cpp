@@ -12,6 +12,7 @@
 #include <string>
 
 #include "runtime/boardcal/board_calibration.h"
+#include "runtime/boardcal/board_session.h"
 #include "runtime/core/text_scan.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/board_frames.h"
@@ -75,21 +76,6 @@ void print_result(const boardcal::BoardCalibrationResult& r) {
   for (const auto& w : r.warnings) std::printf("warning: %s\n", w.c_str());
   std::printf("board poses %d, corners %d, floor %s\n", r.board_poses, r.observations,
               r.floor_set ? "from the board (z = 0, +z up)" : "not set (camera 0 is the world)");
-}
-
-// Keeps an existing file as FILE.bak, then writes the new one (atomically).
-Status save_with_backup(const Calibration& calib, const std::string& out) {
-  std::error_code ec;
-  if (std::filesystem::exists(out, ec)) {
-    std::filesystem::copy_file(out, out + ".bak", std::filesystem::copy_options::overwrite_existing,
-                               ec);
-    if (ec) {
-      return Error(ErrorCode::kIo, out + ".bak: cannot keep the previous calibration (" +
-                                       ec.message() + "): nothing written");
-    }
-    std::printf("previous calibration kept as %s.bak\n", out.c_str());
-  }
-  return save_calibration(calib, out);
 }
 
 }  // namespace
@@ -194,13 +180,13 @@ int run_calibrate_board(Args args) {
       return cli::fail(s.error());
     }
   }
-  if (Status s = save_with_backup(result->calibration, out); !s.ok()) return cli::fail(s.error());
-  const auto board_file = std::filesystem::path(out).parent_path() / "board.json";
-  std::error_code ec;
-  if (!std::filesystem::exists(board_file, ec)) {
-    if (Status s = write_text_file(board_file, board->to_json()); s.ok()) {
-      std::printf("board description written to %s\n", board_file.c_str());
-    }
+  auto saved = boardcal::save_board_calibration(*result, *board, out);
+  if (!saved.ok()) return cli::fail(saved.error());
+  if (saved->backup) std::printf("previous calibration kept as %s\n", saved->backup->c_str());
+  if (!saved->board_file.empty()) {
+    std::printf("board description written to %s\n", saved->board_file.c_str());
+  } else {
+    std::printf("warning: %s\n", saved->board_file_error.c_str());
   }
   std::printf("calibration written to %s\n", out.c_str());
   std::printf("board_reprojection_px=%.2f\n", result->reprojection_px);

@@ -9,15 +9,13 @@
 //                                    engine switches to it at the next frame
 //   POST /calibration/board/cancel   nothing is written
 //
-// Actions need the token (runtime/net/access.h). The pipeline's image tap hands frame sets to
-// the capture (runtime/boardcal/board_capture.h), which copies one now and then and detects
-// on its own thread.
+// Actions need the token (runtime/net/access.h). The session (runtime/boardcal/board_session.h)
+// holds the capture, which the pipeline's image tap feeds; these routes are its HTTP face.
 #include <charconv>
 #include <filesystem>
 
 #include "runtime/assoc/engine.h"
-#include "runtime/boardcal/board_capture.h"
-#include "runtime/core/atomic_file.h"
+#include "runtime/boardcal/board_session.h"
 #include "runtime/core/log.h"
 #include "runtime/net/json_reply.h"
 #include "tools/mocapd/daemon.h"
@@ -52,22 +50,22 @@ std::optional<double> query_number(const net::HttpRequest& req, std::string_view
   return x;
 }
 
-}  // namespace
-
-std::shared_ptr<boardcal::BoardCapture> Daemon::board_capture() const {
-  std::lock_guard<std::mutex> lock(board_mu_);
-  return board_capture_;
+// An error reply for a session's refusal: 400 for a bad request, 409 for the wrong moment, 500
+// for a file that could not be written.
+net::HttpReply refusal(const Error& e) {
+  const int status = e.code() == ErrorCode::kInvalidArgument ? 400
+                     : e.code() == ErrorCode::kConflict      ? 409
+                                                             : 500;
+  return error_reply(status, e.message());
 }
+
+}  // namespace
 
 std::optional<net::HttpReply> Daemon::handle_board(const net::HttpRequest& req) {
   const std::string& p = req.path;
   if (p == "/calibration/board") {
     if (req.method != "GET" && req.method != "HEAD") return error_reply(405, p + " takes GET");
-    auto cap = board_capture();
-    json j = cap ? cap->status_json() : json{{"phase", "idle"}};
-    std::lock_guard<std::mutex> lock(board_mu_);
-    if (!board_saved_to_.empty()) j["saved_to"] = board_saved_to_;
-    return json_reply(200, j);
+    return json_reply(200, board_.status_json());
   }
   if (p != "/calibration/board/start" && p != "/calibration/board/solve" &&
       p != "/calibration/board/save" && p != "/calibration/board/cancel") {
@@ -76,15 +74,12 @@ std::optional<net::HttpReply> Daemon::handle_board(const net::HttpRequest& req) 
   if (req.method != "POST") return error_reply(405, p + " takes POST");
   if (p == "/calibration/board/start") return start_board_capture(req);
   if (p == "/calibration/board/save") return save_board_calibration();
-  auto cap = board_capture();
-  if (!cap)
-    return error_reply(409, "no board calibration was started: POST /calibration/board/start");
   if (p == "/calibration/board/cancel") {
-    cap->cancel();
+    if (Status s = board_.cancel(); !s.ok()) return refusal(s.error());
     MOCAP_LOG(Daemon, Info) << "board calibration discarded";
     return json_reply(200, {{"phase", "cancelled"}});
   }
-  if (Status s = cap->solve(); !s.ok()) return error_reply(409, s.error().message());
+  if (Status s = board_.solve(); !s.ok()) return refusal(s.error());
   MOCAP_LOG(Daemon, Info) << "board calibration: solving in the background";
   return json_reply(202, {{"phase", "solving"}});
 }
@@ -121,16 +116,7 @@ net::HttpReply Daemon::start_board_capture(const net::HttpRequest& req) {
   o.calibration.still_px =
       still ? *still
             : (source_kind_ == box::SourceKind::kCameras && !external_trigger_ ? 6.0 : 0.0);
-  std::vector<std::string> ids;
-  for (std::size_t v = 0; v < camera_names_.size(); ++v) ids.push_back(camera_names_[v]);
-  auto cap = boardcal::BoardCapture::create(*board, std::move(ids), o);
-  if (!cap.ok()) return error_reply(400, cap.error().message());
-  std::lock_guard<std::mutex> lock(board_mu_);
-  if (board_capture_ && board_capture_->phase() == boardcal::CapturePhase::kSolving) {
-    return error_reply(409, "a board calibration is solving: wait for it, or cancel it first");
-  }
-  board_capture_ = std::move(*cap);
-  board_saved_to_.clear();
+  if (Status s = board_.start(*board, camera_names_, o); !s.ok()) return refusal(s.error());
   MOCAP_LOG(Daemon, Info) << "board calibration started: " << board->to_spec() << " (still_px "
                           << o.calibration.still_px << ")";
   return json_reply(202, {{"phase", "collecting"},
@@ -140,47 +126,31 @@ net::HttpReply Daemon::start_board_capture(const net::HttpRequest& req) {
                            "edges and where two cameras see it at once; then Solve"}});
 }
 
-// Where a confirmed board calibration goes: the file the user named, else the state folder's.
-fs::path Daemon::board_calibration_path() const {
-  return config_.calibration.empty() ? fs::path(config_.state_dir) / "calibration.json"
-                                     : fs::path(config_.calibration);
-}
-
+// Saved where the user named the calibration, else in the state folder; the engine switches to
+// it at the next frame (a self-calibration in progress is set aside).
 net::HttpReply Daemon::save_board_calibration() {
-  auto cap = board_capture();
-  const auto result = cap ? cap->result() : std::nullopt;
-  if (!result) {
-    return error_reply(409, cap ? std::string("the board calibration is ") +
-                                      boardcal::to_string(cap->phase()) +
-                                      ", not solved: nothing to save"
-                                : "no board calibration was started: nothing to save");
+  const fs::path path = config_.calibration.empty()
+                            ? fs::path(config_.state_dir) / "calibration.json"
+                            : fs::path(config_.calibration);
+  auto saved = board_.save(path);
+  if (!saved.ok()) {
+    if (saved.error().code() != ErrorCode::kConflict) {
+      return error_reply(500, "the board calibration was not saved: " + saved.error().message());
+    }
+    return refusal(saved.error());
   }
-  const fs::path path = board_calibration_path();
-  std::error_code ec;
-  fs::create_directories(path.parent_path(), ec);
-  const bool had = fs::exists(path, ec);
-  if (Status s = calib::write_calibration_durably(result->calibration, path); !s.ok()) {
-    return error_reply(500, "the board calibration was not saved: " + s.error().message());
+  if (!saved->board_file_error.empty()) {
+    MOCAP_LOG(Daemon, Warn) << "board calibration: " << saved->board_file_error;
   }
-  // The board's description beside it (read again by a later `mocap calibrate board`), whole or
-  // not at all; the calibration is saved either way.
-  const fs::path board_file = path.parent_path() / "board.json";
-  if (Status s = write_file_atomically(board_file, cap->board().to_json(), Durability::kDurable);
-      !s.ok()) {
-    MOCAP_LOG(Daemon, Warn) << "board calibration: " << s.error().message();
-  }
-  {
-    std::lock_guard<std::mutex> lock(board_mu_);
-    board_saved_to_ = path.string();
-  }
-  // Swapped in at the next frame (a self-calibration in progress is set aside).
-  lifecycle_->offer_board_calibration(result->calibration, path.string(),
-                                      boardcal::board_report_json(*result));
+  lifecycle_->offer_board_calibration(saved->result.calibration, path.string(),
+                                      boardcal::board_report_json(saved->result));
   MOCAP_LOG(Daemon, Info) << "board calibration saved to " << path.string()
-                          << (had ? " (the previous one kept as " + path.string() + ".bak)" : "")
-                          << ": " << result->reprojection_px << " px";
-  json reply = {{"saved", path.string()}, {"reprojection_px", result->reprojection_px}};
-  if (had) reply["backup"] = path.string() + ".bak";
+                          << (saved->backup
+                                  ? " (the previous one kept as " + saved->backup->string() + ")"
+                                  : "")
+                          << ": " << saved->result.reprojection_px << " px";
+  json reply = {{"saved", path.string()}, {"reprojection_px", saved->result.reprojection_px}};
+  if (saved->backup) reply["backup"] = saved->backup->string();
   return json_reply(200, reply);
 }
 

@@ -1,7 +1,5 @@
 #include "tools/mocapd/daemon.h"
 
-#include "runtime/boardcal/board_capture.h"
-
 #include "runtime/dds/detection_publisher.h"
 #include "runtime/dds/skeleton_publisher.h"
 #include "runtime/dds/stage.h"
@@ -429,7 +427,7 @@ Status Daemon::start() {
                                 sinks, [this](const FrameSet& frames) {
                                   const std::int64_t now_ns = monotonic_ns();
                                   camera_views_->observe_images(frames, now_ns);
-                                  if (auto cap = board_capture()) cap->observe(frames, now_ns);
+                                  board_.observe(frames, now_ns);
                                 }};
   auto p = pipeline::Pipeline::create(std::move(parts), po);
   if (!p.ok()) return p.error();
@@ -449,36 +447,18 @@ Status Daemon::start() {
   return {};
 }
 
-// The token in <state_dir>/token, made on the first start and printed in the journal then.
-// A state folder that cannot keep one leaves the box locked (fails closed): every action, and
-// reading with token_for_reading, is refused with the reason; /health says why and what to do,
-// and never a token.
+// The token in <state_dir>/token, made on the first start and printed in the journal then; a
+// state folder that cannot keep one leaves the box locked (runtime/net/token_file.h).
 net::AccessOptions Daemon::access_options(net::AccessOptions access) {
-  const fs::path file = fs::path(config_.state_dir) / "token";
-  auto t = net::load_or_create_token(file);
-  if (t.ok()) {
-    if (t->created) {
-      MOCAP_LOG(Daemon, Info) << "access token made in " << file.string() << ": " << t->token
-                              << " (actions on the web page and over HTTP need it; `mocap "
-                                 "token` prints it again)";
-    } else {
-      MOCAP_LOG(Daemon, Info) << "access token: " << file.string() << " (`mocap token` prints it)";
-    }
-    access.token = t->token;
-    return access;
+  net::TokenAccess t =
+      net::access_from_token_file(fs::path(config_.state_dir) / "token", std::move(access));
+  if (t.locked()) {
+    MOCAP_LOG(Daemon, Error) << t.journal;
+    add_problem(box::ProblemCode::kAccessToken, t.access.locked_reason);
+  } else {
+    MOCAP_LOG(Daemon, Info) << t.journal;
   }
-  MOCAP_LOG(Daemon, Error) << t.error().message() << ": actions are refused until it is fixed";
-  // The folder's path stays in the journal; strangers read /health too.
-  std::string why = t.error().message();
-  for (std::size_t at = why.find(file.string()); at != std::string::npos;
-       at = why.find(file.string(), at)) {
-    why.replace(at, file.string().size(), "<state_dir>/token");
-  }
-  access.token.clear();
-  access.locked_reason = "the box has no usable access token (" + why +
-                         "); fix that on the box and restart mocapd (`systemctl restart mocapd`)";
-  add_problem(box::ProblemCode::kAccessToken, access.locked_reason);
-  return access;
+  return t.access;
 }
 
 void Daemon::log_status() const {

@@ -27,6 +27,7 @@
 #include <string_view>
 #include <vector>
 
+#include "runtime/boardcal/board_session.h"
 #include "runtime/box/box_status.h"
 #include "runtime/box/calibration_lifecycle.h"
 #include "runtime/box/outputs.h"
@@ -53,9 +54,6 @@ namespace mocap::hal {
 class TriggerMaster;
 struct Discovery;
 }  // namespace mocap::hal
-namespace mocap::boardcal {
-class BoardCapture;
-}
 
 namespace mocap::box {
 class CameraViews;
@@ -96,8 +94,6 @@ class Daemon {
   box::BoxStatus status() const;
   // GET /health's JSON.
   std::string health_json() const;
-  // GET /scene: the topology and the calibrated cameras, for the page's 3D view.
-  nlohmann::json scene_json() const;
   // GET /cameras: each camera's state and its latest 2D keypoints.
   nlohmann::json cameras_json() const;
   // Every route besides the stream and /health (tools/mocapd/routes.cpp); the server's
@@ -146,10 +142,8 @@ class Daemon {
   void add_problem(box::ProblemCode code, std::string text, std::string fix = {},
                    std::string camera = {});
   // "Calibrate with a board" (board_routes.cpp).
-  std::shared_ptr<boardcal::BoardCapture> board_capture() const;
   net::HttpReply start_board_capture(const net::HttpRequest& req);
   net::HttpReply save_board_calibration();
-  std::filesystem::path board_calibration_path() const;
   // What a new take records about the box (Outputs::MetadataProvider).
   out::TakeMetadata take_metadata() const;
   void log_status() const;
@@ -192,9 +186,7 @@ class Daemon {
   std::atomic<const pipeline::Pipeline*> pipeline_view_{nullptr};  // for health_json()
   std::atomic<bool> stopped_{false};
   bool external_trigger_ = false;  // the cameras share a trigger (one instant per frame set)
-  mutable std::mutex board_mu_;    // the capture and where its calibration was saved
-  std::shared_ptr<boardcal::BoardCapture> board_capture_;
-  std::string board_saved_to_;
+  boardcal::BoardSession board_;   // "Calibrate with a board"
 };
 
 }  // namespace mocap::daemon

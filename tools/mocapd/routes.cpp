@@ -6,6 +6,7 @@
 #include <charconv>
 
 #include "runtime/box/camera_views.h"
+#include "runtime/box/scene.h"
 #include "runtime/net/json_reply.h"
 #include "runtime/net/stream_server.h"
 #include "tools/mocapd/daemon.h"
@@ -18,22 +19,6 @@ using net::json_reply;
 namespace {
 
 using nlohmann::json;
-
-json camera_json(const Camera& c) {
-  json k = json::array();
-  json rot = json::array();
-  for (int i = 0; i < 3; ++i) {
-    k.push_back({c.K()(i, 0), c.K()(i, 1), c.K()(i, 2)});
-    rot.push_back({c.R()(i, 0), c.R()(i, 1), c.R()(i, 2)});
-  }
-  return {{"name", c.name()},
-          {"width_px", c.width_px()},
-          {"height_px", c.height_px()},
-          {"K", k},
-          {"R", rot},
-          {"t_m", {c.t_m().x(), c.t_m().y(), c.t_m().z()}},
-          {"center_m", {c.center_m().x(), c.center_m().y(), c.center_m().z()}}};
-}
 
 // "/cameras/3/thumbnail.jpg" -> 3; nullopt for anything else.
 std::optional<int> thumbnail_view(std::string_view path) {
@@ -52,32 +37,6 @@ std::optional<int> thumbnail_view(std::string_view path) {
 }
 
 }  // namespace
-
-json Daemon::scene_json() const {
-  json j;
-  j["world_up"] = "z";
-  j["calibration"] = to_string(lifecycle_->state());
-  json cams = json::array();
-  for (const Camera& c : lifecycle_->cameras()) cams.push_back(camera_json(c));
-  j["cameras"] = cams;
-  if (const SkeletonTopology* topology = lifecycle_->topology(); topology != nullptr) {
-    j["topology"] = topology->name();
-    j["joints"] = topology->joint_names();
-    json bones = json::array();
-    for (const Limb& l : topology->limbs()) bones.push_back({l.joint_a, l.joint_b});
-    j["bones"] = bones;
-  }
-  // The bones of every topology a frame may carry (its "topology" field): the page draws a
-  // skeleton before the calibration names one, and a frame of another topology.
-  json skeletons = json::object();
-  for (const SkeletonTopology* t : {&body19_topology(), &coco17_topology(), &body25_topology()}) {
-    json b = json::array();
-    for (const Limb& l : t->limbs()) b.push_back({l.joint_a, l.joint_b});
-    skeletons[std::string(t->name())] = b;
-  }
-  j["skeletons"] = skeletons;
-  return j;
-}
 
 json Daemon::cameras_json() const {
   json j;
@@ -104,7 +63,7 @@ std::optional<net::HttpReply> Daemon::handle_http(const net::HttpRequest& req) {
   if (req.path == "/metrics" || req.path == "/scene" || req.path == "/cameras" ||
       thumbnail_view(req.path)) {
     if (!get) return error_reply(405, req.path + " takes GET");
-    if (req.path == "/scene") return json_reply(200, scene_json());
+    if (req.path == "/scene") return json_reply(200, box::scene_json(*lifecycle_));
     if (req.path == "/cameras") return json_reply(200, cameras_json());
     if (req.path == "/metrics") {
       net::HttpReply r;
