@@ -6,8 +6,8 @@
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x_id = 0) in;
 #include "activation.glsl"
+#include "inputs.glsl"
 
-layout(binding = 0) uniform samplerBuffer x;
 layout(std430, binding = 3) writeonly buffer Out { float y[]; };
 
 layout(push_constant) uniform Params {
@@ -23,7 +23,7 @@ void main() {
   const int g = gid % pc.in_c4;
   const int p = gid / pc.in_c4;
   if (p >= pc.pixels) return;
-  const vec4 v = texelFetch(x, p * pc.in_c4 + g);
+  const vec4 v = IN0(p * pc.in_c4 + g);
   for (int lane = 0; lane < 4; ++lane) {
     const int ch = g * 4 + lane;
     if (ch >= pc.in_c) break;

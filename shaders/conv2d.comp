@@ -4,11 +4,12 @@
 // (register blocking: each input texel and weight texel fetched is used TC x 4 resp. TX
 // times). Out-of-image taps read a clamped texel multiplied by zero (no divergent branch).
 // Weights are [KH][KW][cin4 * 4][cout4p] vec4 (input channels zero-padded to a multiple of 4,
-// output groups to a multiple of TC), bias [cout4p]. Used where a 1x1 GEMM or depthwise
-// kernel does not apply (e.g. the network's first layer).
+// output groups to a multiple of TC); the bias is the first cout4p constants (binding 2). Used
+// where a 1x1 GEMM or depthwise kernel does not apply (e.g. the network's first layer).
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x_id = 0) in;
 #include "activation.glsl"
+#include "inputs.glsl"
 layout(constant_id = 2) const int KH = 3;
 layout(constant_id = 3) const int KW = 3;
 layout(constant_id = 4) const int SW = 1;  // horizontal stride
@@ -16,9 +17,6 @@ layout(constant_id = 5) const int TX = 4;  // output pixels per invocation
 layout(constant_id = 6) const int TC = 1;  // output vec4 groups per invocation
 const int NCOL = (TX - 1) * SW + KW;       // input columns under the TX windows
 
-layout(binding = 0) uniform samplerBuffer x;
-layout(binding = 1) uniform samplerBuffer w;
-layout(std430, binding = 2) readonly buffer Bias { vec4 b[]; };
 layout(std430, binding = 3) writeonly buffer Out { vec4 y[]; };
 
 layout(push_constant) uniform Params {
@@ -41,7 +39,7 @@ void main() {
   if (bn >= pc.n) return;
   vec4 acc[TX * TC];
   for (int t = 0; t < TX; ++t) {
-    for (int j = 0; j < TC; ++j) acc[t * TC + j] = b[co + j];
+    for (int j = 0; j < TC; ++j) acc[t * TC + j] = consts[co + j];
   }
   const int ix0 = ox0 * SW - pc.pad_left;
   for (int ky = 0; ky < KH; ++ky) {
@@ -53,15 +51,15 @@ void main() {
       for (int i = 0; i < NCOL; ++i) {
         const int ix = ix0 + i;
         const float ok = row_ok * float(ix >= 0 && ix < pc.in_w);
-        v[i] = texelFetch(x, (row + clamp(ix, 0, pc.in_w - 1)) * pc.in_stride4 + c4) * ok;
+        v[i] = IN0((row + clamp(ix, 0, pc.in_w - 1)) * pc.in_stride4 + c4) * ok;
       }
       for (int kx = 0; kx < KW; ++kx) {
         const int wr = ((ky * KW + kx) * pc.cin4 + c4) * 4 * pc.cout4p + co;
         for (int j = 0; j < TC; ++j) {
-          const vec4 w0 = texelFetch(w, wr + j);
-          const vec4 w1 = texelFetch(w, wr + pc.cout4p + j);
-          const vec4 w2 = texelFetch(w, wr + 2 * pc.cout4p + j);
-          const vec4 w3 = texelFetch(w, wr + 3 * pc.cout4p + j);
+          const vec4 w0 = IN1(wr + j);
+          const vec4 w1 = IN1(wr + pc.cout4p + j);
+          const vec4 w2 = IN1(wr + 2 * pc.cout4p + j);
+          const vec4 w3 = IN1(wr + 3 * pc.cout4p + j);
           for (int t = 0; t < TX; ++t) {
             const vec4 s = v[t * SW + kx];
             acc[t * TC + j] = fma(vec4(s.x), w0, fma(vec4(s.y), w1, fma(vec4(s.z), w2,

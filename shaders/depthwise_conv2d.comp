@@ -8,15 +8,13 @@
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x_id = 0) in;
 #include "activation.glsl"
+#include "inputs.glsl"
 layout(constant_id = 2) const int KH = 3;
 layout(constant_id = 3) const int KW = 3;
 layout(constant_id = 4) const int SW = 1;  // horizontal stride
 layout(constant_id = 5) const int TX = 4;  // output pixels per invocation
 const int NCOL = (TX - 1) * SW + KW;       // input columns under the TX windows
 
-layout(binding = 0) uniform samplerBuffer x;
-layout(binding = 1) uniform samplerBuffer w;
-layout(std430, binding = 2) readonly buffer Bias { vec4 b[]; };
 layout(std430, binding = 3) writeonly buffer Out { vec4 y[]; };
 
 layout(push_constant) uniform Params {
@@ -36,7 +34,7 @@ void main() {
   const int bn = p / pc.out_h;
   if (bn >= pc.n) return;
   vec4 acc[TX];
-  for (int t = 0; t < TX; ++t) acc[t] = b[c];
+  for (int t = 0; t < TX; ++t) acc[t] = consts[c];
   const int ix0 = ox0 * SW - pc.pad_left;
   for (int ky = 0; ky < KH; ++ky) {
     const int iy = oy * pc.stride_h - pc.pad_top + ky;
@@ -46,10 +44,10 @@ void main() {
     for (int i = 0; i < NCOL; ++i) {
       const int ix = ix0 + i;
       const float ok = row_ok * float(ix >= 0 && ix < pc.in_w);
-      v[i] = texelFetch(x, (row + clamp(ix, 0, pc.in_w - 1)) * pc.in_stride4 + c) * ok;
+      v[i] = IN0((row + clamp(ix, 0, pc.in_w - 1)) * pc.in_stride4 + c) * ok;
     }
     for (int kx = 0; kx < KW; ++kx) {
-      const vec4 wv = texelFetch(w, (ky * KW + kx) * pc.c4 + c);
+      const vec4 wv = IN1((ky * KW + kx) * pc.c4 + c);
       for (int t = 0; t < TX; ++t) acc[t] = fma(v[t * SW + kx], wv, acc[t]);
     }
   }

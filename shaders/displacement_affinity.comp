@@ -4,14 +4,15 @@
 //   a = (exp(-|p + fwd_e(p) - c|^2 / 2s^2) + exp(-|c + bwd_e(c) - p|^2 / 2s^2)) / 2.
 // One invocation per (view, edge, i, j) over the KMAX x KMAX slots; slots beyond the
 // candidate counts are written as 0. Candidates come from heatmap_peaks.comp.
+#extension GL_GOOGLE_include_directive : require
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const int KMAX = 16;
+#include "tables.glsl"
 
 layout(std430, binding = 0) readonly buffer Cand { vec4 cand[]; };      // [N,J,KMAX]
-layout(std430, binding = 1) readonly buffer Counts { int counts[]; };   // [N,J,2]
 layout(std430, binding = 2) readonly buffer Fwd { float fwd[]; };       // [N,H,W,2E]
 layout(std430, binding = 3) readonly buffer Bwd { float bwd[]; };       // [N,H,W,2E]
-layout(std430, binding = 4) readonly buffer Edges { ivec2 edges[]; };   // (parent, child)
+layout(std140, binding = 4) uniform Edges { ivec4 edges2[32]; };       // 2 x (parent, child)
 layout(std430, binding = 5) writeonly buffer Aff { float aff[]; };      // [N,E,KMAX,KMAX]
 
 layout(push_constant) uniform Params {
@@ -30,10 +31,10 @@ void main() {
   const int i = (gid / KMAX) % KMAX;
   const int e = (gid / per_edge) % pc.edges_count;
   const int n = gid / (per_edge * pc.edges_count);
-  const ivec2 edge = edges[e];
+  const ivec2 edge = (e & 1) == 0 ? edges2[e >> 1].xy : edges2[e >> 1].zw;
   const int pa = n * pc.joints + edge.x;
   const int ch = n * pc.joints + edge.y;
-  if (i >= counts[pa * 2] || j >= counts[ch * 2]) {
+  if (i >= kept_candidates(pa) || j >= kept_candidates(ch)) {
     aff[gid] = 0.0;
     return;
   }

@@ -5,10 +5,10 @@
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x_id = 0) in;
 #include "activation.glsl"
+#include "inputs.glsl"
 layout(constant_id = 2) const int KH = 2;
 layout(constant_id = 3) const int KW = 2;
 
-layout(binding = 0) uniform samplerBuffer x;
 layout(std430, binding = 3) writeonly buffer Out { vec4 y[]; };
 
 layout(push_constant) uniform Params {
@@ -35,7 +35,7 @@ void main() {
     for (int kx = 0; kx < KW; ++kx) {
       const int ix = x0 + kx;
       if (ix < 0 || ix >= pc.in_w) continue;
-      m = max(m, texelFetch(x, ((bn * pc.in_h + iy) * pc.in_w + ix) * pc.c4 + c));
+      m = max(m, IN0(((bn * pc.in_h + iy) * pc.in_w + ix) * pc.c4 + c));
     }
   }
   y[((bn * pc.out_h + oy) * pc.out_w + ox) * pc.c4 + c] = activate(m, c);

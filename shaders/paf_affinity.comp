@@ -5,13 +5,14 @@
 // direction; score = clamp(mean, 0, 1) when the fraction of samples above min_dot reaches
 // min_fraction, else 0. One invocation per (view, limb, i, j) over KMAX x KMAX slots; slots
 // beyond the candidate counts are written as 0.
+#extension GL_GOOGLE_include_directive : require
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const int KMAX = 16;
+#include "tables.glsl"
 
 layout(std430, binding = 0) readonly buffer Cand { vec4 cand[]; };      // [N,J,KMAX]
-layout(std430, binding = 1) readonly buffer Counts { int counts[]; };   // [N,J,2]
 layout(std430, binding = 2) readonly buffer Paf { float paf[]; };       // [N,H,W,C]
-layout(std430, binding = 3) readonly buffer Limbs { ivec4 limbs[]; };   // (a, b, cx, cy)
+layout(std140, binding = 3) uniform Limbs { ivec4 limbs[64]; };        // (a, b, cx, cy)
 layout(std430, binding = 4) writeonly buffer Score { float score[]; };  // [N,L,KMAX,KMAX]
 layout(std430, binding = 5) writeonly buffer Frac { float frac[]; };    // [N,L,KMAX,KMAX]
 
@@ -41,7 +42,7 @@ void main() {
   const int jb = n * pc.joints + limb.y;
   score[gid] = 0.0;
   frac[gid] = 0.0;
-  if (i >= counts[ja * 2] || j >= counts[jb * 2]) return;
+  if (i >= kept_candidates(ja) || j >= kept_candidates(jb)) return;
   const vec2 a = cand[ja * KMAX + i].xy;
   const vec2 b = cand[jb * KMAX + j].xy;
   const vec2 v = b - a;

@@ -4,14 +4,12 @@
 // TC vec4 output groups (spec constants; the network uses 8 x 4 = 32 vec4 accumulators, no
 // shared memory, no barriers: the register-blocked shape lavapipe runs fastest, see
 // docs/gpu.md). Weights are [cin4 * 4][cout4p] vec4 with cout4p = cout4 rounded up to a
-// multiple of TC; bias is [cout4p].
+// multiple of TC; the bias is [cout4p], the first constants (binding 2, activation.glsl).
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x_id = 0) in;
 #include "activation.glsl"
+#include "inputs.glsl"
 
-layout(binding = 0) uniform samplerBuffer x;
-layout(binding = 1) uniform samplerBuffer w;
-layout(std430, binding = 2) readonly buffer Bias { vec4 b[]; };
 layout(std430, binding = 3) writeonly buffer Out { vec4 y[]; };
 
 layout(push_constant) uniform Params {
@@ -39,7 +37,7 @@ void main() {
   vec4 a[TP * TC];
   int src[TP];
   for (int i = 0; i < TP; ++i) {
-    for (int j = 0; j < TC; ++j) a[i * TC + j] = b[co + j];
+    for (int j = 0; j < TC; ++j) a[i * TC + j] = consts[co + j];
     src[i] = min(p0 + i, pc.pixels - 1) * pc.in_stride4 + pc.in_offset4;
   }
   int wr = co;
@@ -51,11 +49,11 @@ void main() {
     for (int c4 = c0; c4 < c1; ++c4) {
       vec4 wv[4 * TC];
       for (int k = 0; k < 4; ++k) {
-        for (int j = 0; j < TC; ++j) wv[k * TC + j] = texelFetch(w, wr + j);
+        for (int j = 0; j < TC; ++j) wv[k * TC + j] = IN1(wr + j);
         wr += pc.cout4p;
       }
       for (int i = 0; i < TP; ++i) {
-        const vec4 v = texelFetch(x, src[i] + c4);
+        const vec4 v = IN0(src[i] + c4);
         for (int j = 0; j < TC; ++j) {
           s[i * TC + j] = fma(vec4(v.x), wv[j], fma(vec4(v.y), wv[TC + j],
                           fma(vec4(v.z), wv[2 * TC + j], fma(vec4(v.w), wv[3 * TC + j], s[i * TC + j]))));

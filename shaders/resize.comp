@@ -5,9 +5,9 @@
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x_id = 0) in;
 #include "activation.glsl"
+#include "inputs.glsl"
 layout(constant_id = 2) const int BILINEAR = 1;
 
-layout(binding = 0) uniform samplerBuffer x;
 layout(std430, binding = 3) writeonly buffer Out { vec4 y[]; };
 
 layout(push_constant) uniform Params {
@@ -17,7 +17,7 @@ layout(push_constant) uniform Params {
 } pc;
 
 vec4 at(int bn, int iy, int ix, int c) {
-  return texelFetch(x, ((bn * pc.in_h + iy) * pc.in_w + ix) * pc.c4 + c);
+  return IN0(((bn * pc.in_h + iy) * pc.in_w + ix) * pc.c4 + c);
 }
 
 void main() {

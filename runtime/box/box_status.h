@@ -26,6 +26,9 @@ struct GpuStatus {
   std::string device;
   std::optional<std::string> detector;  // the network(s) and input, when a CNN runs
   std::string crops_off;                // why auto left the 3D-guided crops off (empty: on)
+  // The limits the kernels were planned against and how the network's steps read their inputs
+  // (gpu::CnnDetector::plan_json); null without a Vulkan CNN.
+  nlohmann::json plan;
   pipeline::DetectorRecoveryStats recovery;
   // The backend running now: "cpu" once a lost GPU could not be opened again.
   std::string in_use() const {

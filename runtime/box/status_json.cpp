@@ -36,6 +36,7 @@ json gpu_json(const GpuStatus& g) {
   // devices lost and what took over.
   j["detector"] = *g.detector;
   if (!g.crops_off.empty()) j["crops"] = g.crops_off;
+  if (!g.plan.is_null()) j["plan"] = g.plan;
   const pipeline::DetectorRecoveryStats& r = g.recovery;
   if (r.devices_lost > 0) {
     j["devices_lost"] = r.devices_lost;

@@ -233,6 +233,21 @@ std::string CnnDetector::description() const {
          " on " + backend_.description;
 }
 
+nlohmann::json CnnDetector::plan_json() const {
+  const Context* ctx = backend_.context.get();
+  if (ctx == nullptr || backend_.backend != PoseBackend::kVulkan) return nullptr;
+  const DeviceInfo& d = ctx->device_info();
+  const PoseDetector::KernelPlan plan = detector_->kernel_plan();
+  return {{"limits", d.minimum_limits ? "spec minimum" : "device"},
+          {"max_texel_buffer_elements", d.limits.max_texel_buffer_elements},
+          {"max_storage_buffer_range", d.limits.max_storage_buffer_range},
+          {"max_storage_buffers_per_stage", d.limits.max_storage_buffers_per_stage},
+          {"max_workgroup_invocations", d.limits.max_workgroup_invocations},
+          {"subgroup_size", d.subgroup_size},
+          {"network_steps_on_texel_views", plan.texel_steps},
+          {"network_steps_on_storage_buffers", plan.storage_steps}};
+}
+
 Result<std::unique_ptr<pipeline::RecoveringDetector>> recovering_cnn(
     std::unique_ptr<CnnDetector> first, const CnnOptions& options) {
   auto pending = std::make_shared<std::unique_ptr<CnnDetector>>(std::move(first));

@@ -8,6 +8,8 @@
 //   auto set = (*cnn)->detect(frame_set);
 #pragma once
 
+#include <nlohmann/json.hpp>
+
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -97,6 +99,9 @@ class CnnDetector final : public pipeline::Detector {
   // Why "auto" runs on the CPU (empty when it does not).
   const std::string& fallback_reason() const { return backend_.fallback_reason; }
   const PoseDetector& pose_detector() const { return *detector_; }
+  // The device's limits the kernels were planned against and how the network's steps read
+  // their inputs (/health's gpu.plan, `mocap gpu`); null on the CPU backend.
+  nlohmann::json plan_json() const;
   // The crop stage's figures: the last frame's and the sum over all frames (crops on only).
   CropStats last_crop_stats() const;
   CropStats total_crop_stats() const;

@@ -78,8 +78,18 @@ DeviceInfo describe(VkPhysicalDevice pd, int index) {
   d.vendor_id = p.vendorID;
   d.device_id = p.deviceID;
   d.subgroup_size = sub.subgroupSize;
-  d.max_workgroup_invocations = p.limits.maxComputeWorkGroupInvocations;
-  d.max_texel_buffer_elements = p.limits.maxTexelBufferElements;
+  const VkPhysicalDeviceLimits& l = p.limits;
+  d.device_limits.max_texel_buffer_elements = l.maxTexelBufferElements;
+  d.device_limits.max_storage_buffer_range = l.maxStorageBufferRange;
+  d.device_limits.max_uniform_buffer_range = l.maxUniformBufferRange;
+  d.device_limits.max_storage_buffers_per_stage = l.maxPerStageDescriptorStorageBuffers;
+  d.device_limits.max_uniform_buffers_per_stage = l.maxPerStageDescriptorUniformBuffers;
+  d.device_limits.max_texel_buffers_per_stage = l.maxPerStageDescriptorSampledImages;
+  d.device_limits.max_push_constants_bytes = l.maxPushConstantsSize;
+  d.device_limits.max_workgroup_invocations = l.maxComputeWorkGroupInvocations;
+  d.device_limits.max_workgroup_size_x = l.maxComputeWorkGroupSize[0];
+  d.device_limits.max_shared_memory_bytes = l.maxComputeSharedMemorySize;
+  d.limits = d.device_limits;
   if (VK_API_VERSION_MINOR(p.apiVersion) >= 2 || VK_API_VERSION_MAJOR(p.apiVersion) > 1) {
     d.driver = std::string(drv.driverName) + " " + drv.driverInfo;
   }
@@ -122,11 +132,20 @@ VkResult make_instance(bool validation, VkInstance* out) {
   ci.pApplicationInfo = &app;
   const char* layers[] = {kValidationLayer};
   const char* exts[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME};
+  // With validation, synchronization validation too: a missing barrier between two dispatches
+  // is reported as a hazard (an error) even on lavapipe, which runs dispatches one after the
+  // other and so would never show its effect.
+  const VkValidationFeatureEnableEXT enables[] = {
+      VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT};
+  VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
+  features.enabledValidationFeatureCount = 1;
+  features.pEnabledValidationFeatures = enables;
   if (validation) {
     ci.enabledLayerCount = 1;
     ci.ppEnabledLayerNames = layers;
     ci.enabledExtensionCount = 1;
     ci.ppEnabledExtensionNames = exts;
+    ci.pNext = &features;
   }
   return vkCreateInstance(&ci, nullptr, out);
 }
@@ -403,6 +422,39 @@ void keep_vulkan_libraries_for_leak_checks() {
 
 }  // namespace
 
+DeviceLimits DeviceLimits::at_most(const DeviceLimits& o) const {
+  DeviceLimits m;
+  m.max_texel_buffer_elements = std::min(max_texel_buffer_elements, o.max_texel_buffer_elements);
+  m.max_storage_buffer_range = std::min(max_storage_buffer_range, o.max_storage_buffer_range);
+  m.max_uniform_buffer_range = std::min(max_uniform_buffer_range, o.max_uniform_buffer_range);
+  m.max_storage_buffers_per_stage =
+      std::min(max_storage_buffers_per_stage, o.max_storage_buffers_per_stage);
+  m.max_uniform_buffers_per_stage =
+      std::min(max_uniform_buffers_per_stage, o.max_uniform_buffers_per_stage);
+  m.max_texel_buffers_per_stage =
+      std::min(max_texel_buffers_per_stage, o.max_texel_buffers_per_stage);
+  m.max_push_constants_bytes = std::min(max_push_constants_bytes, o.max_push_constants_bytes);
+  m.max_workgroup_invocations = std::min(max_workgroup_invocations, o.max_workgroup_invocations);
+  m.max_workgroup_size_x = std::min(max_workgroup_size_x, o.max_workgroup_size_x);
+  m.max_shared_memory_bytes = std::min(max_shared_memory_bytes, o.max_shared_memory_bytes);
+  return m;
+}
+
+namespace {
+
+Result<bool> minimum_limits_wanted(const GpuOptions& options) {
+  const char* env = std::getenv("MOCAP_VK_LIMITS");
+  if (env == nullptr || *env == 0) return options.minimum_limits;
+  const std::string v = env;
+  if (v == "minimum") return true;
+  if (v == "device") return false;
+  return Error(ErrorCode::kInvalidArgument,
+               "MOCAP_VK_LIMITS=" + v +
+                   ": expected minimum (plan for the Vulkan spec's minimum limits) or device");
+}
+
+}  // namespace
+
 Result<std::unique_ptr<Context>> Context::create(const GpuOptions& options) {
   if (Status s = options.validate(); !s.ok()) return s.error();
   std::unique_ptr<Context> ctx(new Context());
@@ -410,6 +462,9 @@ Result<std::unique_ptr<Context>> Context::create(const GpuOptions& options) {
   if (const char* env = std::getenv("MOCAP_VULKAN_DEVICE"); env && *env) {
     ctx->options_.device = env;
   }
+  auto minimum = minimum_limits_wanted(options);
+  if (!minimum.ok()) return minimum.error();
+  ctx->options_.minimum_limits = *minimum;
   const bool validation = validation_wanted(options);
   if (VkResult r = make_instance(validation, &ctx->instance_); r != VK_SUCCESS) {
     return vk_error(r,
@@ -422,8 +477,14 @@ Result<std::unique_ptr<Context>> Context::create(const GpuOptions& options) {
   if (!chosen.ok()) return chosen.error();
   if (Status s = ctx->create_device(); !s.ok()) return s.error();
   if (Status s = ctx->create_pipeline_cache(); !s.ok()) return s.error();
+  if (ctx->options_.minimum_limits) {
+    ctx->info_.minimum_limits = true;
+    ctx->info_.limits = ctx->info_.device_limits.at_most(DeviceLimits::spec_minimum());
+  }
   MOCAP_LOG(Gpu, Info) << "Vulkan device " << ctx->info_.index << ": " << ctx->info_.name << " ("
-                       << ctx->info_.type_name() << ")" << (validation ? ", validation on" : "");
+                       << ctx->info_.type_name() << ")" << (validation ? ", validation on" : "")
+                       << (ctx->info_.minimum_limits ? ", planned for the spec's minimum limits"
+                                                     : "");
   if (ctx->info_.is_cpu()) {
     MOCAP_LOG(Gpu, Info) << "running on a software Vulkan device (no GPU found or chosen)";
   }
@@ -593,13 +654,22 @@ Status Context::save_pipeline_cache() {
 }
 
 Result<Buffer> Context::create_buffer(VkDeviceSize bytes, bool host_visible) {
+  // Every buffer may be bound as a storage buffer (a kernel's input, output or staging source).
+  if (bytes > info_.limits.max_storage_buffer_range) {
+    return Error(ErrorCode::kUnsupported,
+                 "a buffer of " + std::to_string(bytes >> 20) + " MiB is larger than " +
+                     info_.name + " can bind as a storage buffer (maxStorageBufferRange " +
+                     std::to_string(info_.limits.max_storage_buffer_range >> 20) +
+                     " MiB): use a smaller network input size or fewer cameras per box");
+  }
   Buffer b;
   b.device_ = device_;
   b.size_ = std::max<VkDeviceSize>(bytes, 16);
   VkBufferCreateInfo bi{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
   bi.size = b.size_;
   bi.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
-             VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+             VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
+             VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
   if (VkResult r = vkCreateBuffer(device_, &bi, nullptr, &b.buffer_); r != VK_SUCCESS) {
     return vk_error(r, "creating a buffer of " + std::to_string(bytes) + " bytes");
@@ -646,10 +716,10 @@ Result<Buffer> Context::create_buffer(VkDeviceSize bytes, bool host_visible) {
 
 Result<TexelView> Context::create_texel_view(const Buffer& buffer) {
   const VkDeviceSize texels = buffer.size_bytes() / 16;
-  if (buffer.size_bytes() % 16 != 0 || texels > info_.max_texel_buffer_elements) {
+  if (buffer.size_bytes() % 16 != 0 || texels > info_.limits.max_texel_buffer_elements) {
     return Error(ErrorCode::kInvalidArgument,
                  "a texel view needs a buffer of whole 16-byte texels, at most " +
-                     std::to_string(info_.max_texel_buffer_elements) + " on " + info_.name +
+                     std::to_string(info_.limits.max_texel_buffer_elements) + " on " + info_.name +
                      " (buffer is " + std::to_string(buffer.size_bytes()) + " bytes)");
   }
   TexelView v;
@@ -674,17 +744,56 @@ Result<Kernel> Context::create_kernel(std::span<const std::uint32_t> spirv, cons
   return create_kernel(spirv, name, types, push_bytes, spec_constants, workgroup_size);
 }
 
+// A kernel's descriptors and push constants against the limits planned for (a device whose
+// driver reports less than the spec's minimums is refused here, naming the limit).
+Status Context::fits_limits(const std::string& name,
+                            std::span<const VkDescriptorType> binding_types,
+                            std::uint32_t push_bytes) const {
+  std::uint32_t storage = 0, uniform = 0, texel = 0;
+  for (VkDescriptorType t : binding_types) {
+    storage += t == VK_DESCRIPTOR_TYPE_STORAGE_BUFFER ? 1 : 0;
+    uniform += t == VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER ? 1 : 0;
+    texel += t == VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER ? 1 : 0;
+  }
+  const DeviceLimits& l = info_.limits;
+  auto over = [&](const char* what, std::uint32_t n, const char* limit, std::uint32_t max) {
+    return Error(ErrorCode::kUnsupported,
+                 "kernel " + name + " needs " + std::to_string(n) + " " + what + " and " +
+                     info_.name + " allows " + std::to_string(max) + " (" + limit +
+                     ", below the Vulkan spec's minimum: update the GPU driver)");
+  };
+  if (storage > l.max_storage_buffers_per_stage) {
+    return over("storage buffers", storage, "maxPerStageDescriptorStorageBuffers",
+                l.max_storage_buffers_per_stage);
+  }
+  if (uniform > l.max_uniform_buffers_per_stage) {
+    return over("uniform buffers", uniform, "maxPerStageDescriptorUniformBuffers",
+                l.max_uniform_buffers_per_stage);
+  }
+  if (texel > l.max_texel_buffers_per_stage) {
+    return over("texel buffers", texel, "maxPerStageDescriptorSampledImages",
+                l.max_texel_buffers_per_stage);
+  }
+  if (push_bytes > l.max_push_constants_bytes) {
+    return over("bytes of push constants", push_bytes, "maxPushConstantsSize",
+                l.max_push_constants_bytes);
+  }
+  return {};
+}
+
 Result<Kernel> Context::create_kernel(std::span<const std::uint32_t> spirv, const std::string& name,
                                       std::span<const VkDescriptorType> binding_types,
                                       std::uint32_t push_bytes,
                                       std::span<const std::int32_t> spec_constants,
                                       std::uint32_t workgroup_size) {
   const int bindings = static_cast<int>(binding_types.size());
+  if (Status s = fits_limits(name, binding_types, push_bytes); !s.ok()) return s.error();
   Kernel k;
   k.device_ = device_;
   k.bindings_ = bindings;
   k.push_bytes_ = push_bytes;
-  k.workgroup_size_ = std::min(workgroup_size, info_.max_workgroup_invocations);
+  k.workgroup_size_ = std::min(
+      {workgroup_size, info_.limits.max_workgroup_invocations, info_.limits.max_workgroup_size_x});
   VkShaderModuleCreateInfo mi{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
   mi.codeSize = spirv.size_bytes();
   mi.pCode = spirv.data();

@@ -29,8 +29,31 @@ struct GpuOptions {
   // A file written for another device or driver is ignored.
   std::filesystem::path pipeline_cache_path;
   bool persist_pipeline_cache = true;
+  // Plan every kernel as if the device had only the Vulkan spec's minimum limits
+  // (DeviceLimits); also MOCAP_VK_LIMITS=minimum.
+  bool minimum_limits = false;
 
   Status validate() const;
+};
+
+// The device limits the kernels are planned against (VkPhysicalDeviceLimits), and the Vulkan
+// spec's guaranteed minimum of each (Vulkan 1.1, "Required Limits"): every kernel has a path
+// within the minimums. MOCAP_VK_LIMITS=minimum makes a Context plan as if its device had only
+// those, so lavapipe exercises the minimum paths too.
+struct DeviceLimits {
+  std::uint32_t max_texel_buffer_elements = 65536;
+  std::uint32_t max_storage_buffer_range = 1u << 27;  // bytes
+  std::uint32_t max_uniform_buffer_range = 16384;     // bytes
+  std::uint32_t max_storage_buffers_per_stage = 4;
+  std::uint32_t max_uniform_buffers_per_stage = 12;
+  std::uint32_t max_texel_buffers_per_stage = 16;  // maxPerStageDescriptorSampledImages
+  std::uint32_t max_push_constants_bytes = 128;
+  std::uint32_t max_workgroup_invocations = 128;
+  std::uint32_t max_workgroup_size_x = 128;
+  std::uint32_t max_shared_memory_bytes = 16384;
+  static DeviceLimits spec_minimum() { return {}; }
+  // The smaller of each limit: what a plan for both devices may use.
+  DeviceLimits at_most(const DeviceLimits& o) const;
 };
 
 struct DeviceInfo {
@@ -43,13 +66,22 @@ struct DeviceInfo {
   std::string driver;              // driver name and info when the driver reports them
   double timestamp_period_ns = 0;  // 0 = no timestamps on the compute queue
   std::uint32_t subgroup_size = 0;
-  std::uint32_t max_workgroup_invocations = 0;
-  std::uint32_t max_texel_buffer_elements = 0;
+  DeviceLimits limits;          // as planned against (the spec's minimums when asked)
+  DeviceLimits device_limits;   // as the driver reports them
+  bool minimum_limits = false;  // MOCAP_VK_LIMITS=minimum (GpuOptions::minimum_limits)
   bool is_cpu() const { return type == VK_PHYSICAL_DEVICE_TYPE_CPU; }
   std::string type_name() const;
 };
 
 class Context;
+
+// A kernel's descriptors and push constants: what a device must allow for it to run
+// (Context::fits_limits; `mocap gpu` checks every kernel on every device).
+struct KernelRequirement {
+  std::string name;
+  std::vector<VkDescriptorType> bindings;
+  std::uint32_t push_bytes = 0;
+};
 
 // A view of a buffer as a uniform texel buffer of RGBA32F texels (GLSL `samplerBuffer`,
 // texelFetch). On lavapipe a texel fetch is a branch-free gather, while a storage-buffer load
@@ -145,6 +177,7 @@ class Context {
   VkQueue queue() const { return queue_; }
   std::uint32_t queue_family() const { return queue_family_; }
   int validation_errors() const;
+  bool validation_on() const { return messenger_ != VK_NULL_HANDLE; }
 
   Result<Buffer> create_buffer(VkDeviceSize bytes, bool host_visible);
   // An RGBA32F texel view of the whole buffer (its size must be a multiple of 16 bytes).
@@ -161,6 +194,9 @@ class Context {
                                std::uint32_t push_bytes,
                                std::span<const std::int32_t> spec_constants,
                                std::uint32_t workgroup_size);
+  // Whether a kernel with these descriptors and push constants fits the planned limits.
+  Status fits_limits(const std::string& name, std::span<const VkDescriptorType> binding_types,
+                     std::uint32_t push_bytes) const;
   // Writes the pipeline cache to its file now (also done on destruction).
   Status save_pipeline_cache();
   VkPipelineCache pipeline_cache() const { return pipeline_cache_; }

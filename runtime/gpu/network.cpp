@@ -14,14 +14,32 @@ int c4_of(int c) { return (c + 3) / 4; }
 int round_up(int v, int m) { return (v + m - 1) / m * m; }
 std::uint32_t div_up(long a, long b) { return static_cast<std::uint32_t>((a + b - 1) / b); }
 
-// Descriptor bindings of every kernel: input and weights as uniform texel buffers (texelFetch:
-// a gather on lavapipe, where a storage-buffer load is a per-lane loop), then bias, output and
-// PReLU slopes as storage buffers.
-constexpr int kBindings = 5;
-constexpr VkDescriptorType kBindingTypes[kBindings] = {
+// Descriptor bindings of every kernel: the two inputs (an activation and the weights, or two
+// activations), the step's constants (bias, then PReLU slopes: shaders/activation.glsl) and the
+// output. The inputs are uniform texel buffers (texelFetch: a gather on lavapipe, where a
+// storage-buffer load is a per-lane loop) unless a buffer is larger than the device's
+// maxTexelBufferElements allows, which may be as low as 65536 texels (Mali, SwiftShader): then
+// that step runs the kernel's storage-buffer variant (shaders/inputs.glsl). Either way a kernel
+// binds at most four storage buffers, the spec's minimum.
+constexpr int kBindings = 4;
+constexpr VkDescriptorType kTexelBindingTypes[kBindings] = {
     VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER,
+    VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
+constexpr VkDescriptorType kStorageBindingTypes[kBindings] = {
     VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-    VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
+    VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
+std::span<const VkDescriptorType> binding_types(InputVariant v) {
+  return v == InputVariant::kStorage ? std::span<const VkDescriptorType>(kStorageBindingTypes)
+                                     : std::span<const VkDescriptorType>(kTexelBindingTypes);
+}
+// ALPHA_AT (shaders/activation.glsl) is constant_id 7: index 6 of a kernel's spec constants
+// (index i is constant_id i + 1; the ids a kernel does not use are ignored).
+constexpr std::size_t kAlphaAtIndex = 6;
+std::vector<std::int32_t> with_alpha_at(std::vector<std::int32_t> spec, int alpha_at) {
+  if (spec.size() <= kAlphaAtIndex) spec.resize(kAlphaAtIndex + 1, 0);
+  spec[kAlphaAtIndex] = alpha_at;
+  return spec;
+}
 constexpr std::uint32_t kPushBytes = 16 * sizeof(std::int32_t);
 // Register tile of pointwise_conv2d.comp: pixels (TP) x output vec4 groups (TC) per
 // invocation, and input groups per partial sum (KB, 0 = one accumulator level). Measured on
@@ -45,8 +63,15 @@ bool is_pointwise(const nn::Layer& l) {
          l.stride_w == 1;
 }
 
-// constants_[kDummyConstant] is bound where a kernel has no PReLU slopes.
+// constants_[kDummyConstant] is bound where a kernel has no constants or no second input.
 constexpr std::size_t kDummyConstant = 0;
+
+// The kernel's name in the per-layer timings: "conv2d", or "conv2d/storage" for the variant.
+std::string kernel_label(Shader s, InputVariant v) {
+  std::string name = shader_name(s);
+  if (v == InputVariant::kStorage) name += "/storage";
+  return name;
+}
 
 // What a conv step runs: the kernel, its weights and bias laid out for it, push constants and
 // workgroups.
@@ -204,16 +229,29 @@ Network::~Network() {
   if (pool_) vkDestroyDescriptorPool(d, pool_, nullptr);
 }
 
-Result<const Kernel*> Network::kernel(int shader, std::vector<std::int32_t> spec) {
+Result<const Kernel*> Network::kernel(int shader, std::vector<std::int32_t> spec,
+                                      InputVariant variant) {
   for (const KernelEntry& e : kernels_) {
-    if (e.shader == shader && e.spec == spec) return e.kernel.get();
+    if (e.shader == shader && e.spec == spec && e.variant == variant) return e.kernel.get();
   }
   const Shader s = static_cast<Shader>(shader);
-  auto k = ctx_.create_kernel(shader_spirv(s), shader_name(s), kBindingTypes, kPushBytes, spec,
-                              options_.workgroup_size);
+  std::string name = shader_name(s);
+  if (variant == InputVariant::kStorage) name += " (storage inputs)";
+  auto k = ctx_.create_kernel(shader_spirv(s, variant), name, binding_types(variant), kPushBytes,
+                              spec, options_.workgroup_size);
   if (!k.ok()) return k.error();
-  kernels_.push_back(KernelEntry{shader, std::move(spec), std::make_unique<Kernel>(std::move(*k))});
+  kernels_.push_back(
+      KernelEntry{shader, std::move(spec), variant, std::make_unique<Kernel>(std::move(*k))});
   return kernels_.back().kernel.get();
+}
+
+// Texel views where both inputs fit the device's maxTexelBufferElements, else storage buffers.
+InputVariant Network::input_variant(const Buffer& in0, const Buffer& in1) const {
+  const VkDeviceSize max_bytes =
+      static_cast<VkDeviceSize>(ctx_.device_info().limits.max_texel_buffer_elements) * 16;
+  const bool fits = in0.size_bytes() <= max_bytes && in1.size_bytes() <= max_bytes &&
+                    in0.size_bytes() % 16 == 0 && in1.size_bytes() % 16 == 0;
+  return fits ? InputVariant::kTexel : InputVariant::kStorage;
 }
 
 Result<Buffer> Network::upload(std::span<const float> data) {
@@ -339,7 +377,8 @@ Status Network::allocate_buffers(const nn::Model& model, const std::vector<Fused
     outputs_.push_back(Output{o.name, o.value, shapes_[ix(o.value)], std::move(*st), slot.src,
                               slot.stride4, slot.offset4});
   }
-  // constants_[kDummyConstant]: bound where a kernel has no PReLU slopes.
+  // constants_[kDummyConstant]: bound where a kernel has no constants, and as the second input
+  // of a kernel with one.
   auto dummy = upload(std::vector<float>(4, 0.f));
   if (!dummy.ok()) return dummy.error();
   constants_.push_back(std::move(*dummy));
@@ -353,7 +392,7 @@ Status Network::create_descriptor_pool(const nn::Model& model) {
     sets += l.op == nn::OpType::kConcat ? static_cast<std::uint32_t>(l.inputs.size()) : 1u;
   }
   VkDescriptorPoolSize ps[2] = {{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, sets * kBindings},
-                                {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, sets * kBindings}};
+                                {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, sets * 2}};
   VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pi.maxSets = sets;
   pi.poolSizeCount = 2;
@@ -400,38 +439,35 @@ Status Network::add_conv_step(const nn::Model& model, std::size_t li,
     const auto& bt = model.tensors[ix(l.bias)].data;
     std::copy(bt.begin(), bt.end(), p.bias.begin());
   }
-  std::vector<float> alpha;
+  // The step's constants: the bias, then the PReLU slopes from vec4 group bias_groups on.
+  std::vector<float> consts = std::move(p.bias);
+  std::vector<std::int32_t> spec = conv_spec(p, l);
   if (l.activation == nn::Activation::kPRelu) {
-    alpha.assign(ix(static_cast<long>(p.bias_groups) * 4), 0.f);
     const auto& at = model.tensors[ix(l.alpha)].data;
-    std::copy(at.begin(), at.end(), alpha.begin());
+    consts.resize(ix(static_cast<long>(p.bias_groups) * 8), 0.f);
+    std::copy(at.begin(), at.end(), consts.begin() + static_cast<long>(p.bias_groups) * 4);
+    spec = with_alpha_at(std::move(spec), p.bias_groups);
   }
-  auto k = kernel(static_cast<int>(p.shader), conv_spec(p, l));
-  if (!k.ok()) return k.error();
-  step.kernel = *k;
   auto wb = upload(p.w);
   if (!wb.ok()) return wb.error();
-  auto bb = upload(p.bias);
-  if (!bb.ok()) return bb.error();
+  auto cb = upload(consts);
+  if (!cb.ok()) return cb.error();
   const std::size_t wi = constants_.size();
   constants_.push_back(std::move(*wb));
-  constants_.push_back(std::move(*bb));
-  std::size_t ai = kDummyConstant;
-  if (!alpha.empty()) {
-    auto ab = upload(alpha);
-    if (!ab.ok()) return ab.error();
-    ai = constants_.size();
-    constants_.push_back(std::move(*ab));
-  }
+  constants_.push_back(std::move(*cb));
   const Buffer* bufs[kBindings] = {&values_[ix(in_v)], &constants_[wi], &constants_[wi + 1],
-                                   &values_[li + 1], &constants_[ai]};
-  if (Status st = bind(step, bufs); !st.ok()) return st;
-  layer_times_.push_back(LayerTime{step.name, shader_name(p.shader), 0});
+                                   &values_[li + 1]};
+  const InputVariant variant = input_variant(*bufs[0], *bufs[1]);
+  auto k = kernel(static_cast<int>(p.shader), std::move(spec), variant);
+  if (!k.ok()) return k.error();
+  step.kernel = *k;
+  if (Status st = bind(step, bufs, variant); !st.ok()) return st;
+  layer_times_.push_back(LayerTime{step.name, kernel_label(p.shader, variant), 0});
   steps_.push_back(std::move(step));
   return Status::Ok();
 }
 
-Status Network::bind(Step& step, const Buffer* const (&bufs)[5]) {
+Status Network::bind(Step& step, const Buffer* const (&bufs)[4], InputVariant variant) {
   VkDescriptorSetAllocateInfo dai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
   dai.descriptorPool = pool_;
   dai.descriptorSetCount = 1;
@@ -448,8 +484,8 @@ Status Network::bind(Step& step, const Buffer* const (&bufs)[5]) {
     writes[b].dstSet = step.set;
     writes[b].dstBinding = static_cast<std::uint32_t>(b);
     writes[b].descriptorCount = 1;
-    writes[b].descriptorType = kBindingTypes[b];
-    if (kBindingTypes[b] == VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER) {
+    writes[b].descriptorType = binding_types(variant)[static_cast<std::size_t>(b)];
+    if (writes[b].descriptorType == VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER) {
       auto view = ctx_.create_texel_view(*bufs[b]);
       if (!view.ok()) return view.error();
       texel_views[b] = view->handle();
@@ -478,7 +514,7 @@ Status Network::add_data_step(const nn::Model& model, std::size_t li) {
     constants_.push_back(std::move(*ab));
   }
   // constants_ does not grow below: references into it stay valid.
-  const Buffer& dummy = constants_[0];
+  const Buffer& dummy = constants_[kDummyConstant];
   const Buffer* alpha = l.activation == nn::Activation::kPRelu ? &constants_.back() : &dummy;
   const std::int32_t act = static_cast<std::int32_t>(l.activation);
   const long pixels = static_cast<long>(os.n) * os.h * os.w;
@@ -488,15 +524,16 @@ Status Network::add_data_step(const nn::Model& model, std::size_t li) {
                        const Buffer& in1, std::string name) -> Status {
     Step step;
     step.name = std::move(name);
-    auto k = kernel(static_cast<int>(shader), std::move(spec));
+    const Buffer* bufs[kBindings] = {&in0, &in1, alpha, &values_[li + 1]};
+    const InputVariant variant = input_variant(in0, in1);
+    auto k = kernel(static_cast<int>(shader), std::move(spec), variant);
     if (!k.ok()) return k.error();
     step.kernel = *k;
     step.push = std::move(push);
     step.push.resize(kPushBytes / sizeof(std::int32_t), 0);
     step.groups = div_up(invocations, wg);
-    const Buffer* bufs[kBindings] = {&in0, &in1, &dummy, &values_[li + 1], alpha};
-    if (Status st = bind(step, bufs); !st.ok()) return st;
-    layer_times_.push_back(LayerTime{step.name, shader_name(shader), 0});
+    if (Status st = bind(step, bufs, variant); !st.ok()) return st;
+    layer_times_.push_back(LayerTime{step.name, kernel_label(shader, variant), 0});
     steps_.push_back(std::move(step));
     return Status::Ok();
   };
@@ -588,6 +625,7 @@ Status Network::record() {
       vkCmdWriteTimestamp(cb_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, queries_,
                           static_cast<std::uint32_t>(i + 1));
     }
+    if (static_cast<int>(i) == options_.omit_barrier_after_step) continue;
     VkMemoryBarrier cm{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
     cm.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
     cm.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
@@ -700,6 +738,19 @@ Status Network::read_output(std::size_t i, nn::Tensor& out) const {
   const Output& o = outputs_[i];
   unpack(static_cast<const float*>(o.staging.mapped()), o.shape, o.stride4, o.offset4, out);
   return Status::Ok();
+}
+
+std::vector<KernelRequirement> network_kernel_requirements() {
+  std::vector<KernelRequirement> out;
+  for (Shader s :
+       {Shader::kConv2D, Shader::kDepthwiseConv2D, Shader::kPointwiseConv2D, Shader::kAddActivation,
+        Shader::kConcatChannels, Shader::kMaxPool, Shader::kResize}) {
+    for (InputVariant v : {InputVariant::kTexel, InputVariant::kStorage}) {
+      const auto types = binding_types(v);
+      out.push_back({kernel_label(s, v), {types.begin(), types.end()}, kPushBytes});
+    }
+  }
+  return out;
 }
 
 }  // namespace mocap::gpu

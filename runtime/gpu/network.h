@@ -12,6 +12,7 @@
 
 #include "runtime/core/error.h"
 #include "runtime/gpu/context.h"
+#include "runtime/gpu/shaders.h"
 #include "runtime/nn/cpu_ops.h"
 #include "runtime/nn/model.h"
 
@@ -23,6 +24,9 @@ struct NetworkOptions {
   int width_px = 257;
   std::uint32_t workgroup_size = 64;
   bool timestamps = true;  // per-layer GPU times (when the queue supports timestamps)
+  // Tests only: records no barrier after this step, so that synchronization validation must
+  // report the read-after-write hazard it leaves (-1: every barrier, as always).
+  int omit_barrier_after_step = -1;
 
   Status validate() const;
 };
@@ -32,6 +36,9 @@ struct LayerTime {
   std::string kernel;
   double ms = 0;
 };
+
+// The network kernels' descriptors and push constants, both variants.
+std::vector<KernelRequirement> network_kernel_requirements();
 
 class Network {
  public:
@@ -96,9 +103,11 @@ class Network {
   Status add_conv_step(const nn::Model& model, std::size_t li, const std::vector<FusedHead>& fused);
   // Steps of an add, activation, max-pool, resize or concat layer (no weights).
   Status add_data_step(const nn::Model& model, std::size_t li);
-  // Allocates step.set and points bindings 0..4 at `bufs` (texel views for 0 and 1).
-  Status bind(Step& step, const Buffer* const (&bufs)[5]);
-  Result<const Kernel*> kernel(int shader, std::vector<std::int32_t> spec);
+  // Allocates step.set and points bindings 0..3 at `bufs` (texel views for 0 and 1 unless
+  // `variant` is kStorage).
+  Status bind(Step& step, const Buffer* const (&bufs)[4], InputVariant variant);
+  Result<const Kernel*> kernel(int shader, std::vector<std::int32_t> spec, InputVariant variant);
+  InputVariant input_variant(const Buffer& in0, const Buffer& in1) const;
   // A device buffer holding `data`: the copy from its staging buffer is queued and runs with
   // every other queued upload in one submission (flush_uploads).
   Result<Buffer> upload(std::span<const float> data);
@@ -124,6 +133,7 @@ class Network {
   struct KernelEntry {
     int shader;
     std::vector<std::int32_t> spec;
+    InputVariant variant;
     std::unique_ptr<Kernel> kernel;
   };
   std::vector<KernelEntry> kernels_;

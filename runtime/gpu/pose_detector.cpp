@@ -49,6 +49,15 @@ Status PoseDetectorOptions::validate() const {
 
 PoseDetector::~PoseDetector() = default;
 
+PoseDetector::KernelPlan PoseDetector::kernel_plan() const {
+  KernelPlan plan;
+  if (!net_) return plan;
+  for (const LayerTime& t : net_->layer_times()) {
+    ++(t.kernel.ends_with("/storage") ? plan.storage_steps : plan.texel_steps);
+  }
+  return plan;
+}
+
 Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& model,
                                                            const PoseDetectorOptions& options,
                                                            Context* ctx) {

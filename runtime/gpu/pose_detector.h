@@ -80,6 +80,14 @@ class PoseDetector {
 
   const PoseDetectorTimes& last_times() const { return times_; }
   const PoseDetectorOptions& options() const { return options_; }
+  // How the network's steps read their inputs on this device: texel views, or storage buffers
+  // where a tensor is larger than the device's texel views hold (shaders/inputs.glsl). Zeros on
+  // the CPU backend.
+  struct KernelPlan {
+    int texel_steps = 0;
+    int storage_steps = 0;
+  };
+  KernelPlan kernel_plan() const;
 
  private:
   PoseDetector() = default;

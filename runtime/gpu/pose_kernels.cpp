@@ -46,6 +46,29 @@ Status copy_tensor(const nn::Tensor& t, const nn::Shape& want, Buffer& dst, cons
 
 std::uint32_t u32(long v) { return static_cast<std::uint32_t>(v); }
 
+// The uniform tables of shaders/tables.glsl and the affinity kernels: their declared sizes, which
+// the buffers bound there must cover. Candidate counts: [views, joints, 2] ints in 16 KiB.
+constexpr long kMaxCandidateCounts = 4096;
+constexpr std::size_t kCountsBytes = kMaxCandidateCounts * 4;
+constexpr long kMaxLimbs = 64;  // paf_affinity.comp: ivec4 limbs[64]
+constexpr long kMaxEdges = 64;  // displacement_affinity.comp: ivec4 edges2[32], two per ivec4
+constexpr VkDescriptorType kS = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+constexpr VkDescriptorType kU = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+// Counts and the limb or edge table are uniform buffers: four storage buffers per kernel.
+constexpr VkDescriptorType kAffinityBindings[6] = {kS, kU, kS, kS, kU, kS};  // displacement
+constexpr VkDescriptorType kPafBindings[6] = {kS, kU, kS, kU, kS, kS};
+
+Status check_tables(long views, long joints, long entries, long max_entries, const char* what) {
+  if (views * joints * 2 > kMaxCandidateCounts || entries > max_entries) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "GPU post-processing: " + std::to_string(views) + " views x " +
+                     std::to_string(joints) + " joints and " + std::to_string(entries) + " " +
+                     what + " exceed its tables (" + std::to_string(kMaxCandidateCounts / 2) +
+                     " view-joints, " + std::to_string(max_entries) + " " + what + ")");
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 // ------------------------------------------------------------------------------ BoundKernel
@@ -54,16 +77,35 @@ Result<std::unique_ptr<BoundKernel>> BoundKernel::create(Context& ctx, Shader sh
                                                          std::uint32_t push_bytes,
                                                          std::vector<std::int32_t> spec_constants,
                                                          std::uint32_t workgroup_size) {
+  const std::vector<VkDescriptorType> types(static_cast<std::size_t>(std::max(bindings, 0)),
+                                            VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
+  return create(ctx, shader, types, push_bytes, std::move(spec_constants), workgroup_size);
+}
+
+Result<std::unique_ptr<BoundKernel>> BoundKernel::create(
+    Context& ctx, Shader shader, std::span<const VkDescriptorType> binding_types,
+    std::uint32_t push_bytes, std::vector<std::int32_t> spec_constants,
+    std::uint32_t workgroup_size) {
   std::unique_ptr<BoundKernel> k(new BoundKernel(ctx));
-  auto kernel = ctx.create_kernel(shader_spirv(shader), shader_name(shader), bindings, push_bytes,
-                                  spec_constants, workgroup_size);
+  k->types_.assign(binding_types.begin(), binding_types.end());
+  auto kernel = ctx.create_kernel(shader_spirv(shader), shader_name(shader), binding_types,
+                                  push_bytes, spec_constants, workgroup_size);
   if (!kernel.ok()) return kernel.error();
   k->kernel_ = std::move(*kernel);
-  VkDescriptorPoolSize ps{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, static_cast<std::uint32_t>(bindings)};
+  std::vector<VkDescriptorPoolSize> sizes;
+  for (VkDescriptorType t : k->types_) {
+    auto it = std::find_if(sizes.begin(), sizes.end(),
+                           [t](const VkDescriptorPoolSize& p) { return p.type == t; });
+    if (it == sizes.end()) {
+      sizes.push_back({t, 1});
+    } else {
+      ++it->descriptorCount;
+    }
+  }
   VkDescriptorPoolCreateInfo pi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pi.maxSets = 1;
-  pi.poolSizeCount = 1;
-  pi.pPoolSizes = &ps;
+  pi.poolSizeCount = static_cast<std::uint32_t>(sizes.size());
+  pi.pPoolSizes = sizes.data();
   if (VkResult r = vkCreateDescriptorPool(ctx.device(), &pi, nullptr, &k->pool_); r != VK_SUCCESS) {
     return vk_error(r, std::string("creating the descriptor pool of ") + shader_name(shader));
   }
@@ -91,7 +133,7 @@ void BoundKernel::bind(std::span<const Buffer* const> buffers) {
     writes[b].dstSet = set_;
     writes[b].dstBinding = static_cast<std::uint32_t>(b);
     writes[b].descriptorCount = 1;
-    writes[b].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    writes[b].descriptorType = types_[b];
     writes[b].pBufferInfo = &infos[b];
   }
   vkUpdateDescriptorSets(ctx_.device(), static_cast<std::uint32_t>(writes.size()), writes.data(), 0,
@@ -314,8 +356,13 @@ Result<std::unique_ptr<PoseNetPostprocessor>> PoseNetPostprocessor::create(
   auto pk = BoundKernel::create(ctx, Shader::kHeatmapPeaks, 4, sizeof(PeaksPush), {kmax});
   if (!pk.ok()) return pk.error();
   p->peaks_ = std::move(*pk);
-  auto ak =
-      BoundKernel::create(ctx, Shader::kDisplacementAffinity, 6, sizeof(AffinityPush), {kmax});
+  if (Status st =
+          check_tables(views, joints, static_cast<long>(p->edges_.size()), kMaxEdges, "edges");
+      !st.ok()) {
+    return st.error();
+  }
+  auto ak = BoundKernel::create(ctx, Shader::kDisplacementAffinity, kAffinityBindings,
+                                sizeof(AffinityPush), {kmax});
   if (!ak.ok()) return ak.error();
   p->affinity_ = std::move(*ak);
   const long cells = static_cast<long>(views) * h * w;
@@ -329,9 +376,9 @@ Result<std::unique_ptr<PoseNetPostprocessor>> PoseNetPostprocessor::create(
       {&p->offsets_, sz(cells * joints * 2) * 4},
       {&p->fwd_, sz(cells * E * 2) * 4},
       {&p->bwd_, sz(cells * E * 2) * 4},
-      {&p->edge_table_, sz(E) * 8},
+      {&p->edge_table_, sz(kMaxEdges) * 8},
       {&p->cand_, sz(static_cast<long>(views) * joints * kmax) * 16},
-      {&p->counts_, sz(static_cast<long>(views) * joints * 2) * 4},
+      {&p->counts_, kCountsBytes},
       {&p->aff_, sz(static_cast<long>(views) * E * kmax * kmax) * 4},
   };
   for (const Alloc& a : allocs) {
@@ -451,12 +498,14 @@ Result<std::vector<nn::PafScores>> paf_affinity_gpu(
     }
   }
   const long L = static_cast<long>(limbs.size());
-  auto kernel = BoundKernel::create(ctx, Shader::kPafAffinity, 6, sizeof(PafPush), {kmax});
+  if (Status st = check_tables(views, joints, L, kMaxLimbs, "limbs"); !st.ok()) return st.error();
+  auto kernel =
+      BoundKernel::create(ctx, Shader::kPafAffinity, kPafBindings, sizeof(PafPush), {kmax});
   if (!kernel.ok()) return kernel.error();
   auto cand = host_buffer(ctx, sz(static_cast<long>(views) * joints * kmax) * 16);
-  auto counts = host_buffer(ctx, sz(static_cast<long>(views) * joints * 2) * 4);
+  auto counts = host_buffer(ctx, kCountsBytes);
   auto field = host_buffer(ctx, paf.data.size() * 4);
-  auto table = host_buffer(ctx, sz(L) * 16);
+  auto table = host_buffer(ctx, sz(kMaxLimbs) * 16);
   auto score = host_buffer(ctx, sz(views * L * kmax * kmax) * 4);
   auto frac = host_buffer(ctx, sz(views * L * kmax * kmax) * 4);
   for (const auto* b : {&cand, &counts, &field, &table, &score, &frac}) {
@@ -524,6 +573,22 @@ Result<std::vector<nn::PafScores>> paf_affinity_gpu(
     }
   }
   return out;
+}
+
+std::vector<KernelRequirement> pose_kernel_requirements() {
+  const auto storage = [](int n) {
+    return std::vector<VkDescriptorType>(static_cast<std::size_t>(n), kS);
+  };
+  return {
+      {shader_name(Shader::kPreprocessFrame), storage(2), sizeof(PreprocessPush)},
+      {shader_name(Shader::kHeatmapPeaks), storage(4), sizeof(PeaksPush)},
+      {shader_name(Shader::kDisplacementAffinity),
+       std::vector<VkDescriptorType>(std::begin(kAffinityBindings), std::end(kAffinityBindings)),
+       sizeof(AffinityPush)},
+      {shader_name(Shader::kPafAffinity),
+       std::vector<VkDescriptorType>(std::begin(kPafBindings), std::end(kPafBindings)),
+       sizeof(PafPush)},
+  };
 }
 
 }  // namespace mocap::gpu

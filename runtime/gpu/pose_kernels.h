@@ -24,12 +24,22 @@ namespace mocap::gpu {
 
 // One kernel with its own descriptor set; bind() points the set at buffers, record() adds a
 // dispatch of `invocations` invocations with the given push constants.
+// The pre- and post-processing kernels' descriptors and push constants
+// (network_kernel_requirements: the network's).
+std::vector<KernelRequirement> pose_kernel_requirements();
+
 class BoundKernel {
  public:
+  // Bindings 0..n-1 all storage buffers.
   static Result<std::unique_ptr<BoundKernel>> create(Context& ctx, Shader shader, int bindings,
                                                      std::uint32_t push_bytes,
                                                      std::vector<std::int32_t> spec_constants,
                                                      std::uint32_t workgroup_size = 64);
+  // One descriptor of the given type per binding (storage and uniform buffers).
+  static Result<std::unique_ptr<BoundKernel>> create(
+      Context& ctx, Shader shader, std::span<const VkDescriptorType> binding_types,
+      std::uint32_t push_bytes, std::vector<std::int32_t> spec_constants,
+      std::uint32_t workgroup_size = 64);
   ~BoundKernel();
   BoundKernel(const BoundKernel&) = delete;
   BoundKernel& operator=(const BoundKernel&) = delete;
@@ -41,6 +51,7 @@ class BoundKernel {
   explicit BoundKernel(Context& ctx) : ctx_(ctx) {}
   Context& ctx_;
   Kernel kernel_;
+  std::vector<VkDescriptorType> types_;
   VkDescriptorPool pool_ = VK_NULL_HANDLE;
   VkDescriptorSet set_ = VK_NULL_HANDLE;
 };

@@ -433,11 +433,95 @@ TEST_F(GpuTest, OpenPoseStyleStageMatchesCpu) {
   EXPECT_LT(compare(*ctx_, m, in, &what), kTolerance) << what;
 }
 
+// A context planned for the Vulkan spec's minimum limits (MOCAP_VK_LIMITS=minimum), with
+// validation (synchronization included); skipped (failed in CI) without a device.
+std::unique_ptr<Context> minimum_context() {
+  GpuOptions o;
+  o.validation = true;
+  o.minimum_limits = true;
+  o.persist_pipeline_cache = false;
+  auto c = Context::create(o);
+  return c.ok() ? std::move(*c) : nullptr;
+}
+
+// Tensors larger than a texel view may hold on the minimum device (65536 texels, 1 MiB: Mali,
+// SwiftShader) run the storage-buffer variant of their kernels, the small ones stay on texel
+// views, and both match the CPU reference; PReLU slopes come from after the bias (ALPHA_AT).
+TEST(GpuMinimumLimitsTest, LargeTensorsTakeTheStorageVariantAndMatchCpu) {
+  auto ctx = minimum_context();
+  if (!ctx) MOCAP_SKIP_OR_FAIL_IN_CI("no Vulkan device here");
+  EXPECT_TRUE(ctx->device_info().minimum_limits);
+  EXPECT_EQ(ctx->device_info().limits.max_texel_buffer_elements, 65536u);
+  EXPECT_EQ(ctx->device_info().limits.max_storage_buffers_per_stage, 4u);
+  std::mt19937 rng(9);
+  nn::Model m = empty_model(16);
+  // 2 x 96 x 112 x 16 floats = 86016 texels: too many for one texel view.
+  const int pw = add_pointwise(m, 0, 16, 24, rng);
+  m.layers.back().activation = nn::Activation::kPRelu;
+  m.tensors.push_back(random_tensor("alpha", {24}, rng));
+  m.layers.back().alpha = static_cast<int>(m.tensors.size()) - 1;
+  const int pool = add_layer(m, nn::OpType::kMaxPool, {pw}, nn::Activation::kNone, 24, rng);
+  m.layers.back().kernel_h = m.layers.back().kernel_w = 2;
+  m.layers.back().stride_h = m.layers.back().stride_w = 4;
+  const int small = add_pointwise(m, pool, 24, 8, rng);
+  m.outputs = {{"small", small}};
+  ASSERT_TRUE(m.validate().ok()) << m.validate().error().message();
+  const nn::Tensor in = random_input({2, 96, 112, 16}, rng);
+  std::string what;
+  EXPECT_LT(compare(*ctx, m, in, &what), kTolerance) << what;
+  NetworkOptions no;
+  no.batch = 2;
+  no.height_px = 96;
+  no.width_px = 112;
+  auto net = Network::create(*ctx, m, no);
+  ASSERT_TRUE(net.ok()) << net.error().message();
+  std::vector<std::string> kernels;
+  for (const LayerTime& t : (*net)->layer_times()) kernels.push_back(t.kernel);
+  EXPECT_EQ(kernels, (std::vector<std::string>{"pointwise_conv2d/storage", "max_pool/storage",
+                                               "pointwise_conv2d"}));
+  EXPECT_EQ(ctx->validation_errors(), 0);
+}
+
+// Synchronization validation is on in the GPU tests: a network recorded without one of its
+// barriers leaves a read-after-write hazard, which it reports (lavapipe runs the dispatches one
+// after the other, so the results would still be right).
+TEST(GpuMinimumLimitsTest, AMissingBarrierIsReportedAsAHazard) {
+  auto ctx = minimum_context();
+  if (!ctx) MOCAP_SKIP_OR_FAIL_IN_CI("no Vulkan device here");
+  if (!ctx->validation_on()) {
+    MOCAP_SKIP_OR_FAIL_IN_CI("the Vulkan validation layer is not installed");
+  }
+  std::mt19937 rng(10);
+  nn::Model m = empty_model(8);
+  const int a = add_pointwise(m, 0, 8, 8, rng);
+  const int b = add_pointwise(m, a, 8, 4, rng);
+  m.outputs = {{"b", b}};
+  NetworkOptions no;
+  no.height_px = no.width_px = 9;
+  const nn::Tensor in = random_input({1, 9, 9, 8}, rng);
+  {
+    auto net = Network::create(*ctx, m, no);
+    ASSERT_TRUE(net.ok()) << net.error().message();
+    ASSERT_TRUE((*net)->run(in.data).ok());
+  }
+  EXPECT_EQ(ctx->validation_errors(), 0) << "the network with every barrier";
+  no.omit_barrier_after_step = 0;
+  auto net = Network::create(*ctx, m, no);
+  ASSERT_TRUE(net.ok()) << net.error().message();
+  ASSERT_TRUE((*net)->run(in.data).ok());
+  EXPECT_GT(ctx->validation_errors(), 0) << "the hazard went unreported";
+}
+
 TEST(GpuContextTest, UnknownDeviceNameIsAnErrorListingDevices) {
+  // MOCAP_VULKAN_DEVICE would override the name (the driver runs of this test set it).
+  const char* env = std::getenv("MOCAP_VULKAN_DEVICE");
+  const std::string forced = env != nullptr ? env : "";
+  ::unsetenv("MOCAP_VULKAN_DEVICE");
   GpuOptions o;
   o.device = "no-such-gpu-xyz";
   o.persist_pipeline_cache = false;
   auto c = Context::create(o);
+  if (!forced.empty()) ::setenv("MOCAP_VULKAN_DEVICE", forced.c_str(), 1);
   ASSERT_FALSE(c.ok());
   if (c.error().code() == ErrorCode::kUnsupported && !::mocap::testing::running_in_ci())
     GTEST_SKIP() << "no Vulkan driver";

@@ -472,6 +472,10 @@ int run_bench_cnn(Args args) {
       "ms_per_frame=%.3f (median of %d, p90 %.3f; wall clock per submission incl. input upload "
       "and output read-back / batch, no timestamps)\n",
       med, runs, percentile(wall_ms, 0.9) / batch);
+  // Achieved throughput: 2 FLOPs per multiply-add of the network at this input.
+  if (auto macs = model->multiply_adds({1, size, size, model->input_channels}); macs.ok()) {
+    std::printf("gflop_per_s=%.2f (%.3f GMAC per frame)\n", 2 * *macs / (med * 1e6), *macs * 1e-9);
+  }
 
   if (no_tfjs || batch != 1) {
     if (!no_tfjs) std::printf("tfjs reference: only at --batch 1\n");

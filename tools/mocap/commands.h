@@ -30,5 +30,6 @@ int run_export(Args args);               // mocap export bvh|gltf|ndjson --take 
 int run_take(Args args);                 // mocap take start NAME | stop | list (against mocapd)
 int run_soak(Args args);                 // mocap soak --replay DIR --minutes N
 int run_token(Args args);                // mocap token [--state-dir DIR]
+int run_gpu(Args args);                  // mocap gpu [--model FILE] [--views N] ...
 
 }  // namespace mocap::tools

@@ -27,6 +27,7 @@ const Command kCommands[] = {
   {"soak",    "run mocapd for a long time on a looping replay, watching for leaks", mocap::tools::run_soak, nullptr},
   {"bench",   "benchmarks: assoc, cnn, pipeline",                         mocap::tools::run_bench, nullptr},
   {"infer",   "run the pose CNN on a tensor or an image",                 mocap::tools::run_infer, nullptr},
+  {"gpu",     "Vulkan devices: limits, kernels that fit, the CNN's plan", mocap::tools::run_gpu, nullptr},
   {"model",   "convert and inspect model files",                          mocap::tools::run_model, nullptr},
   {"replay",  "run a recorded multi-view video through the pipeline",     mocap::tools::run_replay, nullptr},
   {"cameras", "list cameras and their formats",                           mocap::tools::run_cameras_cmd, nullptr},

@@ -353,6 +353,7 @@ Status Daemon::adopt_cnn(std::unique_ptr<gpu::CnnDetector> first, const gpu::Cnn
     MOCAP_LOG(Daemon, Info) << crops_off_reason_;
   }
   gpu_description_ = first->backend_description();
+  gpu_plan_ = first->plan_json();
   gpu_backend_ = first->backend() == gpu::PoseBackend::kVulkan ? "vulkan" : "cpu";
   if (!first->fallback_reason().empty()) {
     add_problem(box::ProblemCode::kCnnOnCpu,
@@ -581,6 +582,7 @@ box::BoxStatus Daemon::status() const {
   if (detector_) {
     b.gpu.detector = detector_->description();
     b.gpu.crops_off = crops_off_reason_;
+    b.gpu.plan = gpu_plan_;
     b.gpu.recovery = detector_->stats();
   }
   if (const net::StreamServer* srv = server_view_.load(); srv != nullptr) {

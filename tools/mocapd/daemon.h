@@ -164,6 +164,7 @@ class Daemon {
   // The CNN behind a RecoveringDetector (a lost GPU is opened again, or the CPU takes over).
   std::unique_ptr<pipeline::RecoveringDetector> detector_;
   std::string crops_off_reason_;
+  nlohmann::json gpu_plan_;  // the CNN's kernel plan on its device (/health gpu.plan)
   std::unique_ptr<pipeline::CallbackSink> calibration_sink_;
   std::unique_ptr<pipeline::FrameSource> pending_source_;  // until start() hands it over
   std::unique_ptr<hal::TriggerMaster> trigger_;
