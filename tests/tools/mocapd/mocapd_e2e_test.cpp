@@ -120,6 +120,15 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
       testing::http_body(testing::http_get((*d)->http_port(), "/cameras")), nullptr, false);
   ASSERT_EQ(cams["views"].size(), 4u) << cams.dump();
   for (const json& v : cams["views"]) EXPECT_TRUE(v["image"].get<bool>()) << v.dump();
+  // /health names the limits the CNN's kernels were planned against and how its steps read
+  // their inputs (all on texel views on lavapipe's limits, storage buffers under the minimum).
+  const json health = json::parse((*d)->health_json(), nullptr, false);
+  const json plan = health["gpu"].value("plan", json());
+  ASSERT_TRUE(plan.is_object()) << health["gpu"].dump();
+  EXPECT_GT(plan["network_steps_on_texel_views"].get<int>() +
+                plan["network_steps_on_storage_buffers"].get<int>(),
+            20);
+  EXPECT_GE(plan["max_texel_buffer_elements"].get<long>(), 65536);
   EXPECT_EQ((*d)->run(nullptr), 0);
   const pipeline::PipelineMetrics pm = (*d)->metrics();
   EXPECT_TRUE(pm.ended);
