@@ -245,6 +245,11 @@ Result<const Kernel*> Network::kernel(int shader, std::vector<std::int32_t> spec
   return kernels_.back().kernel.get();
 }
 
+int Network::steps_reading(InputVariant variant) const {
+  return static_cast<int>(std::count_if(steps_.begin(), steps_.end(),
+                                        [variant](const Step& s) { return s.variant == variant; }));
+}
+
 // Texel views where both inputs fit the device's maxTexelBufferElements, else storage buffers.
 InputVariant Network::input_variant(const Buffer& in0, const Buffer& in1) const {
   const VkDeviceSize max_bytes =
@@ -461,6 +466,7 @@ Status Network::add_conv_step(const nn::Model& model, std::size_t li,
   auto k = kernel(static_cast<int>(p.shader), std::move(spec), variant);
   if (!k.ok()) return k.error();
   step.kernel = *k;
+  step.variant = variant;
   if (Status st = bind(step, bufs, variant); !st.ok()) return st;
   layer_times_.push_back(LayerTime{step.name, kernel_label(p.shader, variant), 0});
   steps_.push_back(std::move(step));
@@ -529,6 +535,7 @@ Status Network::add_data_step(const nn::Model& model, std::size_t li) {
     auto k = kernel(static_cast<int>(shader), std::move(spec), variant);
     if (!k.ok()) return k.error();
     step.kernel = *k;
+    step.variant = variant;
     step.push = std::move(push);
     step.push.resize(kPushBytes / sizeof(std::int32_t), 0);
     step.groups = div_up(invocations, wg);

@@ -64,6 +64,9 @@ class Network {
   // GPU time of each layer and of the whole command buffer in the last run (empty / 0 when
   // timestamps are unavailable).
   const std::vector<LayerTime>& layer_times() const { return layer_times_; }
+  // Steps whose kernel reads its inputs this way (texel views, or storage buffers where a
+  // tensor is larger than the device's texel views hold).
+  int steps_reading(InputVariant variant) const;
   double gpu_ms() const { return gpu_ms_; }
 
  private:
@@ -91,6 +94,7 @@ class Network {
     VkDescriptorSet set = VK_NULL_HANDLE;
     std::vector<std::int32_t> push;
     std::uint32_t groups = 0;
+    InputVariant variant = InputVariant::kTexel;
   };
   Status build(const nn::Model& model, const NetworkOptions& options);
   // Per layer, its group of fused output heads (leader -1: not fused).

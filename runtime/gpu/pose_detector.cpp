@@ -52,9 +52,8 @@ PoseDetector::~PoseDetector() = default;
 PoseDetector::KernelPlan PoseDetector::kernel_plan() const {
   KernelPlan plan;
   if (!net_) return plan;
-  for (const LayerTime& t : net_->layer_times()) {
-    ++(t.kernel.ends_with("/storage") ? plan.storage_steps : plan.texel_steps);
-  }
+  plan.texel_steps = net_->steps_reading(InputVariant::kTexel);
+  plan.storage_steps = net_->steps_reading(InputVariant::kStorage);
   return plan;
 }
 
