@@ -155,6 +155,10 @@ void FusionSource::take_detections(std::int64_t now_mono) {
         last_refusal_ = c.error().message();
         continue;
       }
+      if (lost_writers_.contains(si.publication_handle)) {
+        ++refused_.after_loss;
+        continue;
+      }
       const auto view = view_of_camera_.find(c->camera);
       if (view == view_of_camera_.end()) {
         ++refused_.unknown_camera;
@@ -243,6 +247,11 @@ void FusionSource::handle_events() {
   std::lock_guard<std::mutex> lock(mu_);
   for (const Event& e : events) {
     if (e.kind == Event::kLiveliness) {
+      if (e.lost != 0) {
+        lost_writers_.insert(e.handle);
+      } else {
+        lost_writers_.erase(e.handle);
+      }
       const auto it = node_of_writer_.find(e.handle);
       if (it != node_of_writer_.end()) set_node_alive(it->second, e.lost == 0);
       continue;
@@ -307,10 +316,13 @@ std::string FusionSource::status_json() const {
                  {"on_deadline", g.on_deadline},
                  {"restarts", g.restarts},
                  {"pending", grouper_->pending()}};
-  j["refused"] = {
-      {"malformed", refused_.malformed},         {"unknown_camera", refused_.unknown_camera},
-      {"rate_mismatch", refused_.rate_mismatch}, {"dds_rejected", refused_.sample_rejected},
-      {"dds_lost", refused_.sample_lost},        {"last", last_refusal_}};
+  j["refused"] = {{"malformed", refused_.malformed},
+                  {"unknown_camera", refused_.unknown_camera},
+                  {"rate_mismatch", refused_.rate_mismatch},
+                  {"dds_rejected", refused_.sample_rejected},
+                  {"dds_lost", refused_.sample_lost},
+                  {"after_loss", refused_.after_loss},
+                  {"last", last_refusal_}};
   const LatencyStats lat = latency_stats({latency_ms_.begin(), latency_ms_.end()});
   j["transport_ms"] = {{"median", lat.median_ms}, {"p99", lat.p99_ms}, {"max", lat.max_ms}};
   json cams = json::array();

@@ -15,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -40,6 +41,7 @@ struct RefusedCounters {
   std::uint64_t rate_mismatch = 0;    // a node at another frame rate than the stage's
   std::uint64_t sample_rejected = 0;  // DDS refused it (resource limits)
   std::uint64_t sample_lost = 0;      // DDS lost it (best effort)
+  std::uint64_t after_loss = 0;       // taken after its writer was declared lost (stale)
 };
 
 class FusionSource final : public pipeline::FrameSource {
@@ -103,6 +105,9 @@ class FusionSource final : public pipeline::FrameSource {
   std::unique_ptr<fusion::ClockOffsets> clocks_;
   std::map<std::string, NodeState> nodes_;
   std::map<dds_instance_handle_t, std::string> node_of_writer_;
+  // Writers declared lost by liveliness: samples of theirs still queued in the reader are stale
+  // and must not bring their node back (a new process of the node writes with a new handle).
+  std::set<dds_instance_handle_t> lost_writers_;
   std::map<std::string, std::uint64_t> deadline_missed_;  // by camera
   RefusedCounters refused_;
   std::string last_refusal_;
