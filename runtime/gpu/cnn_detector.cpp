@@ -92,6 +92,20 @@ Result<std::unique_ptr<CnnDetector>> CnnDetector::open(const CnnOptions& options
   po.input_width_px = d->shape_.width_px;
   po.max_views = options.max_views;
   auto det = PoseDetector::create(*model, po, d->backend_.context.get());
+  if (!det.ok() && det.error().code() == ErrorCode::kUnsupported &&
+      options.backend == BackendRequest::kAuto && po.backend == PoseBackend::kVulkan) {
+    // auto: a device that cannot run the network (a driver below the spec's minimum limits)
+    // is left for the CPU, saying why, as a machine without a device is.
+    d->backend_.fallback_reason =
+        d->backend_.description + " cannot run the network: " + det.error().message();
+    MOCAP_LOG(Cnn, Warn) << "the CNN runs on the CPU: " << d->backend_.fallback_reason;
+    d->backend_.backend = PoseBackend::kCpu;
+    d->backend_.context.reset();
+    d->backend_.description =
+        "CPU reference kernels (single thread, slow; the Vulkan device cannot run the network)";
+    po.backend = PoseBackend::kCpu;
+    det = PoseDetector::create(*model, po, nullptr);
+  }
   if (!det.ok()) return det.error();
   d->detector_ = std::move(*det);
   if (Status s = d->open_crops(*model); !s.ok()) return s.error();
@@ -238,14 +252,17 @@ nlohmann::json CnnDetector::plan_json() const {
   if (ctx == nullptr || backend_.backend != PoseBackend::kVulkan) return nullptr;
   const DeviceInfo& d = ctx->device_info();
   const PoseDetector::KernelPlan plan = detector_->kernel_plan();
-  return {{"limits", d.minimum_limits ? "spec minimum" : "device"},
-          {"max_texel_buffer_elements", d.limits.max_texel_buffer_elements},
-          {"max_storage_buffer_range", d.limits.max_storage_buffer_range},
-          {"max_storage_buffers_per_stage", d.limits.max_storage_buffers_per_stage},
-          {"max_workgroup_invocations", d.limits.max_workgroup_invocations},
-          {"subgroup_size", d.subgroup_size},
-          {"network_steps_on_texel_views", plan.texel_steps},
-          {"network_steps_on_storage_buffers", plan.storage_steps}};
+  return {
+      {"limits", d.minimum_limits ? "spec minimum" : "device"},
+      {"max_texel_buffer_elements", d.limits.max_texel_buffer_elements},
+      {"max_storage_buffer_range", d.limits.max_storage_buffer_range},
+      {"max_storage_buffers_per_stage", d.limits.max_storage_buffers_per_stage},
+      {"max_workgroup_invocations", d.limits.max_workgroup_invocations},
+      {"subgroup_size", d.subgroup_size},
+      {"network_steps_on_texel_views", plan.texel_steps},
+      {"network_steps_on_storage_buffers", plan.storage_steps},
+      {"network_views_per_run", plan.views_per_run},
+      {"network_largest_buffer_mib", static_cast<double>(plan.largest_buffer_bytes) / 1048576.0}};
 }
 
 Result<std::unique_ptr<pipeline::RecoveringDetector>> recovering_cnn(

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cctype>
+#include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -422,22 +423,59 @@ void keep_vulkan_libraries_for_leak_checks() {
 
 }  // namespace
 
+std::span<const DeviceLimitField> device_limit_fields() {
+  static constexpr DeviceLimitField kFields[] = {
+      {"maxTexelBufferElements", &DeviceLimits::max_texel_buffer_elements},
+      {"maxStorageBufferRange", &DeviceLimits::max_storage_buffer_range},
+      {"maxUniformBufferRange", &DeviceLimits::max_uniform_buffer_range},
+      {"maxPerStageDescriptorStorageBuffers", &DeviceLimits::max_storage_buffers_per_stage},
+      {"maxPerStageDescriptorUniformBuffers", &DeviceLimits::max_uniform_buffers_per_stage},
+      {"maxPerStageDescriptorSampledImages", &DeviceLimits::max_texel_buffers_per_stage},
+      {"maxPushConstantsSize", &DeviceLimits::max_push_constants_bytes},
+      {"maxComputeWorkGroupInvocations", &DeviceLimits::max_workgroup_invocations},
+      {"maxComputeWorkGroupSize[0]", &DeviceLimits::max_workgroup_size_x},
+      {"maxComputeSharedMemorySize", &DeviceLimits::max_shared_memory_bytes},
+  };
+  return kFields;
+}
+
 DeviceLimits DeviceLimits::at_most(const DeviceLimits& o) const {
   DeviceLimits m;
-  m.max_texel_buffer_elements = std::min(max_texel_buffer_elements, o.max_texel_buffer_elements);
-  m.max_storage_buffer_range = std::min(max_storage_buffer_range, o.max_storage_buffer_range);
-  m.max_uniform_buffer_range = std::min(max_uniform_buffer_range, o.max_uniform_buffer_range);
-  m.max_storage_buffers_per_stage =
-      std::min(max_storage_buffers_per_stage, o.max_storage_buffers_per_stage);
-  m.max_uniform_buffers_per_stage =
-      std::min(max_uniform_buffers_per_stage, o.max_uniform_buffers_per_stage);
-  m.max_texel_buffers_per_stage =
-      std::min(max_texel_buffers_per_stage, o.max_texel_buffers_per_stage);
-  m.max_push_constants_bytes = std::min(max_push_constants_bytes, o.max_push_constants_bytes);
-  m.max_workgroup_invocations = std::min(max_workgroup_invocations, o.max_workgroup_invocations);
-  m.max_workgroup_size_x = std::min(max_workgroup_size_x, o.max_workgroup_size_x);
-  m.max_shared_memory_bytes = std::min(max_shared_memory_bytes, o.max_shared_memory_bytes);
+  for (const DeviceLimitField& f : device_limit_fields()) {
+    m.*f.member = std::min(this->*f.member, o.*f.member);
+  }
   return m;
+}
+
+Result<DeviceLimits> apply_fault_device_limits(DeviceLimits limits, std::string_view spec) {
+  auto refuse = [&](const std::string& what) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "MOCAP_FAULT_DEVICE_LIMITS=" + std::string(spec) + ": " + what +
+                     " (expected name=value,... with Vulkan limit names such as "
+                     "maxPerStageDescriptorStorageBuffers=2)");
+  };
+  std::size_t at = 0;
+  while (at < spec.size()) {
+    const std::size_t end = std::min(spec.find(',', at), spec.size());
+    const std::string_view item = spec.substr(at, end - at);
+    at = end + 1;
+    const std::size_t eq = item.find('=');
+    if (eq == std::string_view::npos) return refuse("'" + std::string(item) + "' has no '='");
+    const std::string_view name = item.substr(0, eq);
+    const std::string value(item.substr(eq + 1));
+    const auto fields = device_limit_fields();
+    const auto f = std::find_if(fields.begin(), fields.end(),
+                                [&](const DeviceLimitField& x) { return name == x.vk_name; });
+    if (f == fields.end()) return refuse("no limit named '" + std::string(name) + "'");
+    char* rest = nullptr;
+    errno = 0;
+    const unsigned long v = std::strtoul(value.c_str(), &rest, 10);
+    if (value.empty() || *rest != 0 || errno != 0 || v > 0xffffffffUL) {
+      return refuse("'" + value + "' is not a 32-bit unsigned number");
+    }
+    limits.*f->member = static_cast<std::uint32_t>(v);
+  }
+  return limits;
 }
 
 namespace {
@@ -477,6 +515,13 @@ Result<std::unique_ptr<Context>> Context::create(const GpuOptions& options) {
   if (!chosen.ok()) return chosen.error();
   if (Status s = ctx->create_device(); !s.ok()) return s.error();
   if (Status s = ctx->create_pipeline_cache(); !s.ok()) return s.error();
+  if (const char* fault = std::getenv("MOCAP_FAULT_DEVICE_LIMITS"); fault && *fault) {
+    auto faulty = apply_fault_device_limits(ctx->info_.device_limits, fault);
+    if (!faulty.ok()) return faulty.error();
+    MOCAP_LOG(Gpu, Warn) << "device limits as injected by MOCAP_FAULT_DEVICE_LIMITS=" << fault;
+    ctx->info_.device_limits = *faulty;
+    ctx->info_.limits = *faulty;
+  }
   if (ctx->options_.minimum_limits) {
     ctx->info_.minimum_limits = true;
     ctx->info_.limits = ctx->info_.device_limits.at_most(DeviceLimits::spec_minimum());

@@ -11,6 +11,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "runtime/core/error.h"
@@ -55,6 +56,20 @@ struct DeviceLimits {
   // The smaller of each limit: what a plan for both devices may use.
   DeviceLimits at_most(const DeviceLimits& o) const;
 };
+
+// Every field of DeviceLimits with its VkPhysicalDeviceLimits name: the one list that
+// at_most, `mocap gpu`'s table and MOCAP_FAULT_DEVICE_LIMITS go through.
+struct DeviceLimitField {
+  const char* vk_name;  // "maxStorageBufferRange"
+  std::uint32_t DeviceLimits::*member;
+};
+std::span<const DeviceLimitField> device_limit_fields();
+
+// Fault injection for the tests (docs/hardening.md): MOCAP_FAULT_DEVICE_LIMITS="name=value,..."
+// (Vulkan names, as device_limit_fields) makes the device report those limits, as a buggy
+// driver below the spec's minimums would. Unknown names or bad numbers are an error naming the
+// variable.
+Result<DeviceLimits> apply_fault_device_limits(DeviceLimits limits, std::string_view spec);
 
 struct DeviceInfo {
   int index = -1;

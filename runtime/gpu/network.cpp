@@ -325,6 +325,25 @@ std::vector<Network::FusedHead> Network::fuse_output_heads(const nn::Model& mode
   return fused;
 }
 
+Result<std::uint64_t> Network::largest_buffer_bytes(const nn::Model& model,
+                                                    const NetworkOptions& options) {
+  auto shapes = model.infer_shapes(
+      nn::Shape{options.batch, options.height_px, options.width_px, model.input_channels});
+  if (!shapes.ok()) return shapes.error();
+  std::vector<int> c4;
+  for (const nn::Shape& s : *shapes) c4.push_back(c4_of(s.c));
+  const std::vector<FusedHead> fused = fuse_output_heads(model, c4);
+  std::uint64_t largest = 0;
+  for (std::size_t v = 0; v < shapes->size(); ++v) {
+    const nn::Shape& s = (*shapes)[v];
+    const bool leader = v > 0 && fused[v - 1].leader == static_cast<int>(v - 1);
+    const auto groups = static_cast<std::uint64_t>(leader ? fused[v - 1].stride4 : c4[v]);
+    largest = std::max(largest, static_cast<std::uint64_t>(s.n) * static_cast<std::uint64_t>(s.h) *
+                                    static_cast<std::uint64_t>(s.w) * groups * 16);
+  }
+  return largest;
+}
+
 Status Network::build(const nn::Model& model, const NetworkOptions& options) {
   options_ = options;
   input_channels_ = model.input_channels;
@@ -661,18 +680,23 @@ Status Network::record() {
 
 Status Network::run(std::span<const float> input) {
   const nn::Shape& s = shapes_[0];
-  if (static_cast<long>(input.size()) != s.elements()) {
+  const long view_floats = static_cast<long>(s.h) * s.w * s.c;
+  const long n = static_cast<long>(input.size()) / view_floats;
+  if (n < 1 || n > s.n || n * view_floats != static_cast<long>(input.size())) {
     return Error(ErrorCode::kInvalidArgument,
-                 "network input holds " + std::to_string(input.size()) + " floats, needs " +
-                     std::to_string(s.elements()) + " (" + std::to_string(s.n) + "x" +
-                     std::to_string(s.h) + "x" + std::to_string(s.w) + "x" + std::to_string(s.c) +
-                     ")");
+                 "network input holds " + std::to_string(input.size()) + " floats, needs 1 to " +
+                     std::to_string(s.n) + " views of " + std::to_string(s.h) + "x" +
+                     std::to_string(s.w) + "x" + std::to_string(s.c));
   }
-  // NHWC -> channels in vec4 groups (the padding lanes stay zero).
+  // NHWC -> channels in vec4 groups (the padding lanes stay zero), the views past n zeros.
   float* dst = static_cast<float*>(input_staging_.mapped());
   const int c = s.c;
   const int c4 = c4_[0];
-  const long pixels = static_cast<long>(s.n) * s.h * s.w;
+  const long pixels = n * s.h * s.w;
+  if (n < s.n) {
+    std::memset(dst + pixels * c4 * 4, 0,
+                static_cast<std::size_t>((s.n - n) * s.h * s.w * c4 * 4) * sizeof(float));
+  }
   if (c == c4 * 4) {
     std::memcpy(dst, input.data(), input.size_bytes());
   } else {

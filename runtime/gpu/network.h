@@ -44,12 +44,19 @@ class Network {
  public:
   static Result<std::unique_ptr<Network>> create(Context& ctx, const nn::Model& model,
                                                  const NetworkOptions& options);
+  // The largest device buffer create() would allocate for `options` (an activation, or a group
+  // of fused output heads), bytes: it grows with the batch, and a device binds at most
+  // maxStorageBufferRange of it (DeviceLimits), so a caller sizes its batch with it.
+  static Result<std::uint64_t> largest_buffer_bytes(const nn::Model& model,
+                                                    const NetworkOptions& options);
   ~Network();
   Network(const Network&) = delete;
   Network& operator=(const Network&) = delete;
 
-  // input: [batch, height, width, model.input_channels] NHWC float32.
+  // input: [n, height, width, model.input_channels] NHWC float32, 1 <= n <= batch; the
+  // batch's views past n are zeros (their outputs are then to be ignored).
   Status run(std::span<const float> input);
+  int batch() const { return options_.batch; }
   // Output i (Model::outputs order) of the last run, NHWC float32 without channel padding.
   Status read_output(std::size_t i, nn::Tensor& out) const;
   std::size_t output_count() const { return outputs_.size(); }

@@ -1,5 +1,6 @@
 #include "runtime/gpu/pose_detector.h"
 
+#include <algorithm>
 #include <set>
 #include <string>
 
@@ -43,6 +44,11 @@ Status PoseDetectorOptions::validate() const {
     return invalid_argument(
         kStage, std::string("max_views ") + std::to_string(max_views) + " must be in [1, 16]");
   }
+  if (max_views_per_run < 0 || max_views_per_run > max_views) {
+    return invalid_argument(kStage, "max_views_per_run " + std::to_string(max_views_per_run) +
+                                        " must be in [0, max_views " + std::to_string(max_views) +
+                                        "] (0: as many as fit the device)");
+  }
   if (Status s = movenet.validate(); !s.ok()) return s;
   return post.validate();
 }
@@ -54,7 +60,33 @@ PoseDetector::KernelPlan PoseDetector::kernel_plan() const {
   if (!net_) return plan;
   plan.texel_steps = net_->steps_reading(InputVariant::kTexel);
   plan.storage_steps = net_->steps_reading(InputVariant::kStorage);
+  plan.views_per_run = views_per_run_;
+  plan.largest_buffer_bytes = largest_buffer_bytes_;
   return plan;
+}
+
+Status PoseDetector::plan_batch(const nn::Model& model, const Context& ctx) {
+  NetworkOptions one;
+  one.height_px = options_.input_size_px;
+  one.width_px = options_.width_px();
+  auto per_view = Network::largest_buffer_bytes(model, one);
+  if (!per_view.ok()) return per_view.error();
+  const std::uint64_t limit = ctx.device_info().limits.max_storage_buffer_range;
+  const auto fit = static_cast<int>(std::min<std::uint64_t>(limit / *per_view, 16));
+  if (fit < 1) {
+    return Error(ErrorCode::kUnsupported,
+                 "model '" + model.name + "' at " + std::to_string(one.width_px) + "x" +
+                     std::to_string(one.height_px) + " px needs a buffer of " +
+                     std::to_string(*per_view >> 20) + " MiB for one view; " +
+                     ctx.device_info().name + " binds at most " + std::to_string(limit >> 20) +
+                     " MiB (maxStorageBufferRange): choose a smaller input size");
+  }
+  views_per_run_ = std::min(options_.max_views, fit);
+  if (options_.max_views_per_run > 0) {
+    views_per_run_ = std::min(views_per_run_, options_.max_views_per_run);
+  }
+  largest_buffer_bytes_ = *per_view * static_cast<std::uint64_t>(views_per_run_);
+  return Status::Ok();
 }
 
 Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& model,
@@ -84,8 +116,9 @@ Result<std::unique_ptr<PoseDetector>> PoseDetector::create(const nn::Model& mode
     return d;
   }
   if (ctx == nullptr) return invalid_argument(kStage, "the Vulkan backend needs a Context");
+  if (Status s = d->plan_batch(model, *ctx); !s.ok()) return s.error();
   NetworkOptions no;
-  no.batch = options.max_views;
+  no.batch = d->views_per_run_;
   no.height_px = H;
   no.width_px = W;
   no.timestamps = false;
@@ -171,11 +204,8 @@ Result<std::vector<nn::PoseNetView>> PoseDetector::run_vulkan(std::span<const nn
   if (!b.ok()) return b.error();
   boxes = std::move(*b);
   const auto t1 = monotonic_ns();
-  if (Status s = net_->run(pre_->output()); !s.ok()) return s.error();
   nn::Tensor outs[4];
-  for (int h = 0; h < 4; ++h) {
-    if (Status s = net_->read_output(heads_[h], outs[h]); !s.ok()) return s.error();
-  }
+  if (Status s = run_network(frames.size(), outs); !s.ok()) return s.error();
   const auto t2 = monotonic_ns();
   auto views = movenet_ ? decode_movenet({&outs[0], &outs[1], &outs[2], &outs[3]})
                         : post_->run(outs[0], outs[1], outs[2], outs[3]);
@@ -185,6 +215,36 @@ Result<std::vector<nn::PoseNetView>> PoseDetector::run_vulkan(std::span<const nn
   times_.network_ms = ms_between(t1, t2);
   times_.postprocess_ms = ms_between(t2, t3);
   return views;
+}
+
+Status PoseDetector::run_network(std::size_t views, nn::Tensor (&outs)[4]) {
+  const auto per_run = static_cast<std::size_t>(views_per_run_);
+  const std::span<const float> input = pre_->output();
+  const std::size_t view_floats = input.size() / static_cast<std::size_t>(options_.max_views);
+  if (per_run >= views) {  // one run: the heads as the network gives them
+    if (Status s = net_->run(input.first(views * view_floats)); !s.ok()) return s;
+    for (int h = 0; h < 4; ++h) {
+      if (Status s = net_->read_output(heads_[h], outs[h]); !s.ok()) return s;
+    }
+    return Status::Ok();
+  }
+  nn::Tensor part;
+  for (std::size_t first = 0; first < views; first += per_run) {
+    const std::size_t n = std::min(per_run, views - first);
+    if (Status s = net_->run(input.subspan(first * view_floats, n * view_floats)); !s.ok()) {
+      return s.error().with_context("views " + std::to_string(first) + " to " +
+                                    std::to_string(first + n - 1));
+    }
+    for (int h = 0; h < 4; ++h) {
+      if (Status s = net_->read_output(heads_[h], part); !s.ok()) return s;
+      if (first == 0)
+        outs[h] = nn::Tensor({options_.max_views, part.shape.h, part.shape.w, part.shape.c});
+      const std::size_t floats = part.data.size() / per_run;
+      std::copy_n(part.data.begin(), n * floats,
+                  outs[h].data.begin() + static_cast<std::ptrdiff_t>(first * floats));
+    }
+  }
+  return Status::Ok();
 }
 
 Result<std::vector<nn::PoseNetView>> PoseDetector::run_cpu(std::span<const nn::FrameView> frames,

@@ -41,8 +41,13 @@ struct PoseDetectorOptions {
   int input_size_px = kDefaultInputSizePx;
   int input_width_px = 0;
   int width_px() const { return input_width_px == 0 ? input_size_px : input_width_px; }
-  // Views per frame (the network batch), in [1, 16].
+  // Views per frame, in [1, 16].
   int max_views = 1;
+  // Views the network runs at once (its batch), in [0, max_views]; 0: as many as fit the
+  // device, whose storage buffers hold at most maxStorageBufferRange (128 MiB at the spec's
+  // minimum: MoveNet at 640 px needs 56 MiB a view). A frame of more views runs the network
+  // on them in turns; the detections are the same.
+  int max_views_per_run = 0;
   nn::PostprocessOptions post;
   // MoveNet only: centres and affinities (its `peaks` are ignored: `post` is used).
   nn::MoveNetOptions movenet;
@@ -86,6 +91,8 @@ class PoseDetector {
   struct KernelPlan {
     int texel_steps = 0;
     int storage_steps = 0;
+    int views_per_run = 0;                   // the network's batch (a frame's views run in turns)
+    std::uint64_t largest_buffer_bytes = 0;  // the network's largest buffer at that batch
   };
   KernelPlan kernel_plan() const;
 
@@ -93,6 +100,12 @@ class PoseDetector {
   PoseDetector() = default;
   // The output index of each head (PoseNet's or MoveNet's four, in their header order).
   Status find_heads(const nn::Model& model);
+  // The network's batch: the most views, up to max_views (and max_views_per_run), whose
+  // largest buffer fits the device's maxStorageBufferRange; refused when one view does not.
+  Status plan_batch(const nn::Model& model, const Context& ctx);
+  // The network run on the frames' views in turns of views_per_run_, each head gathered into
+  // one tensor of max_views views (those past the frames' zeros).
+  Status run_network(std::size_t views, nn::Tensor (&outs)[4]);
   Status check_vulkan_heads(const nn::Model& model) const;
   // MoveNet's heads decoded, as PoseNetViews whose matrices are per limb (limb_edges_ is the
   // identity for MoveNet).
@@ -109,6 +122,8 @@ class PoseDetector {
   std::vector<nn::LimbEdge> limb_edges_;
   std::unique_ptr<FramePreprocessor> pre_;
   std::unique_ptr<Network> net_;
+  int views_per_run_ = 0;
+  std::uint64_t largest_buffer_bytes_ = 0;
   std::unique_ptr<PoseNetPostprocessor> post_;
   PoseDetectorTimes times_;
 };

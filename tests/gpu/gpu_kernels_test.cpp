@@ -270,7 +270,11 @@ TEST_F(GpuTest, WrongInputSizeIsAnError) {
   const std::vector<float> short_input(10, 0.f);
   const Status s = (*net)->run(short_input);
   ASSERT_FALSE(s.ok());
-  EXPECT_NE(s.error().message().find("1x4x4x4"), std::string::npos) << s.error().message();
+  EXPECT_NE(s.error().message().find("1 to 1 views of 4x4x4"), std::string::npos)
+      << s.error().message();
+  // More views than the batch, or none, are refused too.
+  EXPECT_FALSE((*net)->run(std::vector<float>(2 * 4 * 4 * 4, 0.f)).ok());
+  EXPECT_FALSE((*net)->run(std::span<const float>()).ok());
 }
 
 // A layer of `op` without weights reading `inputs`, appended to `m`; PReLU gets random slopes

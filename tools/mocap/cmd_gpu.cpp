@@ -24,27 +24,10 @@ void print_limits(const gpu::DeviceInfo& d) {
   const gpu::DeviceLimits& plan = d.limits;
   const gpu::DeviceLimits min = gpu::DeviceLimits::spec_minimum();
   std::printf("  limits (device / spec minimum / planned):\n");
-  auto row = [](const char* name, std::uint32_t a, std::uint32_t b, std::uint32_t c) {
-    std::printf("    %-36s %12u %12u %12u\n", name, a, b, c);
-  };
-  row("maxTexelBufferElements", have.max_texel_buffer_elements, min.max_texel_buffer_elements,
-      plan.max_texel_buffer_elements);
-  row("maxStorageBufferRange", have.max_storage_buffer_range, min.max_storage_buffer_range,
-      plan.max_storage_buffer_range);
-  row("maxUniformBufferRange", have.max_uniform_buffer_range, min.max_uniform_buffer_range,
-      plan.max_uniform_buffer_range);
-  row("maxPerStageDescriptorStorageBuffers", have.max_storage_buffers_per_stage,
-      min.max_storage_buffers_per_stage, plan.max_storage_buffers_per_stage);
-  row("maxPerStageDescriptorUniformBuffers", have.max_uniform_buffers_per_stage,
-      min.max_uniform_buffers_per_stage, plan.max_uniform_buffers_per_stage);
-  row("maxPerStageDescriptorSampledImages", have.max_texel_buffers_per_stage,
-      min.max_texel_buffers_per_stage, plan.max_texel_buffers_per_stage);
-  row("maxPushConstantsSize", have.max_push_constants_bytes, min.max_push_constants_bytes,
-      plan.max_push_constants_bytes);
-  row("maxComputeWorkGroupInvocations", have.max_workgroup_invocations,
-      min.max_workgroup_invocations, plan.max_workgroup_invocations);
-  row("maxComputeSharedMemorySize", have.max_shared_memory_bytes, min.max_shared_memory_bytes,
-      plan.max_shared_memory_bytes);
+  for (const gpu::DeviceLimitField& f : gpu::device_limit_fields()) {
+    std::printf("    %-36s %12u %12u %12u\n", f.vk_name, have.*f.member, min.*f.member,
+                plan.*f.member);
+  }
   std::printf("    subgroup size %u (no kernel depends on it)\n", d.subgroup_size);
 }
 
@@ -127,6 +110,10 @@ int run_gpu(Args args) {
     std::printf("  network: %s, %d views: %d steps on texel views, %d on storage buffers\n",
                 (*det)->description().c_str(), views, plan.value("network_steps_on_texel_views", 0),
                 plan.value("network_steps_on_storage_buffers", 0));
+    std::printf("  network: %d views per run (largest buffer %.1f MiB of %u MiB)\n",
+                plan.value("network_views_per_run", 0),
+                plan.value("network_largest_buffer_mib", 0.0),
+                d.limits.max_storage_buffer_range >> 20);
   }
   std::printf("gpu_devices=%zu\n", devices->size());
   return 0;

@@ -129,6 +129,10 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
                 plan["network_steps_on_storage_buffers"].get<int>(),
             20);
   EXPECT_GE(plan["max_texel_buffer_elements"].get<long>(), 65536);
+  // The four views fit one run (PoseNet: a few MiB a view of the 128 MiB a buffer binds).
+  EXPECT_EQ(plan["network_views_per_run"].get<int>(), 4) << plan.dump();
+  EXPECT_LE(plan["network_largest_buffer_mib"].get<double>(),
+            static_cast<double>(plan["max_storage_buffer_range"].get<long>() >> 20));
   EXPECT_EQ((*d)->run(nullptr), 0);
   const pipeline::PipelineMetrics pm = (*d)->metrics();
   EXPECT_TRUE(pm.ended);
