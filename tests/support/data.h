@@ -18,6 +18,14 @@ inline bool running_in_ci() {
   return ci != nullptr && std::string(ci) == "true";
 }
 
+// A GPU test binary run again on another Vulkan configuration (mocap_add_vulkan_driver_runs in
+// tests/CMakeLists.txt sets MOCAP_TEST_DRIVER_RUN=1): what does not touch the driver, the CPU
+// reference backend, was checked in the first run and is left out.
+inline bool driver_run() {
+  const char* v = std::getenv("MOCAP_TEST_DRIVER_RUN");
+  return v != nullptr && std::string(v) == "1";
+}
+
 }  // namespace mocap::testing
 
 // Skips the test with `why`, or fails it when running in CI (CI=true), where every input a
