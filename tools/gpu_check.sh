@@ -26,7 +26,7 @@ for spec in posenet:257 posenet:353 posenet:513 movenet-multipose:256 movenet-mu
     rows+=("$(printf '%-20s %5s  %s' "$model" "$size" "model not installed (tools/fetch_models.sh)")")
     continue
   fi
-  out=$("$mocap" bench cnn --model "$file" --size "$size" --runs 20 --no-tfjs 2>&1) || {
+  out=$("$mocap" bench cnn --model "$file" --input-size-px "$size" --runs 20 --no-tfjs 2>&1) || {
     rows+=("$(printf '%-20s %5s  %s' "$model" "$size" "failed: $(echo "$out" | tail -n 1)")")
     continue
   }

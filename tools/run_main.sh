@@ -18,7 +18,7 @@ run_daemon() {
   local pid=$!
   trap 'kill $pid 2>/dev/null || true' EXIT
   local rc=0
-  "$BIN/mocap" stream --port "$PORT" --messages "$n" --timeout 120 || rc=$?
+  "$BIN/mocap" stream --port "$PORT" --messages "$n" --timeout-s 120 || rc=$?
   wait "$pid" || rc=$?
   trap - EXIT
   return "$rc"

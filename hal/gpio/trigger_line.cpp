@@ -67,10 +67,9 @@ Result<std::unique_ptr<GpioHandle>> find_line(const GpioLineOptions& o) {
                                            "': permission denied (add the user to the 'gpio' "
                                            "group, or run as root)");
     }
-    return Error(ErrorCode::kNotFound,
-                 "GPIO chip '" + o.chip +
-                     "' not found (check the board file's trigger.gpio_chip; `gpiodetect` lists "
-                     "the chips)");
+    return Error(
+        ErrorCode::kNotFound,
+        "GPIO chip '" + o.chip + "' not found (`gpiodetect` lists the chips; give one of them)");
   }
   const std::string chip_name = gpiod_chip_name(h->chip);
   if (is_number(o.line)) {

@@ -45,7 +45,8 @@ Result<Recording> uncalibrated(const fs::path& dir, const fs::path& video_dir,
 
 }  // namespace
 
-Result<Recording> open_recording(const fs::path& dir, bool calibration_optional) {
+Result<Recording> open_recording(const fs::path& dir, bool calibration_optional,
+                                 const fs::path& calibration_file) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) {
     return Error(
@@ -53,9 +54,11 @@ Result<Recording> open_recording(const fs::path& dir, bool calibration_optional)
         dir.string() +
             ": no such recording folder (expected calibration.json and videos/<view>.mp4)");
   }
-  const bool without = calibration_optional && !fs::exists(dir / "calibration.json", ec);
-  auto calib =
-      without ? Result<Calibration>(Calibration{}) : load_calibration(dir / "calibration.json");
+  const fs::path calib_file =
+      calibration_file.empty() ? dir / "calibration.json" : calibration_file;
+  const bool without =
+      calibration_optional && calibration_file.empty() && !fs::exists(calib_file, ec);
+  auto calib = without ? Result<Calibration>(Calibration{}) : load_calibration(calib_file);
   if (!calib.ok()) return calib.error();
   const fs::path video_dir = dir / "videos";
   if (!fs::is_directory(video_dir, ec)) {
@@ -81,14 +84,14 @@ Result<Recording> open_recording(const fs::path& dir, bool calibration_optional)
   const std::vector<std::string>& calib_names = calib->view_ids;
   for (std::size_t i = 0; i < calib->size(); ++i) expected.push_back(std::to_string(i));
   if (calib_names != expected) {
-    return Error(ErrorCode::kInvalidArgument,
-                 (dir / "calibration.json").string() + ": view ids must be 0.." +
-                     std::to_string(calib->size() - 1) + " in order, got " + join(calib_names));
+    return Error(ErrorCode::kInvalidArgument, calib_file.string() + ": view ids must be 0.." +
+                                                  std::to_string(calib->size() - 1) +
+                                                  " in order, got " + join(calib_names));
   }
   if (video_names != calib_names) {
     return Error(ErrorCode::kInvalidArgument,
-                 video_dir.string() + ": videos for views {" + join(video_names) +
-                     "} but calibration.json has views {" + join(calib_names) +
+                 video_dir.string() + ": videos for views {" + join(video_names) + "} but " +
+                     calib_file.filename().string() + " has views {" + join(calib_names) +
                      "}: every calibrated view needs videos/<view>.mp4 and vice versa");
   }
   if (calib->size() < 2 || calib->size() > static_cast<std::size_t>(kMaxRecordingViews)) {

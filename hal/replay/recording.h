@@ -27,8 +27,10 @@ struct Recording {
 // and calibrated views that do not correspond one to one, fewer than 2 or more than 16 views
 // (kInvalidArgument). With `calibration_optional`, a folder without calibration.json is read
 // from its videos alone (views 0..N-1 of videos/N.mp4; the calibration left empty): what the
-// self-calibration reads, which needs no poses.
+// self-calibration reads, which needs no poses. `calibration_file` (empty: <dir>/calibration.json)
+// replaces the recording's own calibration: the same checks apply to it.
 Result<Recording> open_recording(const std::filesystem::path& dir,
-                                 bool calibration_optional = false);
+                                 bool calibration_optional = false,
+                                 const std::filesystem::path& calibration_file = {});
 
 }  // namespace mocap::hal

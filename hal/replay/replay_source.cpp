@@ -15,7 +15,8 @@ namespace mocap::hal {
 using pipeline::SourceStatus;
 
 Result<std::unique_ptr<ReplaySource>> ReplaySource::open(const ReplaySourceOptions& options) {
-  Result<Recording> rec = open_recording(options.dir, options.calibration_optional);
+  Result<Recording> rec =
+      open_recording(options.dir, options.calibration_optional, options.calibration_file);
   if (!rec.ok()) return rec.error();
   std::unique_ptr<ReplaySource> s(new ReplaySource());
   s->options_ = options;

@@ -31,6 +31,9 @@ struct ReplaySourceOptions {
   // A folder without calibration.json is read from its videos alone (the self-calibration):
   // calibration() then holds placeholder cameras of the videos' sizes, calibrated() false.
   bool calibration_optional = false;
+  // Another calibration of the recording's cameras instead of <dir>/calibration.json (empty:
+  // the recording's own).
+  std::filesystem::path calibration_file;
 };
 
 class ReplaySource final : public pipeline::FrameSource {

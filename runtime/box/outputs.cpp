@@ -113,13 +113,24 @@ std::optional<net::HttpReply> Outputs::handle(const net::HttpRequest& req) {
   }
   std::vector<std::string> ignored;
   json list = json::array();
+  // The take being recorded: its frames so far (its folder says 0 until it ends).
+  std::string live_name;
+  std::uint64_t live_frames = 0;
+  {
+    std::lock_guard<std::mutex> lock(take_mu_);
+    if (take_ && !take_->stopped()) {
+      live_name = take_->dir().filename().string();
+      live_frames = static_cast<std::uint64_t>(take_->frames());
+    }
+  }
   if (auto takes = out::list_takes(takes_dir_); takes.ok()) {
     for (const out::TakeInfo& t : *takes) {
       const std::filesystem::path dir = std::filesystem::path(takes_dir_) / t.name;
+      const bool live = !live_name.empty() && t.name == live_name;
       list.push_back({{"name", t.name},
                       {"status", to_string(t.status)},
                       {"reason", t.reason},
-                      {"frames", t.frames},
+                      {"frames", live ? live_frames : static_cast<std::uint64_t>(t.frames)},
                       {"started_unix_ns", t.started_unix_ns},
                       {"files", TakeExports::files(dir)},
                       {"exporting", exports_ && exports_->pending(dir)}});

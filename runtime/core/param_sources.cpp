@@ -128,10 +128,23 @@ const ParamSetter* find_param(std::span<const ParamSetter> params, std::string_v
 Status apply_json_params(std::span<const ParamSetter> params, std::string_view json_text,
                          std::string_view source, const ParamNaming& naming) {
   const std::string src(source);
-  json j = json::parse(json_text, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded()) {
+  json j;
+  try {
+    j = json::parse(json_text);
+  } catch (const json::parse_error& e) {
+    // Where, as an editor shows it (line and column of the byte the parser stopped at), and why.
+    const std::size_t at = std::min<std::size_t>(e.byte > 0 ? e.byte - 1 : 0, json_text.size());
+    std::size_t line = 1, column = 1;
+    for (std::size_t i = 0; i < at; ++i) {
+      column = json_text[i] == '\n' ? 1 : column + 1;
+      line += json_text[i] == '\n' ? 1 : 0;
+    }
+    std::string why = e.what();
+    const std::size_t dash = why.find(" - ");
+    why = dash == std::string::npos ? std::string() : ": " + why.substr(dash + 3);
     return Error(ErrorCode::kParse,
-                 src + ": not valid JSON" +
+                 src + ": not valid JSON at line " + std::to_string(line) + ", column " +
+                     std::to_string(column) + why +
                      (naming.docs.empty() ? "" : " (" + naming.docs + " has an example)"));
   }
   if (!j.is_object()) return Error(ErrorCode::kParse, src + ": expected a JSON object");

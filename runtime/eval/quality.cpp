@@ -204,6 +204,7 @@ QualityReport QualityMeter::finish() const {
     q.loo_samples = t.loo_px.size();
     q.loo_reprojection_px = median(t.loo_px);
     if (t.frames >= options_.min_track_frames) {
+      ++r.persons_measured;
       r.bone_std_mm = std::max(r.bone_std_mm, q.bone_std_mm);
       r.jitter_m_s2 = std::max(r.jitter_m_s2, q.jitter_m_s2);
     }
@@ -213,11 +214,21 @@ QualityReport QualityMeter::finish() const {
 }
 
 std::string QualityReport::summary_line() const {
-  char buf[160];
-  std::snprintf(buf, sizeof buf,
-                "loo_reprojection_px=%.1f bone_std_mm=%.1f jitter_m_s2=%.0f ids=%d",
-                loo_reprojection_px, bone_std_mm, jitter_m_s2, ids);
-  return buf;
+  auto figure = [](bool measured, int decimals, double v) {
+    if (!measured) return std::string("n/a");
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+    return std::string(buf);
+  };
+  std::string line = "loo_reprojection_px=";
+  line += figure(loo_samples > 0, 1, loo_reprojection_px);
+  line += " bone_std_mm=";
+  line += figure(persons_measured > 0, 1, bone_std_mm);
+  line += " jitter_m_s2=";
+  line += figure(persons_measured > 0, 0, jitter_m_s2);
+  line += " ids=";
+  line += std::to_string(ids);
+  return line;
 }
 
 std::string QualityReport::to_json() const {

@@ -59,9 +59,11 @@ struct QualityReport {
   double bone_std_mm = 0;              // the worst person's (of those with min_track_frames)
   double jitter_m_s2 = 0;              // the worst person's median (of those with min_track_frames)
   int ids = 0;                         // track ids output during the run
-  double frame_rate_hz = 0;            // from the frames' timestamps (median interval)
+  int persons_measured = 0;  // persons with min_track_frames (bone_std_mm, jitter_m_s2 are theirs)
+  double frame_rate_hz = 0;  // from the frames' timestamps (median interval)
   std::vector<PersonQuality> persons;  // by id
-  // "loo_reprojection_px=X.X bone_std_mm=X.X jitter_m_s2=X ids=N"
+  // "loo_reprojection_px=X.X bone_std_mm=X.X jitter_m_s2=X ids=N"; a figure without samples
+  // (no person tracked min_track_frames, no view left out) is "n/a", not a perfect 0.
   std::string summary_line() const;
   std::string to_json() const;
 };

@@ -579,7 +579,8 @@ Error no_frames_error(const fs::path& file, const TakeData& data) {
                  file.string() + ": the take has no skeleton frames (" +
                      std::to_string(data.skipped_messages) +
                      " detections messages): was the box calibrated while recording? Calibrate "
-                     "it (mocap calibrate) and record again");
+                     "it (the web page's \"Calibrate with a board\", mocap calibrate board or "
+                     "mocap calibrate people) and record again");
   }
   return Error(ErrorCode::kInvalidArgument,
                file.string() + ": the take has no skeleton frames" +

@@ -93,9 +93,10 @@ Result<fs::path> make_take_folder(const fs::path& takes_dir, const std::string& 
   std::error_code ec;
   fs::create_directories(takes_dir, ec);
   if (ec) {
-    return Error(ErrorCode::kIo, takes_dir.string() +
-                                     ": cannot create the takes folder: " + ec.message() +
-                                     " (make it writable, or give mocapd another takes_dir)");
+    return Error(ErrorCode::kIo,
+                 takes_dir.string() + ": cannot create the takes folder: " + ec.message() +
+                     " (make it writable, or give mocapd another state_dir: takes go to "
+                     "<state_dir>/takes)");
   }
   const fs::path dir = takes_dir / name;
   if (::mkdir(dir.c_str(), 0755) != 0) {

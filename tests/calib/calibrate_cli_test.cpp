@@ -48,19 +48,26 @@ TEST(CalibrateCliTest, BadArgumentsAndUnwritableOutputAreNamed) {
   testing::TestTempDir dir("calibrate_cli_bad");
   auto none = testing::run_process({kBin, "calibrate", "people", "--out", "x.json"}, dir.path(),
                                    "none", 60000);
-  EXPECT_EQ(none.exit_code, 1);
+  EXPECT_EQ(none.exit_code, 2);  // usage errors are 2 (issue 43)
   EXPECT_NE(none.err.find("exactly one of"), std::string::npos) << none.err;
   auto height = testing::run_process(
       {kBin, "calibrate", "people", "--synthetic", "--height-m", "7", "--out", "x.json"},
       dir.path(), "height", 60000);
-  EXPECT_EQ(height.exit_code, 1);
+  EXPECT_EQ(height.exit_code, 2);
   EXPECT_NE(height.err.find("--height-m"), std::string::npos) << height.err;
   const std::string missing = (dir.path() / "no-such-dir" / "cal.json").string();
   auto unwritable = testing::run_process({kBin, "calibrate", "people", "--synthetic", "--views",
                                           "3", "--seconds", "8", "--out", missing},
                                          dir.path(), "unwritable", 600000);
-  EXPECT_EQ(unwritable.exit_code, 1) << unwritable.out;
+  // Found before the solve: no report printed, the folder named.
+  EXPECT_EQ(unwritable.exit_code, 2) << unwritable.out;
   EXPECT_NE(unwritable.err.find("no-such-dir"), std::string::npos) << unwritable.err;
+  EXPECT_NE(unwritable.err.find("does not exist"), std::string::npos) << unwritable.err;
+  EXPECT_EQ(unwritable.out.find("calibration_reprojection_px"), std::string::npos);
+  auto no_out = testing::run_process({kBin, "calibrate", "people", "--synthetic"}, dir.path(),
+                                     "no_out", 60000);
+  EXPECT_EQ(no_out.exit_code, 2);
+  EXPECT_NE(no_out.err.find("--out FILE is required"), std::string::npos) << no_out.err;
   auto bad_keypoints =
       testing::run_process({kBin, "calibrate", "people", "--keypoints", missing, "--out", "x.json"},
                            dir.path(), "keypoints", 60000);

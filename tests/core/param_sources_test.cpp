@@ -62,6 +62,9 @@ TEST(ParamSources, AJsonFileIsRefusedNamingTheFileTheKeyAndWhatIsExpected) {
   EXPECT_THAT(apply_json(s, "{").error().message(),
               AllOf(HasSubstr("box.json: not valid JSON"), HasSubstr("docs/boxd.md")));
   EXPECT_THAT(apply_json(s, "[1]").error().message(), HasSubstr("expected a JSON object"));
+  // A trailing comma, as editors leave it: where it is, as an editor counts (issue 43).
+  EXPECT_THAT(apply_json(s, "{\n  \"depth\": 2,\n}\n").error().message(),
+              HasSubstr("not valid JSON at line 3, column 1"));
   EXPECT_THAT(apply_json(s, R"({"depth_frame": 2})").error().message(),
               AllOf(HasSubstr("unknown key \"depth_frame\""),
                     HasSubstr("did you mean \"depth_frames\"?"), HasSubstr("`boxd --help`")));

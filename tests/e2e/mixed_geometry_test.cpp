@@ -207,12 +207,12 @@ TEST(MixedGeometry, ThreeToolsOnePipelineSameSkeletons) {
   const std::string bin = MOCAP_BIN_DIR;
   const fs::path a = tmp.path() / "replay.jsonl", b = tmp.path() / "bench.jsonl";
   const testing::ProcessResult replay =
-      testing::run_process({bin + "/mocap", "replay", "--data", rec.string(), "--model",
+      testing::run_process({bin + "/mocap", "replay", "--recording", rec.string(), "--model",
                             model.string(), "--quiet", "--skeletons-out", a.string()},
                            tmp.path(), "replay", 600000);
   ASSERT_EQ(replay.exit_code, 0) << replay.how() << "\n" << replay.err << replay.out;
   const testing::ProcessResult bench =
-      testing::run_process({bin + "/mocap", "bench", "pipeline", "--replay", rec.string(),
+      testing::run_process({bin + "/mocap", "bench", "pipeline", "--recording", rec.string(),
                             "--model", model.string(), "--skeletons-out", b.string()},
                            tmp.path(), "bench", 600000);
   ASSERT_EQ(bench.exit_code, 0) << bench.how() << "\n" << bench.err << bench.out;

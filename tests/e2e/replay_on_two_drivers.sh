@@ -19,7 +19,7 @@ trap 'rm -rf "$out"' EXIT
 run() {  # run NAME ENV...
   local name=$1; shift
   local t0=$SECONDS
-  env "$@" "$mocap" replay --data "$data" --frames "$frames" --skeletons-out "$out/$name.ndjson" \
+  env "$@" "$mocap" replay --recording "$data" --frames "$frames" --skeletons-out "$out/$name.ndjson" \
     >"$out/$name.log" 2>&1 || { tail -n 20 "$out/$name.log"; echo "$name: mocap replay failed"; exit 1; }
   echo "$name: $((SECONDS - t0)) s, $(grep -m1 -o 'on Vulkan on [^,)]*' "$out/$name.log" || echo '?')"
 }

@@ -47,8 +47,8 @@ TEST(TakeExportE2e, Pose2SimTakeSurvivesBvhAndGltfThroughBlender) {
   testing::TestTempDir dir("take-export-e2e");
   const fs::path stream = dir.path() / "pose2sim.ndjson";
   auto r = testing::run_process(
-      {kBin, "replay", "--data", data.string(), "--skeletons-out", stream.string()}, dir.path(),
-      "replay", 900000);
+      {kBin, "replay", "--recording", data.string(), "--skeletons-out", stream.string()},
+      dir.path(), "replay", 900000);
   ASSERT_EQ(r.exit_code, 0) << r.how() << r.err;
   auto take = out::read_stream_file(stream);
   ASSERT_TRUE(take.ok()) << take.error().message();

@@ -108,6 +108,18 @@ TEST(Quality, ExactViewsGiveZeroErrorAndARigidBodyAtConstantAccelerationJittersB
   // 8 limb joints (elbows, wrists, knees, ankles) in the 28 frames with two before them.
   EXPECT_EQ(q.persons[0].jitter_samples, 8u * 28u);
   EXPECT_EQ(q.summary_line(), "loo_reprojection_px=0.0 bone_std_mm=0.0 jitter_m_s2=3 ids=1");
+  EXPECT_EQ(q.persons_measured, 1);
+}
+
+// A figure with nothing behind it (no person tracked long enough, no view left out) reads
+// "n/a", not a perfect 0 (issue 43: `mocap replay --frames 5` ended with bone_std_mm=0.0).
+TEST(Quality, FiguresWithoutSamplesAreNotAvailableRatherThanZero) {
+  QualityReport q;
+  q.ids = 2;
+  EXPECT_EQ(q.summary_line(), "loo_reprojection_px=n/a bone_std_mm=n/a jitter_m_s2=n/a ids=2");
+  q.loo_samples = 10;
+  q.loo_reprojection_px = 4.3;
+  EXPECT_EQ(q.summary_line(), "loo_reprojection_px=4.3 bone_std_mm=n/a jitter_m_s2=n/a ids=2");
 }
 
 TEST(Quality, AShiftedViewIsPredictedOffByItsShiftFromTheOthers) {

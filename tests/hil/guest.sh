@@ -81,20 +81,20 @@ expect_last() {
 echo "== CLI"
 expect_last "mocap cameras lists the vivid and vimc cameras" '^cameras=([3-9]|[1-9][0-9])$' "$MOCAP" cameras
 expect_last "mocap capture: 10 frames from each vivid camera" '^captured=20$' \
-  "$MOCAP" capture --device "$v0,$v1" --format YUYV --size 640x360 --fps 30 --frames 10
+  "$MOCAP" capture --device "$v0,$v1" --format YUYV --frame-size 640x360 --frame-rate-hz 30 --frames 10
 expect_last "mocap sync: 30 sets from two cameras" '^  camera 1 .*live' \
-  "$MOCAP" sync --device "$v0,$v1" --size 320x180 --fps 30 --sets 30 --report-s 0
+  "$MOCAP" sync --device "$v0,$v1" --frame-size 320x180 --frame-rate-hz 30 --sets 30 --report-s 0
 expect_last "mocap capture --out: a 2-view recording of 20 sets" '^codec=.* recorded_sets=20$' \
-  "$MOCAP" capture --device "$v0,$v1" --size 320x180 --fps 30 --frames 20 --out /tmp/hil-take
+  "$MOCAP" capture --device "$v0,$v1" --frame-size 320x180 --frame-rate-hz 30 --frames 20 --out /tmp/hil-take
 for v in 0 1; do
   if [[ -s /tmp/hil-take/videos/$v.mp4 ]]; then pass "recorded videos/$v.mp4"; else fail "recorded videos/$v.mp4"; fi
 done
 expect_last "mocap capture --backend libcamera (vimc)" '^captured=5$' \
-  "$MOCAP" capture --backend libcamera --frames 5
+  "$MOCAP" capture --camera-backend libcamera --frames 5
 expect_last "mocap trigger drives 10 pulses" '^pulses=10$' \
-  "$MOCAP" trigger --chip "$chip" --line trigger-out --rate 50 --width-us 2000 --pulses 10
+  "$MOCAP" trigger --chip "$chip" --line trigger-out --frame-rate-hz 50 --width-us 2000 --pulses 10
 # An error names the thing: busy line (held by a background trigger), unknown chip.
-"$MOCAP" trigger --chip "$chip" --line trigger-out --rate 5 --width-us 1000 --pulses 20 >/dev/null &
+"$MOCAP" trigger --chip "$chip" --line trigger-out --frame-rate-hz 5 --width-us 1000 --pulses 20 >/dev/null &
 bg=$!
 sleep 1
 if out=$("$MOCAP" trigger --chip "$chip" --line trigger-out --pulses 1 2>&1); then
@@ -143,7 +143,7 @@ mocapd_run() {  # mocapd_run NAME REGEX: run mocapd, read 2 messages, GET /healt
   XDG_CACHE_HOME=/tmp "$BUILD/bin/mocapd" --board-dir "$boards" --board hil --state-dir "$state" \
     --gpu cpu --input-size-px 64 --status-log-interval-s 0 &
   local pid=$!
-  out=$("$MOCAP" stream --raw --messages 2 --timeout 150 2>&1) || rc=$?
+  out=$("$MOCAP" stream --raw --messages 2 --timeout-s 150 2>&1) || rc=$?
   HEALTH=$(health 2>&1 || true)
   kill -TERM "$pid" 2>/dev/null || true
   wait "$pid" || drc=$?
@@ -195,7 +195,7 @@ camera1_back() { local c; c=$(camera 1); [[ $c == *'"reconnects":1'* && $c == *'
 XDG_CACHE_HOME=/tmp "$BUILD/bin/mocapd" --board-dir "$boards" --board hil --state-dir "$state" \
   --gpu cpu --input-size-px 64 --status-log-interval-s 0 &
 dpid=$!
-"$MOCAP" stream --raw --messages 0 --timeout 150 >/tmp/hil-unplug.ndjson 2>&1 &
+"$MOCAP" stream --raw --messages 0 --timeout-s 150 >/tmp/hil-unplug.ndjson 2>&1 &
 spid=$!
 if wait_for 150 at_least 3; then
   cam0_before=$(number frames "$(camera 0)")

@@ -146,7 +146,7 @@ TEST(ExportCli, BvhFromAStreamInMetresAtAGivenRate) {
   fs::copy_file(take / "skeletons.ndjson", stream);
   const fs::path out = dir.path() / "out";
   auto r = testing::run_process({kBin, "export", "bvh", "--stream", stream.string(), "--out",
-                                 out.string(), "--units", "m", "--fps", "24"},
+                                 out.string(), "--units", "m", "--frame-rate-hz", "24"},
                                 dir.path(), "stream", 120000);
   ASSERT_EQ(r.exit_code, 0) << r.how() << "\n" << r.out << r.err;
   const std::string text = testing::read_text(out / "saved_person0.bvh");
@@ -244,7 +244,7 @@ TEST(ExportCli, BadArgumentsExitTwo) {
       {"bvh", "--take", t, "--stream", "s.ndjson", "--out", "x"},
       {"bvh", "--take", t},
       {"bvh", "--take", t, "--out", "x", "--units", "inch"},
-      {"bvh", "--take", t, "--out", "x", "--fps", "-5"},
+      {"bvh", "--take", t, "--out", "x", "--frame-rate-hz", "-5"},
       {"gltf", "--take", t, "--out", "x.obj"},
       {"ndjson", "--take", t, "--out", "x", "--bogus"},
   };

@@ -18,7 +18,7 @@ TEST(Soak, ThreeMinutesOnTheLoopingRecording) {
   MOCAP_REQUIRE_DATA(recording, "pose2sim_multi");
   TestTempDir dir("soak");
   const ProcessResult r =
-      run_process({std::string(MOCAP_BIN_DIR) + "/mocap", "soak", "--replay", recording.string(),
+      run_process({std::string(MOCAP_BIN_DIR) + "/mocap", "soak", "--recording", recording.string(),
                    "--minutes", "3", "--take-every-min", "1", "--take-s", "15"},
                   dir.path(), "soak", 300000);
   std::printf("%s", r.out.c_str());

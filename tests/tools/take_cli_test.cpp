@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <sstream>
 #include <string>
 #include <thread>
 
@@ -54,6 +55,18 @@ TEST(TakeCli, SigkillMidTakeLeavesAReadableInterruptedTake) {
   ASSERT_EQ(r.exit_code, 0) << r.how() << r.err;
   EXPECT_NE(r.out.find("walk"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("recording"), std::string::npos) << r.out;
+  // The frames recorded so far, not the 0 of a take not yet ended (issue 43).
+  {
+    std::istringstream lines(r.out);
+    long frames = -1;
+    for (std::string line; std::getline(lines, line);) {
+      if (line.rfind("walk ", 0) != 0) continue;
+      std::istringstream words(line);
+      std::string name, status;
+      words >> name >> status >> frames;
+    }
+    EXPECT_GT(frames, 20) << r.out;
+  }
 
   mocapd.signal(SIGKILL);
   const auto killed = mocapd.wait(10000);

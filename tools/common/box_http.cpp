@@ -5,9 +5,12 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <string_view>
 
 #include "runtime/core/box_defaults.h"
 
@@ -15,8 +18,11 @@ namespace mocap::tools {
 namespace {
 
 constexpr int kTimeoutMs = 5000;
+constexpr std::size_t kMaxAnswerBytes = 64u << 20;  // /takes of a full box is a few MiB at most
 
-// Reads the whole answer (the server closes the connection after it).
+// Reads the whole answer (the server closes the connection after it). Something that is not
+// an HTTP answer (the stream port sends skeleton lines and never closes) is refused at its
+// first bytes, and any answer beyond kMaxAnswerBytes, instead of reading forever.
 Result<std::string> read_all(int fd, const std::string& box) {
   std::string in;
   char buf[4096];
@@ -29,7 +35,25 @@ Result<std::string> read_all(int fd, const std::string& box) {
     if (n < 0) return Error(ErrorCode::kIo, "reading from " + box + ": " + strerror(errno));
     if (n == 0) return in;
     in.append(buf, static_cast<std::size_t>(n));
+    const std::size_t head = std::min<std::size_t>(in.size(), 5);
+    if (in.compare(0, head, std::string_view("HTTP/").substr(0, head)) != 0) {
+      return Error(ErrorCode::kParse,
+                   "the answer from " + box +
+                       " is not HTTP: is that mocapd's stream port? --box takes its http_port (" +
+                       std::to_string(kHttpPort) + " by default)");
+    }
+    if (in.size() > kMaxAnswerBytes) {
+      return Error(ErrorCode::kIo, "the answer from " + box + " is over " +
+                                       std::to_string(kMaxAnswerBytes >> 20) +
+                                       " MiB: is it mocapd's http_port?");
+    }
   }
+}
+
+bool all_digits(const std::string& s) {
+  return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) {
+    return std::isdigit(static_cast<unsigned char>(c));
+  });
 }
 
 Result<int> connect_to(const std::string& host, const std::string& port, const std::string& box) {
@@ -61,10 +85,20 @@ Result<int> connect_to(const std::string& host, const std::string& port, const s
 
 Result<HttpAnswer> box_request(const std::string& box, const std::string& method,
                                const std::string& target, const std::string& token) {
+  // "HOST", "HOST:PORT", or a bare "PORT" (this machine's).
   const std::size_t colon = box.rfind(':');
-  const std::string host = colon == std::string::npos ? box : box.substr(0, colon);
-  const std::string port =
-      colon == std::string::npos ? std::to_string(kHttpPort) : box.substr(colon + 1);
+  std::string host = colon == std::string::npos ? box : box.substr(0, colon);
+  std::string port = colon == std::string::npos ? std::to_string(kHttpPort) : box.substr(colon + 1);
+  if (colon == std::string::npos && all_digits(box)) {
+    host = "127.0.0.1";
+    port = box;
+  }
+  if (!all_digits(port) || port.size() > 5 || std::stoi(port) < 1 || std::stoi(port) > 65535) {
+    return Error(ErrorCode::kInvalidArgument,
+                 "--box " + box +
+                     ": the port must be a number in "
+                     "[1, 65535] (--box HOST[:PORT], PORT its http_port)");
+  }
   auto fd = connect_to(host, port, box);
   if (!fd) return fd.error();
   const std::string req = method + " " + target + " HTTP/1.1\r\nHost: " + host +

@@ -1,9 +1,14 @@
 #include "tools/common/cli.h"
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <filesystem>
 #include <sstream>
 
 namespace mocap::cli {
@@ -58,6 +63,14 @@ void ArgParser::option(std::string name, double* out, std::string metavar, std::
                       nullptr});
 }
 
+void ArgParser::deprecated(std::string old_name, std::string new_name) {
+  aliases_.push_back(Alias{std::move(old_name), std::move(new_name), true});
+}
+
+void ArgParser::alias(std::string other_name, std::string name) {
+  aliases_.push_back(Alias{std::move(other_name), std::move(name), false});
+}
+
 void ArgParser::positional(std::string name, std::string* out, std::string help, bool required) {
   positionals_.push_back(Pos{std::move(name), std::move(help), out, required});
 }
@@ -79,13 +92,27 @@ Status ArgParser::parse(std::span<const std::string_view> args) {
         value = a.substr(eq + 1);
         has_value = true;
       }
+      for (const Alias& alias : aliases_) {
+        if (name != alias.old_name) continue;
+        if (alias.warn) {
+          std::fprintf(stderr,
+                       "warning: %s %s is deprecated: use %s (the old spelling goes in the next "
+                       "release; docs/cli.md)\n",
+                       command_.c_str(), alias.old_name.c_str(), alias.new_name.c_str());
+        }
+        name = alias.new_name;
+        break;
+      }
       const Opt* opt = nullptr;
       for (const Opt& o : opts_) {
         if (o.name == name) opt = &o;
       }
       if (opt == nullptr) {
-        return Error(ErrorCode::kInvalidArgument,
-                     "unknown option '" + std::string(name) + "' (see " + command_ + " --help)");
+        std::vector<std::string_view> names;
+        for (const Opt& o : opts_) names.push_back(o.name);
+        return Error(ErrorCode::kInvalidArgument, "unknown option '" + std::string(name) + "'" +
+                                                      did_you_mean(names, name) + " (see " +
+                                                      command_ + " --help)");
       }
       if (opt->flag != nullptr) {
         if (has_value) {
@@ -172,6 +199,53 @@ int usage_error(std::string_view message) {
   return 2;
 }
 
+namespace {
+
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+}  // namespace
+
+std::string did_you_mean(std::span<const std::string_view> names, std::string_view typed) {
+  std::string_view best;
+  std::size_t best_d = std::max<std::size_t>(2, typed.size() / 3) + 1;
+  for (std::string_view n : names) {
+    const std::size_t d = edit_distance(n, typed);
+    if (d < best_d) best_d = d, best = n;
+  }
+  return best.empty() ? std::string() : " (did you mean '" + std::string(best) + "'?)";
+}
+
+Status check_output_path(std::string_view flag, const std::string& path) {
+  if (path.empty()) return Status::Ok();
+  std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  if (dir.empty()) dir = ".";
+  std::error_code ec;
+  std::string why;
+  if (!std::filesystem::is_directory(dir, ec)) {
+    why = "its folder " + dir.string() + " does not exist: create it or write elsewhere";
+  } else if (::access(dir.c_str(), W_OK) != 0) {
+    why = "its folder " + dir.string() + " is not writable (" + std::strerror(errno) +
+          "): write elsewhere";
+  } else if (std::filesystem::is_directory(path, ec)) {
+    why = "it is a folder: name a file";
+  }
+  if (why.empty()) return Status::Ok();
+  return Error(ErrorCode::kInvalidArgument, std::string(flag) + " " + path + ": " + why);
+}
+
 int handle_parse(ArgParser& parser, std::span<const std::string_view> args) {
   Status s = parser.parse(args);
   if (!s.ok()) return usage_error(s.error().message());
@@ -197,8 +271,10 @@ int dispatch_subcommand(std::string_view command, const char* usage,
   for (const Subcommand& s : subcommands) {
     if (s.name == sub) return s.run(args.subspan(1));
   }
-  std::fprintf(stderr, "%s: unknown subcommand '%s'\n\n%s", std::string(command).c_str(),
-               std::string(sub).c_str(), usage);
+  std::vector<std::string_view> names;
+  for (const Subcommand& s : subcommands) names.push_back(s.name);
+  std::fprintf(stderr, "%s: unknown subcommand '%s'%s\n\n%s", std::string(command).c_str(),
+               std::string(sub).c_str(), did_you_mean(names, sub).c_str(), usage);
   return 2;
 }
 

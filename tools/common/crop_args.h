@@ -60,8 +60,9 @@ struct CropArgs {
              "one; a model file converted with --cut movenet-singlepose); auto (default): "
              "Thunder on a hardware GPU, none on the CPU or a software device such as lavapipe "
              "(there they cost 2.7x the detector, docs/crops.md)");
-    p.option("--crop-size", &size_px, "S",
+    p.option("--crop-input-size-px", &size_px, "S",
              "crop model input size, a multiple of 32 (default: Thunder 256, Lightning 192)");
+    p.deprecated("--crop-size", "--crop-input-size-px");
   }
 
   // Sets the crop model and size of `cnn` (none: no crops); the error names the flag.

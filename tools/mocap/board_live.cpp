@@ -65,7 +65,10 @@ Status open_live_rig(const LiveBoardOptions& o, LiveRig& rig) {
   lo.line = disc->board.trigger.gpio_line;
   lo.consumer = "mocap-calibrate";
   auto line = hal::open_gpio_output(lo);
-  if (!line.ok()) return line.error().with_context("board " + disc->board_name + " trigger");
+  if (!line.ok()) {
+    return line.error().with_context("board " + disc->board_name +
+                                     " (its file's trigger.gpio_chip and gpio_line)");
+  }
   hal::TriggerMasterOptions to;
   to.rate_hz = disc->board.frame_rate_hz;
   if (disc->board.trigger.pulse_width_us > 0)

@@ -215,6 +215,21 @@ Status SourceArgs::check() const {
                  "give exactly one of --recording DIR, --shelf DIR, --synthetic or "
                  "--keypoints FILE");
   }
+  // The flags' own ranges, named as the user typed them (not the simulator's field names).
+  auto bad = [](const std::string& what) { return Error(ErrorCode::kInvalidArgument, what); };
+  if (synthetic && (views < 2 || views > 64)) {
+    return bad("--views " + std::to_string(views) + ": the simulator has 2 to 64 cameras");
+  }
+  if (synthetic && (people < 1 || people > 64)) {
+    return bad("--people " + std::to_string(people) + ": 1 to 64 people walk");
+  }
+  if (synthetic && !(seconds > 0 && seconds <= 3600)) {
+    return bad("--seconds " + std::to_string(seconds) + ": give a length in (0, 3600]");
+  }
+  if (frames != -1 && frames < 1) {
+    return bad("--frames " + std::to_string(frames) +
+               ": give a number of frames >= 1 (leave it out for all)");
+  }
   return {};
 }
 

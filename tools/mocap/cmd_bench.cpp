@@ -1,4 +1,4 @@
-// mocap bench assoc --data DIR | --synthetic --views N --people P
+// mocap bench assoc --shelf DIR | --synthetic --views N --people P
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -166,7 +166,8 @@ int bench_assoc(Args args) {
                    "fit), over the Shelf sequence or the simulator: median, p90, p99 and max in\n"
                    "milliseconds; the simulator also splits out track-first parsing, the lazy\n"
                    "matching edges and the fit. Ends with assoc_fit_median_ms=X.XXX.");
-  p.option("--data", &data, "DIR", "Shelf folder (default: $MOCAP_DATA_DIR/shelf)");
+  p.option("--shelf", &data, "DIR", "Shelf folder (default: $MOCAP_DATA_DIR/shelf)");
+  p.deprecated("--data", "--shelf");
   p.option("--repeat", &repeat, "N", "run the sequence N times (default 5)");
   p.flag("--synthetic", &synthetic, "use the scene simulator instead of Shelf");
   p.option("--views", &views, "N", "simulator: number of cameras (default 5)");

@@ -1,4 +1,4 @@
-// mocap bench fusion --nodes N --views-per-node V --people P [--rate-hz R] [--seconds S]
+// mocap bench fusion --nodes N --views-per-node V --people P [--frame-rate-hz R] [--seconds S]
 //
 // The fusion node's figures (docs/scaleout.md):
 //   1. association + fitting on one core at N*V views x P people (frames/s), and a table up
@@ -203,7 +203,8 @@ int run_bench_fusion(Args args) {
   p.option("--nodes", &o.nodes, "N", "detector nodes (default 4)");
   p.option("--views-per-node", &o.views_per_node, "V", "cameras per node (default 8)");
   p.option("--people", &o.people, "P", "simulated people (default 10)");
-  p.option("--rate-hz", &o.rate_hz, "HZ", "live stage frame rate (default 120)");
+  p.option("--frame-rate-hz", &o.rate_hz, "HZ", "live stage frame rate (default 120)");
+  p.deprecated("--rate-hz", "--frame-rate-hz");
   p.option("--seconds", &o.seconds, "S", "live stage measured seconds (default 10)");
   p.option("--frames", &o.frames, "N", "frames per engine measurement (default 200)");
   p.flag("--no-table", &no_table, "skip the table up to 64 views x 20 people");
@@ -213,10 +214,11 @@ int run_bench_fusion(Args args) {
   if (o.nodes < 1 || o.nodes > 16 || o.views_per_node < 1 || o.views_per_node > 16 || views < 2 ||
       views > 64 || o.people < 0 || o.people > 16 || !(o.rate_hz > 0 && o.rate_hz <= 1000) ||
       !(o.seconds > 0 && o.seconds <= 3600) || o.frames < 10) {
-    std::fprintf(stderr,
-                 "error: need --nodes in [1, 16], --views-per-node in [1, 16] with 2..64 views "
-                 "in all, --people in [0, 16], --rate-hz in (0, 1000], --seconds in (0, 3600], "
-                 "--frames >= 10\n");
+    std::fprintf(
+        stderr,
+        "error: need --nodes in [1, 16], --views-per-node in [1, 16] with 2..64 views "
+        "in all, --people in [0, 16], --frame-rate-hz in (0, 1000], --seconds in (0, 3600], "
+        "--frames >= 10\n");
     return 2;
   }
   if (!no_table) {

@@ -105,9 +105,11 @@ int run_bench_pipeline(Args args) {
                    "mocapd's pipeline on a recording, every frame processed: end-to-end frames/s "
                    "and per-stage latency (median/p99). Last line: pipeline_fps=X.XX (median "
                    "over the passes).");
-  p.option("--replay", &replay, "DIR", "recording: calibration.json + videos/<view>.mp4");
-  p.option("--model", &model, "FILE", "pose network (default: the installed / source tree's)");
-  p.option("--size", &size, "PX",
+  p.option("--recording", &replay, "DIR", "recording: calibration.json + videos/<view>.mp4");
+  p.deprecated("--replay", "--recording");
+  p.option("--model", &model, "NAME|FILE",
+           "movenet (default), posenet or a model file (.mcnn or TF.js model.json)");
+  p.option("--input-size-px", &size, "PX",
            "network input size (default: the model's, MoveNet 448, PoseNet 353; the long side with "
            "--input-fit frame)");
   InputFitArg input_fit;
@@ -115,6 +117,7 @@ int run_bench_pipeline(Args args) {
   CropArgs crops;
   crops.add_to(p);
   p.option("--gpu", &gpu, "NAME", "auto (default), vulkan or cpu");
+  p.deprecated("--size", "--input-size-px");
   p.option("--frames", &frames, "N", "frames per pass (default: the whole recording)");
   p.option("--passes", &passes, "N", "times the recording is run, each measured (default 1)");
   p.option("--queue-depth", &queue_depth, "N", "frames between two stages (default 2)");
@@ -122,7 +125,7 @@ int run_bench_pipeline(Args args) {
            "also write every frame's stream message, one per line (the last pass's)");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
   if (replay.empty() || passes < 1) {
-    std::fprintf(stderr, "mocap bench pipeline: need --replay DIR and --passes >= 1\n");
+    std::fprintf(stderr, "mocap bench pipeline: need --recording DIR and --passes >= 1\n");
     return 2;
   }
   auto request = gpu::parse_backend_request(gpu);
@@ -132,7 +135,7 @@ int run_bench_pipeline(Args args) {
   }
   ReplayPartsOptions o;
   o.source.dir = replay;
-  o.cnn.model = model;
+  o.cnn.model = model_path_for(model);
   o.cnn.backend = *request;
   o.cnn.input_size_px = size;
   auto fit = input_fit.get();

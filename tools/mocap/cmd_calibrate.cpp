@@ -100,8 +100,16 @@ int run_people(Args args) {
            "write what the solve saw and tried: report.json (views, view pairs, every "
            "hypothesis with its registration steps) and coverage_view<N>.png per view");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (Status s = src.check(); !s.ok()) return cli::fail(s.error());
-  if (out.empty()) return cli::fail(Error(ErrorCode::kInvalidArgument, "--out FILE is required"));
+  // Usage first (exit 2), before minutes of collecting and solving.
+  if (Status s = src.check(); !s.ok()) return cli::usage_error(s.error().message());
+  if (out.empty()) return cli::usage_error("--out FILE is required");
+  for (const auto& [flag, path] : {std::pair<const char*, const std::string&>{"--out", out},
+                                   {"--report", report},
+                                   {"--keypoints-out", keypoints_out}}) {
+    if (Status s = cli::check_output_path(flag, path); !s.ok()) {
+      return cli::usage_error(s.error().message());
+    }
+  }
   calib::SelfCalibrationOptions opt;
   opt.person_height_m = height_m;
   opt.refine_intrinsics = refine_intrinsics;
@@ -113,10 +121,12 @@ int run_people(Args args) {
   }
   if (!reference.empty()) {
     auto ref = load_calibration(reference);
-    if (!ref.ok()) return cli::fail(ref.error().with_context("--reference"));
+    if (!ref.ok()) return cli::usage_error(ref.error().with_context("--reference").message());
     opt.reference = std::move(*ref);
   }
-  if (Status s = opt.validate(); !s.ok()) return cli::fail(s.error().with_context("--height-m"));
+  if (Status s = opt.validate(); !s.ok()) {
+    return cli::usage_error(s.error().with_context("--height-m").message());
+  }
   std::unique_ptr<calib::KeypointCollector> keypoints;
   std::vector<calib::CameraPrior> priors;
   Status collected = collect_people(src, keep_intrinsics, keypoints, priors);

@@ -69,7 +69,7 @@ int check_args(const std::string& command, const ExportArgs& a) {
   }
   if (a.out.empty()) return usage_error(command, "--out is required");
   if (Status s = out::AnimationOptions{.frame_rate_hz = a.fps}.validate(); !s.ok()) {
-    return usage_error(command, "--fps: " + s.error().message());
+    return usage_error(command, "--frame-rate-hz: " + s.error().message());
   }
   return -1;
 }
@@ -114,7 +114,8 @@ int run_bvh(Args args) {
   add_source_options(parser, a);
   parser.option("--out", &a.out, "DIR", "output folder (created when missing)");
   parser.option("--units", &a.units, "cm|m", "BVH units (default cm; Blender: scale 0.01)");
-  parser.option("--fps", &a.fps, "HZ", "frame rate (default: the take's)");
+  parser.option("--frame-rate-hz", &a.fps, "HZ", "frame rate (default: the take's)");
+  parser.deprecated("--fps", "--frame-rate-hz");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (int rc = check_args(command, a); rc >= 0) return rc;
   if (a.units != "cm" && a.units != "m") {
@@ -149,7 +150,8 @@ int run_gltf(Args args) {
                         "person's frames and body lengths). Units: metres, +Y up.");
   add_source_options(parser, a);
   parser.option("--out", &a.out, "FILE", "output file, ending in .gltf or .glb");
-  parser.option("--fps", &a.fps, "HZ", "frame rate (default: the take's)");
+  parser.option("--frame-rate-hz", &a.fps, "HZ", "frame rate (default: the take's)");
+  parser.deprecated("--fps", "--frame-rate-hz");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (int rc = check_args(command, a); rc >= 0) return rc;
   const fs::path file = a.out;

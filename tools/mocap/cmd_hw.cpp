@@ -44,7 +44,7 @@ std::vector<std::string> split_list(const std::string& text) {
   return out;
 }
 
-// The camera request from --format, --size WxH and --fps.
+// The camera request from --format, --frame-size WxH and --fps.
 Result<hal::CameraRequest> parse_request(const std::string& format, const std::string& size,
                                          double fps) {
   hal::CameraRequest r;
@@ -64,7 +64,7 @@ Result<hal::CameraRequest> parse_request(const std::string& format, const std::s
     char x = 0;
     if (std::sscanf(size.c_str(), "%d%c%d", &w, &x, &h) != 3 || x != 'x' || w <= 0 || h <= 0) {
       return Error(ErrorCode::kInvalidArgument,
-                   "--size '" + size + "': expected WIDTHxHEIGHT, e.g. 1280x720");
+                   "--frame-size '" + size + "': expected WIDTHxHEIGHT, e.g. 1280x720");
     }
     r.width_px = w;
     r.height_px = h;
@@ -84,13 +84,16 @@ struct CameraArgs {
   bool external_trigger = false;
 
   void declare(cli::ArgParser& p) {
-    p.option("--backend", &backend, "NAME", "v4l2 (default) or libcamera");
+    p.option("--camera-backend", &backend, "NAME", "v4l2 (default) or libcamera");
+    p.deprecated("--backend", "--camera-backend");
     p.option("--device", &devices, "LIST",
              "comma-separated cameras: V4L2 nodes (/dev/video0,/dev/video1) or libcamera ids; "
              "libcamera: empty = the first camera");
     p.option("--format", &format, "FMT", "YUYV, NV12, RGB24, GREY or MJPEG (default: negotiated)");
-    p.option("--size", &size, "WxH", "capture size (default: the largest up to 1920x1088)");
-    p.option("--fps", &fps, "HZ", "frame rate (default: the mode's highest)");
+    p.option("--frame-size", &size, "WxH", "capture size (default: the largest up to 1920x1088)");
+    p.deprecated("--size", "--frame-size");
+    p.option("--frame-rate-hz", &fps, "HZ", "frame rate (default: the mode's highest)");
+    p.deprecated("--fps", "--frame-rate-hz");
     p.option("--buffers", &buffers, "N", "driver buffers per camera (default 4)");
     p.flag("--external-trigger", &external_trigger,
            "V4L2: frames come from a trigger line (no frame interval is set)");
@@ -100,9 +103,9 @@ struct CameraArgs {
     Result<hal::CameraRequest> req = parse_request(format, size, fps);
     if (!req) return req.error();
     Result<hal::CameraBackend> b = hal::parse_camera_backend(backend);
-    if (!b) return b.error().with_context("--backend");
+    if (!b) return b.error().with_context("--camera-backend");
     if (*b == hal::CameraBackend::kV4l2 && device.empty()) {
-      return Error(ErrorCode::kInvalidArgument, "--device is required with --backend v4l2");
+      return Error(ErrorCode::kInvalidArgument, "--device is required with --camera-backend v4l2");
     }
     hal::CameraSpec spec;
     spec.backend = *b;
@@ -170,12 +173,13 @@ int run_cameras(Args args) {
                         "highest frame rate) of each: V4L2 capture nodes, then libcamera cameras. "
                         "V4L2 nodes that cannot be used are listed with the reason. Last line: "
                         "cameras=N.");
-  parser.option("--backend", &backend, "NAME", "all (default), v4l2 or libcamera");
+  parser.option("--camera-backend", &backend, "NAME", "all (default), v4l2 or libcamera");
+  parser.deprecated("--backend", "--camera-backend");
   parser.option("--dev-dir", &dev_dir, "DIR", "where the V4L2 nodes are (default /dev)");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (backend != "all" && backend != "v4l2" && backend != "libcamera") {
     return cli::fail(Error(ErrorCode::kInvalidArgument,
-                           "--backend '" + backend + "': expected all, v4l2 or libcamera"));
+                           "--camera-backend '" + backend + "': expected all, v4l2 or libcamera"));
   }
   std::size_t n = 0;
   if (backend != "libcamera") {
@@ -365,7 +369,8 @@ int run_trigger(Args args) {
                         "lateness or edge period and jitter. Last line: pulses=N or edges=N.");
   parser.option("--chip", &chip, "CHIP", "GPIO chip: gpiochip0, /dev/gpiochip0 or its label");
   parser.option("--line", &line, "LINE", "line name (as in gpioinfo) or offset");
-  parser.option("--rate", &rate_hz, "HZ", "master: pulse rate (default 30)");
+  parser.option("--frame-rate-hz", &rate_hz, "HZ", "master: pulse rate (default 30)");
+  parser.deprecated("--rate", "--frame-rate-hz");
   parser.option("--width-us", &width_us, "US", "master: pulse width (default 1000)");
   parser.option("--pulses", &pulses, "N", "master: stop after N pulses (default: until Ctrl-C)");
   parser.flag("--monitor", &monitor, "slave: timestamp the rising edges on the line");
@@ -381,7 +386,7 @@ int run_trigger(Args args) {
   lo.active_low = active_low;
   if (monitor) {
     Result<std::unique_ptr<hal::InputLine>> in = hal::open_gpio_input(lo, hal::EdgeKind::kRising);
-    if (!in) return cli::fail(in.error());
+    if (!in) return cli::fail(in.error().with_context("--chip/--line"));
     hal::TriggerMonitor mon(std::move(*in));
     std::printf("monitoring %s\n", mon.line().name().c_str());
     std::fflush(stdout);
@@ -404,7 +409,7 @@ int run_trigger(Args args) {
     return edges == 0 || s.edges >= static_cast<std::uint64_t>(edges) ? 0 : 1;
   }
   Result<std::unique_ptr<hal::OutputLine>> out = hal::open_gpio_output(lo);
-  if (!out) return cli::fail(out.error());
+  if (!out) return cli::fail(out.error().with_context("--chip/--line"));
   const std::string name = (*out)->name();
   hal::TriggerMasterOptions mo;
   mo.rate_hz = rate_hz;

@@ -1,6 +1,6 @@
-// mocap infer --model FILE --input-f32 FILE --size S --dump DIR [--backend vulkan|cpu]
-// mocap infer --model FILE --image PATH [--size S] --detections-out FILE [--backend vulkan|cpu]
-// mocap bench cnn --model FILE --size S --batch B
+// mocap infer --model NAME|FILE --input-f32 FILE --input-size-px S --dump DIR [--gpu vulkan|cpu]
+// mocap infer --model NAME|FILE --image PATH [--input-size-px S] --detections-out FILE [--gpu
+// vulkan|cpu] mocap bench cnn --model NAME|FILE --input-size-px S --batch B
 #include <unistd.h>
 #include <algorithm>
 #include <cctype>
@@ -27,6 +27,7 @@
 #include "runtime/nn_import/tfjs_import.h"
 #include "runtime/skeleton/topology.h"
 #include "tools/common/cli.h"
+#include "tools/common/paths.h"
 #include "tools/mocap/commands.h"
 
 namespace mocap::tools {
@@ -87,7 +88,7 @@ struct Runner {
     gpu::GpuOptions go;
     go.device = device;
     auto request = gpu::parse_backend_request(backend);
-    if (!request.ok()) return request.error().with_context("--backend");
+    if (!request.ok()) return request.error().with_context("--gpu");
     auto b = gpu::choose_backend(*request, go);
     if (!b.ok()) return b.error();
     std::fprintf(stderr, "backend: %s\n", b->description.c_str());
@@ -149,7 +150,7 @@ int infer_image(const std::string& model_path, const std::string& image_path, in
   gpu::GpuOptions go;
   go.device = device;
   auto request = gpu::parse_backend_request(backend);
-  if (!request.ok()) return cli::fail(request.error().with_context("--backend"));
+  if (!request.ok()) return cli::fail(request.error().with_context("--gpu"));
   auto b = gpu::choose_backend(*request, go);
   if (!b.ok()) return cli::fail(b.error());
   std::fprintf(stderr, "backend: %s\n", b->description.c_str());
@@ -332,9 +333,10 @@ int run_infer(Args args) {
                    "With --image: the whole detection path (pre-processing, CNN, peaks, limb\n"
                    "affinities) on a JPEG/PNG photo, writing the COCO-17 candidates (image\n"
                    "pixels) and affinity matrices as JSON (docs/detections-format.md).");
-  p.option("--model", &model_path, "FILE", "model file (.mcnn) or a TF.js model.json");
+  p.option("--model", &model_path, "NAME|FILE",
+           "posenet, movenet, thunder, lightning, or a model file (.mcnn) or a TF.js model.json");
   p.option("--input-f32", &input_path, "FILE", "raw float32 NHWC input tensor");
-  p.option("--size", &size, "S", "input height and width (default 257)");
+  p.option("--input-size-px", &size, "S", "input height and width (default 257)");
   p.option("--dump", &dump_dir, "DIR", "write the outputs here");
   p.option("--dump-layers", &dump_layers, "DIR",
            "with --input-f32: also write every layer's output as DIR/<layer name>.f32 (names "
@@ -344,22 +346,23 @@ int run_infer(Args args) {
            "the same input and print the relative error per layer");
   p.option("--image", &image_path, "PATH", "photo input (full GPU path with detections)");
   p.option("--detections-out", &detections_out, "FILE", "candidates + affinities (with --image)");
-  p.option("--backend", &backend, "NAME",
+  p.option("--gpu", &backend, "NAME",
            "auto (default: Vulkan, or the CPU backend with a warning when no Vulkan device "
            "can be opened), vulkan or cpu");
-  p.option("--device", &device, "NAME", "Vulkan device index or name substring");
+  p.option("--gpu-device", &device, "NAME", "Vulkan device index or name substring");
+  p.deprecated("--size", "--input-size-px");
+  p.deprecated("--backend", "--gpu");
+  p.deprecated("--device", "--gpu-device");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (model_path.empty())
-    return cli::fail(Error(ErrorCode::kInvalidArgument, "--model is required"));
+  if (model_path.empty()) return cli::usage_error("--model is required");
+  model_path = model_path_for(model_path).string();
   if (!image_path.empty()) {
     return infer_image(model_path, image_path, size, backend, device, detections_out);
   }
   if (input_path.empty() || dump_dir.empty()) {
-    return cli::fail(
-        Error(ErrorCode::kInvalidArgument, "--input-f32 FILE and --dump DIR are required"));
+    return cli::usage_error("--input-f32 FILE and --dump DIR are required");
   }
-  if (size < 1 || size > 4096)
-    return cli::fail(Error(ErrorCode::kInvalidArgument, "--size must be in [1, 4096]"));
+  if (size < 1 || size > 4096) return cli::usage_error("--input-size-px must be in [1, 4096]");
   auto model = nn::load_model(model_path);
   if (!model.ok()) return cli::fail(model.error());
   const nn::Shape shape{1, size, size, model->input_channels};
@@ -395,26 +398,31 @@ int run_bench_cnn(Args args) {
                    "(timestamps, median) from a separate profiling pass. When Node and\n"
                    "tools/tfjs_ref are installed, runs the TF.js wasm reference on the same input\n"
                    "in the same run and ends with vulkan_over_tfjs_wasm=R.RR (< 1: faster).");
-  p.option("--model", &model_path, "FILE", "model file (.mcnn) or a TF.js model.json");
-  p.option("--size", &size, "S", "input height and width (default 257)");
+  p.option("--model", &model_path, "NAME|FILE",
+           "posenet, movenet, thunder, lightning, or a model file (.mcnn) or a TF.js model.json");
+  p.option("--input-size-px", &size, "S", "input height and width (default 257)");
   p.option("--batch", &batch, "B", "views per submission (default 1)");
   p.option("--runs", &runs, "N", "timed runs (default 20, at least 20)");
   p.option("--warmup", &warmup, "N", "untimed runs first (default 3)");
-  p.option("--backend", &backend, "NAME", "vulkan (default) or cpu");
-  p.option("--device", &device, "NAME", "Vulkan device index or name substring");
+  p.option("--gpu", &backend, "NAME", "vulkan (default) or cpu");
+  p.option("--gpu-device", &device, "NAME", "Vulkan device index or name substring");
+  p.deprecated("--size", "--input-size-px");
+  p.deprecated("--backend", "--gpu");
+  p.deprecated("--device", "--gpu-device");
   p.option("--tfjs-model", &tfjs_model, "FILE",
            "TF.js model.json for the reference (default models/posenet.json, or "
            "models/movenet-multipose.json for a MoveNet model)");
   p.option("--tfjs-threads", &tfjs_threads, "N", "TF.js wasm threads (default 1)");
   p.flag("--no-tfjs", &no_tfjs, "skip the TF.js reference");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (model_path.empty())
-    return cli::fail(Error(ErrorCode::kInvalidArgument, "--model is required"));
-  if (runs < 20 || warmup < 0 || batch < 1 || batch > 64 || size < 1 || size > 4096) {
-    return cli::fail(
-        Error(ErrorCode::kInvalidArgument,
-              "need --runs >= 20, --warmup >= 0, --batch in [1, 64], --size in [1, 4096]"));
-  }
+  if (model_path.empty()) return cli::usage_error("--model is required");
+  model_path = model_path_for(model_path).string();
+  const char* bad = runs < 20                 ? "--runs must be >= 20"
+                    : warmup < 0              ? "--warmup must be >= 0"
+                    : batch < 1 || batch > 64 ? "--batch must be in [1, 64]"
+                    : size < 1 || size > 4096 ? "--input-size-px must be in [1, 4096]"
+                                              : nullptr;
+  if (bad != nullptr) return cli::usage_error(bad);
   auto model = nn::load_model(model_path);
   if (!model.ok()) return cli::fail(model.error());
   const nn::Shape shape{batch, size, size, model->input_channels};

@@ -122,7 +122,7 @@ Result<nn::TfjsImportOptions> cut_options(const std::string& name) {
 
 Status check_size(int size_px) {
   if (size_px < 1 || size_px > kMaxInputSize_px) {
-    return Error(ErrorCode::kInvalidArgument, "--size must be in [1, " +
+    return Error(ErrorCode::kInvalidArgument, "--input-size-px must be in [1, " +
                                                   std::to_string(kMaxInputSize_px) + "], got " +
                                                   std::to_string(size_px));
   }
@@ -141,9 +141,10 @@ int run_convert(Args args) {
       "count, the output names, the file size and its CRC-32.");
   parser.option("--tfjs", &tfjs, "MODEL_JSON", "TF.js graph model to import (required)");
   parser.option("--out", &out, "FILE", "model file to write, e.g. models/posenet.mcnn (required)");
-  parser.option("--size", &size_px, "S",
+  parser.option("--input-size-px", &size_px, "S",
                 "input size in pixels for the printed output shapes (default " +
                     std::to_string(kDefaultInputSize_px) + ")");
+  parser.deprecated("--size", "--input-size-px");
   parser.option("--cut", &cut, "NAME",
                 "import a known graph cut at its heads: movenet-multipose (MoveNet MultiPose "
                 "from the normalised image to its four heads, runtime/nn/movenet.h) or "
@@ -187,9 +188,10 @@ int run_info(Args args) {
                         "and padding (or resize factor), activation, output shape for an SxS "
                         "input, parameter count and name; then the outputs.");
   parser.positional("FILE", &file, "model file (.mcnn)");
-  parser.option("--size", &size_px, "S",
+  parser.option("--input-size-px", &size_px, "S",
                 "input size in pixels for the output shapes (default " +
                     std::to_string(kDefaultInputSize_px) + ")");
+  parser.deprecated("--size", "--input-size-px");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (Status s = check_size(size_px); !s.ok()) {
     return cli::usage_error(s.error().message());

@@ -1,4 +1,5 @@
-// mocap replay --data DIR [--model NAME|FILE] [--size S] [--frames N] [--backend vulkan|cpu|auto]
+// mocap replay --recording DIR [--model NAME|FILE] [--input-size-px S] [--frames N] [--gpu
+// vulkan|cpu|auto]
 //              [--skeletons-out FILE] [--quality-out FILE]
 // A recorded multi-view capture through the real-time pipeline (runtime/pipeline), composed as
 // mocapd composes it for `--replay` (tools/common/replay_parts.h), every frame processed: per
@@ -8,6 +9,7 @@
 // figures end the output on one line:
 //   loo_reprojection_px=X.X bone_std_mm=X.X jitter_m_s2=X ids=N
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -167,15 +169,17 @@ void print_crops(const gpu::CnnDetector& detector, long frames) {
 int run_replay(Args args) {
   std::string data, model = default_model_path().string();
   std::string backend = "auto", device, skeletons_out, quality_out;
-  int size = 0, frames = -1;
+  constexpr int kAllFrames = std::numeric_limits<int>::min();  // --frames not given
+  int size = 0, frames = kAllFrames;
   bool quiet = false, no_fit = false;
   SmoothingArgs smoothing(assoc::posenet_coco17_options().fit.smoothing);
   cli::ArgParser p("mocap replay", kHelp);
-  p.option("--data", &data, "DIR", "recording folder (calibration.json, videos/)");
+  p.option("--recording", &data, "DIR", "recording folder (calibration.json, videos/)");
+  p.deprecated("--data", "--recording");
   p.option("--model", &model, "NAME|FILE",
            "movenet (default: models/movenet-multipose.mcnn), posenet (models/posenet.mcnn) "
            "or a model file");
-  p.option("--size", &size, "S",
+  p.option("--input-size-px", &size, "S",
            "network input size (the long side with --input-fit frame): MoveNet a multiple of 32 "
            "(default 448; see above), PoseNet 16k+1 (default 353)");
   InputFitArg input_fit;
@@ -183,8 +187,11 @@ int run_replay(Args args) {
   CropArgs crops;
   crops.add_to(p);
   p.option("--frames", &frames, "N", "process the first N frames only (default: all)");
-  p.option("--backend", &backend, "NAME", "vulkan, cpu or auto (default: Vulkan, else CPU)");
-  p.option("--device", &device, "NAME", "Vulkan device index or name substring");
+  p.option("--gpu", &backend, "NAME", "vulkan, cpu or auto (default: Vulkan, else CPU)");
+  p.option("--gpu-device", &device, "NAME", "Vulkan device index or name substring");
+  p.deprecated("--size", "--input-size-px");
+  p.deprecated("--backend", "--gpu");
+  p.deprecated("--device", "--gpu-device");
   p.option("--skeletons-out", &skeletons_out, "FILE",
            "write every frame's stream message (docs/stream-format.md), one per line");
   p.option("--quality-out", &quality_out, "FILE",
@@ -193,9 +200,20 @@ int run_replay(Args args) {
   p.flag("--no-fit", &no_fit, "triangulated joints only (no skeleton fitting)");
   smoothing.add_to(p);
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (data.empty()) return cli::fail(Error(ErrorCode::kInvalidArgument, "--data DIR is required"));
+  if (data.empty()) return cli::usage_error("--recording DIR is required");
+  if (frames != kAllFrames && frames < 1) {
+    return cli::usage_error("--frames " + std::to_string(frames) +
+                            ": give a number of frames >= 1 (leave it out for all)");
+  }
   auto request = gpu::parse_backend_request(backend);
-  if (!request.ok()) return cli::fail(request.error().with_context("--backend"));
+  if (!request.ok()) return cli::usage_error(request.error().with_context("--gpu").message());
+  for (const auto& [flag, path] :
+       {std::pair<const char*, const std::string&>{"--skeletons-out", skeletons_out},
+        {"--quality-out", quality_out}}) {
+    if (Status s = cli::check_output_path(flag, path); !s.ok()) {
+      return cli::usage_error(s.error().message());
+    }
+  }
 
   ReplayPartsOptions o;
   o.source.dir = data;
@@ -240,7 +258,7 @@ int run_replay(Args args) {
   if (file) sinks.push_back(file.get());
   pipeline::PipelineOptions po;
   po.drop_policy = replay_drop_policy(o.source);
-  po.max_frames = frames;
+  po.max_frames = frames == kAllFrames ? -1 : frames;
   auto pipe = pipeline::Pipeline::create(parts->pipeline_parts(sinks), po);
   if (!pipe.ok()) return cli::fail(pipe.error());
   if (Status s = (*pipe)->start(); !s.ok()) return cli::fail(s.error());

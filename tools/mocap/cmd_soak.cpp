@@ -544,7 +544,8 @@ int run_soak(Args args) {
   cli::ArgParser p("mocap soak",
                    "Run mocapd on a looping replay with clients and takes coming and going; print "
                    "its RSS, fds, threads, stage p99s and what the clients lost, every minute.");
-  p.option("--replay", &o.replay, "DIR", "recording to loop (calibration.json + videos/)");
+  p.option("--recording", &o.replay, "DIR", "recording to loop (calibration.json + videos/)");
+  p.deprecated("--replay", "--recording");
   p.option("--minutes", &o.minutes, "N", "how long (default 60)");
   p.option("--mocapd", &o.mocapd, "PATH", "the mocapd to run (default: next to mocap)");
   p.option("--take-every-min", &o.take_every_min, "M", "start a take every M minutes (default 3)");
@@ -552,20 +553,23 @@ int run_soak(Args args) {
   p.option("--churn-s", &o.churn_s, "S", "a client comes and goes every S seconds (default 10)");
   p.flag("--keep", &o.keep, "keep the state folder and mocapd's log after a passing run");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (o.replay.empty() || !fs::is_directory(o.replay)) {
-    std::fprintf(stderr,
-                 "error: --replay DIR: '%s' is not a folder (a recording: "
-                 "calibration.json + videos/<view>.mp4)\n",
-                 o.replay.c_str());
-    return 2;
+  if (o.replay.empty()) {
+    return cli::usage_error(
+        "--recording DIR is required (a recording: calibration.json + "
+        "videos/<view>.mp4)");
   }
-  if (!(o.minutes > 0 && o.minutes <= 7 * 24 * 60) || !(o.take_s > 0) ||
-      !(o.take_every_min * 60 > o.take_s) || !(o.churn_s > 0)) {
-    std::fprintf(stderr,
-                 "error: need --minutes in (0, 10080], --take-s > 0, --take-every-min "
-                 "longer than a take, --churn-s > 0\n");
-    return 2;
+  if (!fs::is_directory(o.replay)) {
+    return cli::usage_error("--recording " + o.replay +
+                            ": not a folder (a recording: calibration.json + videos/<view>.mp4)");
   }
+  // Each number with its own flag named (the first that is wrong).
+  const char* bad = !(o.minutes > 0 && o.minutes <= 7 * 24 * 60) ? "--minutes must be in (0, 10080]"
+                    : !(o.take_s > 0)                            ? "--take-s must be > 0"
+                    : !(o.take_every_min * 60 > o.take_s)
+                        ? "--take-every-min must be longer than a take (--take-s)"
+                    : !(o.churn_s > 0) ? "--churn-s must be > 0"
+                                       : nullptr;
+  if (bad != nullptr) return cli::usage_error(bad);
   return soak(o);
 }
 

@@ -89,18 +89,25 @@ int run_stream(Args args) {
   cli::ArgParser p("mocap stream",
                    "Read mocapd's skeleton stream (docs/stream-format.md) and print a line per "
                    "message: frame id, persons with their ids and positions (or 2D candidates "
-                   "per view). Last line: messages=N.");
+                   "per view). Last line: messages=N (on stderr with --raw, so that stdout "
+                   "holds only the stream: a file `mocap export` reads).");
   p.option("--host", &host, "HOST", "mocapd's address (default 127.0.0.1)");
   p.option("--port", &port, "PORT",
            "its stream_port (default " + std::to_string(kStreamPort) + ")");
   p.option("--messages", &messages, "N", "stop after N messages (default 10; 0 = never)");
-  p.option("--timeout", &timeout_s, "S",
+  p.option("--timeout-s", &timeout_s, "S",
            "give up when mocapd does not accept or nothing arrives for S seconds (default 30)");
-  p.flag("--raw", &raw, "print the JSON messages as they come");
+  p.deprecated("--timeout", "--timeout-s");
+  p.flag("--raw", &raw,
+         "print the JSON messages as they come (stdout: the stream only, as mocap export "
+         "--stream reads it)");
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  if (port < 1 || port > 65535 || messages < 0 || timeout_s < 1) {
-    std::fprintf(stderr,
-                 "mocap stream: need --port in [1, 65535], --messages >= 0, --timeout >= 1\n");
+  const char* bad = port < 1 || port > 65535 ? "--port must be in [1, 65535]"
+                    : messages < 0           ? "--messages must be >= 0 (0 = never stop)"
+                    : timeout_s < 1          ? "--timeout-s must be >= 1"
+                                             : nullptr;
+  if (bad != nullptr) {
+    std::fprintf(stderr, "mocap stream: %s\n", bad);
     return 2;
   }
   // mocapd may be starting: connection refused is retried until the timeout.
@@ -159,7 +166,8 @@ int run_stream(Args args) {
     buf.append(tmp, static_cast<std::size_t>(r));
   }
   ::close(fd);
-  std::printf("messages=%d\n", got);
+  // With --raw stdout is the stream itself (saved to a file, exported): the count goes to stderr.
+  std::fprintf(raw ? stderr : stdout, "messages=%d\n", got);
   return rc;
 }
 

@@ -71,12 +71,16 @@ std::string percent_encode(std::string_view s) {
   return out;
 }
 
-// Sends the request; prints the error (the server's, when it gave one) and returns nullopt.
-std::optional<json> call(const BoxArgs& b, const std::string& method, const std::string& target) {
+// Sends the request; prints the error (the server's, when it gave one) and returns nullopt,
+// with `exit_code` 2 for a --box that is not an address, else 1.
+std::optional<json> call(const BoxArgs& b, const std::string& method, const std::string& target,
+                         int& exit_code) {
   const std::string& box = b.box;
   auto a = box_request(box, method, target, b.resolve_token());
+  exit_code = 1;
   if (!a) {
     std::fprintf(stderr, "error: %s\n", a.error().message().c_str());
+    if (a.error().code() == ErrorCode::kInvalidArgument) exit_code = 2;
     return std::nullopt;
   }
   json j = json::parse(a->body, nullptr, false);
@@ -102,8 +106,9 @@ int run_start(Args args) {
   p.positional("NAME", &name, "take name: letters, digits, '.', '_', '-' (at most 64)");
   box.add_to(p);
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  auto j = call(box, "POST", "/takes/start?name=" + percent_encode(name));
-  if (!j) return 1;
+  int rc = 1;
+  auto j = call(box, "POST", "/takes/start?name=" + percent_encode(name), rc);
+  if (!j) return rc;
   std::printf("recording take %s in %s\n", j->value("name", "").c_str(),
               j->value("dir", "").c_str());
   return 0;
@@ -114,8 +119,9 @@ int run_stop(Args args) {
   cli::ArgParser p("mocap take stop", "End the take being recorded on a running mocapd.");
   box.add_to(p);
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  auto j = call(box, "POST", "/takes/stop");
-  if (!j) return 1;
+  int rc = 1;
+  auto j = call(box, "POST", "/takes/stop", rc);
+  if (!j) return rc;
   std::printf("take %s: %llu frames, %s%s%s\n", j->value("name", "").c_str(),
               static_cast<unsigned long long>(j->value("frames", 0ULL)),
               j->value("status", "").c_str(), j->value("reason", "").empty() ? "" : ": ",
@@ -129,8 +135,9 @@ int run_list(Args args) {
   cli::ArgParser p("mocap take list", "The takes on a running mocapd.");
   box.add_to(p);
   if (int rc = cli::handle_parse(p, args); rc >= 0) return rc;
-  auto j = call(box, "GET", "/takes");
-  if (!j) return 1;
+  int rc = 1;
+  auto j = call(box, "GET", "/takes", rc);
+  if (!j) return rc;
   std::printf("%-32s %-12s %10s  %s\n", "name", "status", "frames", "reason");
   for (const json& t : (*j)["takes"]) {
     std::printf(

@@ -4,7 +4,9 @@
 #include <string_view>
 #include <vector>
 
+#include "runtime/core/box_defaults.h"
 #include "tools/common/allocator.h"
+#include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
 
 namespace {
@@ -19,13 +21,13 @@ struct Command {
 // clang-format off
 const Command kCommands[] = {
   {"calib",   "show, check or compare calibration files",                 mocap::tools::run_calib, nullptr},
-  {"calibrate", "calibrate the cameras from people walking (no board)",   mocap::tools::run_calibrate, nullptr},
+  {"calibrate", "calibrate the cameras: from people walking, or a board", mocap::tools::run_calibrate, nullptr},
   {"eval",    "evaluate the association engine on a benchmark (shelf)",   mocap::tools::run_eval, nullptr},
   {"export",  "export a take as BVH, glTF or NDJSON (Blender, Unity, ...)", mocap::tools::run_export, nullptr},
   {"take",    "start, stop or list takes on a running mocapd",            mocap::tools::run_take, nullptr},
   {"token",   "print the box's access token (web page and HTTP actions)", mocap::tools::run_token, nullptr},
   {"soak",    "run mocapd for a long time on a looping replay, watching for leaks", mocap::tools::run_soak, nullptr},
-  {"bench",   "benchmarks: assoc, cnn, pipeline",                         mocap::tools::run_bench, nullptr},
+  {"bench",   "benchmarks: assoc, cnn, pipeline, fusion",                 mocap::tools::run_bench, nullptr},
   {"infer",   "run the pose CNN on a tensor or an image",                 mocap::tools::run_infer, nullptr},
   {"gpu",     "Vulkan devices: limits, kernels that fit, the CNN's plan", mocap::tools::run_gpu, nullptr},
   {"model",   "convert and inspect model files",                          mocap::tools::run_model, nullptr},
@@ -40,7 +42,8 @@ const Command kCommands[] = {
 
 void print_usage(std::FILE* out) {
   std::fputs(
-      "usage: mocap <command> [arguments]   (mocap <command> --help for details)\n\ncommands:\n",
+      "usage: mocap <command> [arguments]   (mocap <command> --help for details; mocap "
+      "--version)\n\ncommands:\n",
       out);
   for (const Command& c : kCommands) {
     std::fprintf(out, "  %-8s %s%s\n", c.name, c.summary, c.run ? "" : "  [not in this build yet]");
@@ -56,6 +59,10 @@ int main(int argc, char** argv) {
     print_usage(args.empty() ? stderr : stdout);
     return args.empty() ? 2 : 0;
   }
+  if (args[0] == "--version") {
+    std::printf("mocap %s\n", mocap::kVersion);
+    return 0;
+  }
   for (const Command& c : kCommands) {
     if (args[0] != c.name) continue;
     mocap::tools::Args rest(args.data() + 1, args.size() - 1);
@@ -66,7 +73,10 @@ int main(int argc, char** argv) {
                  c.summary, c.pending);
     return help ? 0 : 2;
   }
-  std::fprintf(stderr, "mocap: unknown command '%s'\n\n", std::string(args[0]).c_str());
+  std::vector<std::string_view> names;
+  for (const Command& c : kCommands) names.push_back(c.name);
+  std::fprintf(stderr, "mocap: unknown command '%s'%s\n\n", std::string(args[0]).c_str(),
+               mocap::cli::did_you_mean(names, args[0]).c_str());
   print_usage(stderr);
   return 2;
 }

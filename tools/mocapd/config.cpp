@@ -42,8 +42,9 @@ void add_network_and_sources(std::vector<OptionSpec>& v) {
                            "source tree's board/",
                            &DaemonConfig::board_dir));
   v.push_back(string_param("calibration", "path",
-                           "calibration file; empty = <state_dir>/calibration.json, then the "
-                           "board's; cameras without one stream 2D detections",
+                           "calibration file, checked at start (unusable: exit 2); empty = "
+                           "<state_dir>/calibration.json, then the board's; cameras without one "
+                           "stream 2D detections; with replay it replaces the recording's",
                            &DaemonConfig::calibration));
   v.push_back(string_param("state_dir", "path", "the box's state folder (calibration.json)",
                            &DaemonConfig::state_dir));

@@ -29,7 +29,7 @@
 
 namespace mocap::daemon {
 
-inline constexpr const char* kDaemonVersion = "0.2.0";
+inline constexpr const char* kDaemonVersion = kVersion;
 
 // When a stage queue is full: kAuto blocks for a replay at full speed (every frame processed)
 // and drops the oldest frame otherwise (live: latency stays bounded).

@@ -18,6 +18,7 @@
 #include "runtime/box/camera_views.h"
 #include "runtime/core/clock.h"
 #include "runtime/core/log.h"
+#include "runtime/geometry/calibration.h"
 #include "runtime/gpu/cnn_detector.h"
 #include "runtime/net/json_reply.h"
 #include "runtime/net/stream_server.h"
@@ -61,6 +62,18 @@ pipeline::DropPolicy drop_policy(const DaemonConfig& c, box::SourceKind source_k
   return replay_full_speed ? pipeline::DropPolicy::kBlock : pipeline::DropPolicy::kDropOldest;
 }
 
+// A calibration named in the configuration must be usable whatever the source: a file given
+// and silently not used looks accepted (exit 2, as for any bad configuration).
+Status check_calibration_file(const DaemonConfig& c) {
+  if (c.calibration.empty()) return {};
+  auto cal = load_calibration(c.calibration);
+  if (cal.ok()) return {};
+  return Error(ErrorCode::kInvalidArgument,
+               "calibration " + c.calibration + ": " + cal.error().message() +
+                   " (fix the file, make one with `mocap calibrate people` or `mocap calibrate "
+                   "board`, or leave `calibration` out to use the state folder's)");
+}
+
 }  // namespace
 
 Daemon::~Daemon() {
@@ -79,6 +92,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
   d->config_ = config;
   d->hooks_ = std::move(hooks);
   d->unix_offset_ns_ = realtime_offset_ns();
+  if (Status s = check_calibration_file(config); !s.ok()) return s.error();
   box::CalibrationLifecycleOptions lo = config.lifecycle;
   // A recording's calibration is not checked: a replay gives the same skeletons every time.
   lo.calibration_check = lo.calibration_check && config.replay.empty();
@@ -114,7 +128,8 @@ Status Daemon::open_replay() {
   o.source.loop = config_.loop;
   o.source.realtime = config_.replay_realtime;
   if (Status s = tools::apply_cnn_choice(config_.cnn, "", o.cnn); !s.ok()) return s;
-  o.source.calibration_optional = true;  // a fresh recording: calibrated while it plays
+  o.source.calibration_optional = true;             // a fresh recording: calibrated while it plays
+  o.source.calibration_file = config_.calibration;  // the one named, else the recording's
   auto parts = tools::open_replay(o);
   if (!parts.ok()) return parts.error().with_context("replay");
   source_kind_ = box::SourceKind::kReplay;
@@ -151,7 +166,9 @@ Status Daemon::open_replay() {
     return {};
   }
   lifecycle_->adopt_engine(Calibration{std::move(parts->cameras), camera_names_},
-                           (fs::path(config_.replay) / "calibration.json").string(),
+                           config_.calibration.empty()
+                               ? (fs::path(config_.replay) / "calibration.json").string()
+                               : config_.calibration,
                            std::move(parts->engine));
   return {};
 }
@@ -191,6 +208,29 @@ Status Daemon::open_simulator(double rate_hz) {
                   " simulated people, " + std::to_string(so.views) +
                   " virtual cameras); plug in cameras and restart mocapd",
               "plug in cameras and restart mocapd");
+  // The CNN's settings given, but the simulator renders detections: said, never silent.
+  std::string unused;
+  const gpu::CnnChoice defaults;
+  for (const auto& p : gpu::CnnChoice::params()) {
+    if (p.show(config_.cnn) == p.show(defaults)) continue;
+    if (!unused.empty()) unused += ", ";
+    unused += p.key;
+  }
+  if (!unused.empty()) {
+    std::string text = unused;
+    text +=
+        " not used: no camera found, the simulator gives detections without the CNN; plug in "
+        "cameras and restart mocapd";
+    add_problem(box::ProblemCode::kNoCamera, text, "plug in cameras and restart mocapd");
+  }
+  if (!config_.calibration.empty()) {
+    // Checked and usable, but not for the simulator's virtual cameras: said, never silent.
+    const std::string text = "calibration " + config_.calibration +
+                             " is not used: no camera found, the simulator streams with its own "
+                             "virtual rig; plug in the cameras it belongs to and restart mocapd";
+    add_problem(box::ProblemCode::kCalibrationMismatch, text,
+                "plug in the cameras it belongs to and restart mocapd");
+  }
   const Calibration calibration = (*src)->calibration();
   const SkeletonTopology& topology = (*src)->topology();
   for (const Camera& cam : calibration.cameras) camera_names_.push_back(cam.name());
@@ -311,7 +351,10 @@ Status Daemon::open_trigger(const hal::Discovery& disc, double rate_hz) {
   lo.line = disc.board.trigger.gpio_line;
   lo.consumer = "mocapd-trigger";
   auto line = hal::open_gpio_output(lo);
-  if (!line.ok()) return line.error().with_context("board " + disc.board_name + " trigger");
+  if (!line.ok()) {
+    return line.error().with_context("board " + disc.board_name +
+                                     " (its file's trigger.gpio_chip and gpio_line)");
+  }
   hal::TriggerMasterOptions to;
   to.rate_hz = rate_hz;
   if (disc.board.trigger.pulse_width_us > 0) to.pulse_width_us = disc.board.trigger.pulse_width_us;
