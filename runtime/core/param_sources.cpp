@@ -146,6 +146,14 @@ Status apply_json_params(std::span<const ParamSetter> params, std::string_view j
                  src + ": not valid JSON at line " + std::to_string(line) + ", column " +
                      std::to_string(column) + why +
                      (naming.docs.empty() ? "" : " (" + naming.docs + " has an example)"));
+  } catch (const json::exception& e) {
+    // Well-formed but not representable (a number beyond a double: out_of_range.406).
+    std::string why = e.what();
+    const std::size_t tag = why.find("] ");
+    if (tag != std::string::npos) why.erase(0, tag + 2);
+    return Error(ErrorCode::kParse,
+                 src + ": not valid JSON: " + why +
+                     (naming.docs.empty() ? "" : " (" + naming.docs + " has an example)"));
   }
   if (!j.is_object()) return Error(ErrorCode::kParse, src + ": expected a JSON object");
   for (auto it = j.begin(); it != j.end(); ++it) {

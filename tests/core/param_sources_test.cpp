@@ -65,6 +65,9 @@ TEST(ParamSources, AJsonFileIsRefusedNamingTheFileTheKeyAndWhatIsExpected) {
   // A trailing comma, as editors leave it: where it is, as an editor counts (issue 43).
   EXPECT_THAT(apply_json(s, "{\n  \"depth\": 2,\n}\n").error().message(),
               HasSubstr("not valid JSON at line 3, column 1"));
+  // A number beyond a double is an error, not an exception (found by fuzz.config_json).
+  EXPECT_THAT(apply_json(s, R"({"depth": 1e85072014})").error().message(),
+              AllOf(HasSubstr("not valid JSON: number overflow"), HasSubstr("1e85072014")));
   EXPECT_THAT(apply_json(s, R"({"depth_frame": 2})").error().message(),
               AllOf(HasSubstr("unknown key \"depth_frame\""),
                     HasSubstr("did you mean \"depth_frames\"?"), HasSubstr("`boxd --help`")));
