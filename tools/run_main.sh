@@ -25,12 +25,12 @@ run_daemon() {
 }
 
 printf '\n== Main job: mocapd (no configuration) for 150 frames, read by mocap stream\n'
-run_daemon 5 --max-frames 150 --status-log-interval-s 2
+run_daemon 5 --frames 150 --status-log-interval-s 2
 
 if [ -d "$DATA/pose2sim_multi/videos" ]; then
-  printf '\n== mocapd --replay %s (10 frames: videos -> GPU MoveNet -> 4D association -> stream)\n' \
+  printf '\n== mocapd --recording %s (10 frames: videos -> GPU MoveNet -> 4D association -> stream)\n' \
     "$DATA/pose2sim_multi"
-  run_daemon 10 --replay "$DATA/pose2sim_multi" --max-frames 10
+  run_daemon 10 --recording "$DATA/pose2sim_multi" --frames 10
 fi
 if [ -f "$DATA/shelf/calibration.json" ]; then
   printf '\n== mocap eval shelf --data %s\n' "$DATA/shelf"

@@ -4,7 +4,7 @@
 // timestamp: the monotonic time of the pass's start + its recorded presentation time. kEnded at
 // the end, unless loop, which re-opens the videos (frame ids keep counting; a pass starts no
 // earlier than one frame period after the last one's last frame, so timestamps keep rising
-// even when the replay runs faster than recorded). `mocapd --replay`, `mocap replay` and
+// even when the replay runs faster than recorded). `mocapd --recording`, `mocap replay` and
 // `mocap bench pipeline` all read recordings through this.
 #pragma once
 

@@ -1,5 +1,6 @@
 #include "runtime/core/log.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -7,8 +8,18 @@
 #include <mutex>
 #include <vector>
 
+#include "runtime/core/nearest_name.h"
+
 namespace mocap {
 namespace {
+
+// Every category the runtime, hal and tools define (MOCAP_LOG_CATEGORY registers one when it
+// first logs, too late to check a MOCAP_LOG spec against). Log.EveryCategoryOfTheSourceIsListed
+// reads the sources and keeps this list whole.
+constexpr std::string_view kCategories[] = {
+    "Assoc",    "Box",     "Calib", "CalibCheck", "Camera", "Cnn",     "Daemon",
+    "Dds",      "Exports", "Gpu",   "Libcamera",  "Net",    "Outputs", "Pipeline",
+    "Recorder", "Replay",  "Rig",   "Trigger",    "V4l2",   "Video",   "Web"};
 
 struct Registry {
   std::mutex mutex;
@@ -44,8 +55,35 @@ const char* level_tag(LogLevel level) {
   return "?";
 }
 
-Status parse_spec_locked(Registry& r, std::string_view spec) {
-  std::map<std::string, LogLevel, std::less<>> parsed;
+bool known_locked(const Registry& r, std::string_view name) {
+  for (std::string_view c : kCategories) {
+    if (c == name) return true;
+  }
+  for (const LogCategory* c : r.categories) {
+    if (name == c->name()) return true;
+  }
+  return false;
+}
+
+Error unknown_category(const Registry& r, std::string_view item, std::string_view name) {
+  std::vector<std::string_view> names(std::begin(kCategories), std::end(kCategories));
+  for (const LogCategory* c : r.categories) {
+    if (std::find(names.begin(), names.end(), c->name()) == names.end())
+      names.emplace_back(c->name());
+  }
+  const std::string_view near = nearest_name(names, name);
+  std::string list;
+  for (std::string_view n : names) (list += list.empty() ? "" : ", ") += n;
+  return Error(ErrorCode::kInvalidArgument,
+               "MOCAP_LOG item '" + std::string(item) + "': no log category '" + std::string(name) +
+                   "'" +
+                   (near.empty() ? std::string() : " (did you mean '" + std::string(near) + "'?)") +
+                   "; the categories: " + list + ", or * for all");
+}
+
+// Parses `spec` into `parsed`; unknown level names and category names are errors.
+Status parse_spec(const Registry& r, std::string_view spec,
+                  std::map<std::string, LogLevel, std::less<>>& parsed) {
   size_t pos = 0;
   while (pos <= spec.size()) {
     size_t end = spec.find(',', pos);
@@ -59,8 +97,15 @@ Status parse_spec_locked(Registry& r, std::string_view spec) {
     auto level = parse_log_level(lvl);
     if (!level.ok())
       return level.error().with_context("MOCAP_LOG item '" + std::string(item) + "'");
+    if (name != "*" && !known_locked(r, name)) return unknown_category(r, item, name);
     parsed[name] = *level;
   }
+  return Status::Ok();
+}
+
+Status parse_spec_locked(Registry& r, std::string_view spec) {
+  std::map<std::string, LogLevel, std::less<>> parsed;
+  if (Status s = parse_spec(r, spec, parsed); !s.ok()) return s;
   for (auto& [k, v] : parsed) r.overrides[k] = v;
   for (LogCategory* c : r.categories) c->set_level(level_for(r, c->name()));
   return Status::Ok();
@@ -94,6 +139,19 @@ LogCategory::LogCategory(const char* name) : name_(name), level_(LogLevel::Info)
   apply_env_locked(r);
   r.categories.push_back(this);
   set_level(level_for(r, name_));
+}
+
+Status check_log_levels(std::string_view spec) {
+  Registry& r = registry();
+  std::lock_guard lock(r.mutex);
+  std::map<std::string, LogLevel, std::less<>> parsed;
+  return parse_spec(r, spec, parsed);
+}
+
+bool log_category_known(std::string_view name) {
+  Registry& r = registry();
+  std::lock_guard lock(r.mutex);
+  return known_locked(r, name);
 }
 
 Status set_log_levels(std::string_view spec) {

@@ -33,9 +33,14 @@ class LogCategory {
   std::atomic<LogLevel> level_;
 };
 
-// Parses "name:level,name:level" ("*" = every category). Unknown level names are an error;
-// unknown category names are kept and applied when that category registers.
+// Parses "name:level,name:level" ("*" = every category) and applies it. Unknown level names
+// and category names are errors (with the nearest category); a known category that has not
+// logged yet gets its level when it registers.
 Status set_log_levels(std::string_view spec);
+// The same checks without applying (a configuration read before it is used).
+Status check_log_levels(std::string_view spec);
+// A category of the runtime, hal or tools, or one registered by this program.
+bool log_category_known(std::string_view name);
 Result<LogLevel> parse_log_level(std::string_view name);
 
 class LogMessage {

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "runtime/core/atomic_file.h"
+#include "runtime/core/nearest_name.h"
 
 namespace mocap {
 namespace {
@@ -23,16 +24,23 @@ std::string upper(std::string s) {
   return s;
 }
 
-// The parameter sharing the longest prefix (at least 3 characters), for "did you mean".
-std::string nearest_key(std::span<const ParamSetter> params, std::string_view key) {
-  const ParamSetter* best = nullptr;
-  std::size_t best_len = 0;
+// " (did you mean "<key>"?)" for the parameter nearest to `key` (runtime/core/nearest_name.h),
+// its spelling mapped by `spell` (the key itself, its variable); "" when none is near.
+template <typename Spell>
+std::string nearest_key(std::span<const ParamSetter> params, std::string_view key, Spell spell) {
+  std::vector<std::string> spelt;
+  spelt.reserve(params.size());
+  for (const ParamSetter& p : params) spelt.push_back(spell(p.key));
+  const std::vector<std::string_view> names(spelt.begin(), spelt.end());
+  const std::string_view best = nearest_name(names, key);
+  return best.empty() ? std::string() : " (did you mean \"" + std::string(best) + "\"?)";
+}
+
+const ParamSetter* find_key(std::span<const ParamSetter> params, std::string_view key) {
   for (const ParamSetter& p : params) {
-    std::size_t n = 0;
-    while (n < p.key.size() && n < key.size() && p.key[n] == key[n]) ++n;
-    if (n > best_len) best_len = n, best = &p;
+    if (p.key == key) return &p;
   }
-  return best != nullptr && best_len >= 3 ? " (did you mean \"" + best->key + "\"?)" : "";
+  return nullptr;
 }
 
 // A JSON value as the text ParamSetter::set parses; empty when it has the wrong JSON type.
@@ -118,6 +126,22 @@ std::string params_markdown(std::span<const ParamText> params, const ParamNaming
   return out;
 }
 
+std::string renamed_key(std::string_view name, const ParamNaming& naming) {
+  for (const ParamRename& r : naming.renamed) {
+    if (r.old_key == name || param_flag(r.old_key) == name) return r.new_key;
+  }
+  return {};
+}
+
+std::string deprecation_warning(std::string_view what, std::string_view replacement) {
+  std::string w("warning: ");
+  w += what;
+  w += " is deprecated: use ";
+  w += replacement;
+  w += " (the old spelling goes in the next release)";
+  return w;
+}
+
 const ParamSetter* find_param(std::span<const ParamSetter> params, std::string_view name) {
   for (const ParamSetter& p : params) {
     if (p.key == name || param_flag(p.key) == name) return &p;
@@ -126,7 +150,8 @@ const ParamSetter* find_param(std::span<const ParamSetter> params, std::string_v
 }
 
 Status apply_json_params(std::span<const ParamSetter> params, std::string_view json_text,
-                         std::string_view source, const ParamNaming& naming) {
+                         std::string_view source, const ParamNaming& naming,
+                         ParamWarnings* warnings) {
   const std::string src(source);
   json j;
   try {
@@ -157,11 +182,18 @@ Status apply_json_params(std::span<const ParamSetter> params, std::string_view j
   }
   if (!j.is_object()) return Error(ErrorCode::kParse, src + ": expected a JSON object");
   for (auto it = j.begin(); it != j.end(); ++it) {
-    const ParamSetter* p = find_param(params, it.key());
-    if (p == nullptr || p->key != it.key()) {
-      return Error(ErrorCode::kInvalidArgument, src + ": unknown key \"" + it.key() + "\"" +
-                                                    nearest_key(params, it.key()) + "; `" +
-                                                    naming.program + " --help` lists the options");
+    const ParamSetter* p = find_key(params, it.key());
+    if (const std::string renamed = renamed_key(it.key(), naming);
+        p == nullptr && !renamed.empty() && (p = find_key(params, renamed)) != nullptr &&
+        warnings != nullptr) {
+      warnings->push_back(
+          deprecation_warning(src + ": key \"" + it.key() + "\"", "\"" + renamed + "\""));
+    }
+    if (p == nullptr) {
+      return Error(ErrorCode::kInvalidArgument,
+                   src + ": unknown key \"" + it.key() + "\"" +
+                       nearest_key(params, it.key(), [](const std::string& k) { return k; }) +
+                       "; `" + naming.program + " --help` lists the options");
     }
     std::optional<std::string> text = json_value_text(*it, p->type);
     if (!text) {
@@ -179,7 +211,7 @@ Status apply_json_params(std::span<const ParamSetter> params, std::string_view j
 }
 
 Status apply_json_file_params(std::span<const ParamSetter> params, const std::string& path,
-                              const ParamNaming& naming) {
+                              const ParamNaming& naming, ParamWarnings* warnings) {
   std::ifstream in(path);
   if (!in) {
     return Error(ErrorCode::kNotFound, path + ": cannot open the config file (" +
@@ -187,11 +219,11 @@ Status apply_json_file_params(std::span<const ParamSetter> params, const std::st
   }
   std::stringstream text;
   text << in.rdbuf();
-  return apply_json_params(params, text.str(), path, naming);
+  return apply_json_params(params, text.str(), path, naming, warnings);
 }
 
-Status apply_env_params(std::span<const ParamSetter> params, char** env,
-                        const ParamNaming& naming) {
+Status apply_env_params(std::span<const ParamSetter> params, char** env, const ParamNaming& naming,
+                        ParamWarnings* warnings) {
   if (env == nullptr) return {};
   for (char** e = env; *e != nullptr; ++e) {
     const std::string_view kv(*e);
@@ -201,10 +233,22 @@ Status apply_env_params(std::span<const ParamSetter> params, char** env,
     auto found = std::find_if(params.begin(), params.end(), [&](const ParamSetter& p) {
       return param_env(p.key, naming) == name;
     });
+    for (const ParamRename& r : naming.renamed) {
+      if (found != params.end() || param_env(r.old_key, naming) != name) continue;
+      found = std::find_if(params.begin(), params.end(),
+                           [&](const ParamSetter& p) { return p.key == r.new_key; });
+      if (found != params.end() && warnings != nullptr) {
+        warnings->push_back(
+            deprecation_warning("environment variable " + name, param_env(r.new_key, naming)));
+      }
+    }
     if (found == params.end()) {
       return Error(ErrorCode::kInvalidArgument,
-                   "environment variable " + name + ": no such option (`" + naming.program +
-                       " --help` lists the " + naming.env_prefix + "* variables)");
+                   "environment variable " + name + ": no such option" +
+                       nearest_key(params, name,
+                                   [&](const std::string& k) { return param_env(k, naming); }) +
+                       " (`" + naming.program + " --help` lists the " + naming.env_prefix +
+                       "* variables)");
     }
     if (Status s = found->set(kv.substr(eq + 1)); !s.ok()) {
       return Error(ErrorCode::kInvalidArgument,

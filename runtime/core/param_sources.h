@@ -20,12 +20,27 @@
 
 namespace mocap {
 
+// A key renamed: the old spelling (config key, variable, flag) still sets the new one for a
+// release, with a warning naming the new one.
+struct ParamRename {
+  std::string old_key;  // "replay"
+  std::string new_key;  // "recording"
+};
+
 // How a program names its parameters outside its code.
 struct ParamNaming {
   std::string program;     // "mocapd": errors point at `<program> --help`
   std::string env_prefix;  // "MOCAPD_": the variable of key k is <env_prefix><K>
   std::string docs;        // "docs/mocapd.md": where a config file's example is ("" none)
+  std::vector<ParamRename> renamed;
 };
+
+// The key an old spelling was renamed to (`name`: a key or a --flag); empty when none.
+std::string renamed_key(std::string_view name, const ParamNaming& naming);
+// "warning: <what> is deprecated: use <new> (the old spelling goes in the next release)".
+std::string deprecation_warning(std::string_view what, std::string_view replacement);
+// Where the deprecation warnings of the functions below go (one line each, no newline).
+using ParamWarnings = std::vector<std::string>;
 
 std::string param_flag(std::string_view key);                            // "--stream-port"
 std::string param_env(std::string_view key, const ParamNaming& naming);  // "MOCAPD_STREAM_PORT"
@@ -80,15 +95,18 @@ const ParamSetter* find_param(std::span<const ParamSetter> params, std::string_v
 
 // Applies a JSON object's keys in file order. Errors name `source` and the key: not JSON, not
 // an object, an unknown key (with the nearest one), a value of the wrong JSON type, or the
-// parameter's own refusal (its range).
+// parameter's own refusal (its range). A renamed key sets the new one and adds a warning.
 Status apply_json_params(std::span<const ParamSetter> params, std::string_view json_text,
-                         std::string_view source, const ParamNaming& naming);
+                         std::string_view source, const ParamNaming& naming,
+                         ParamWarnings* warnings = nullptr);
 // Reads the file and applies it as above; a file that cannot be opened is kNotFound naming it
 // and --config.
 Status apply_json_file_params(std::span<const ParamSetter> params, const std::string& path,
-                              const ParamNaming& naming);
+                              const ParamNaming& naming, ParamWarnings* warnings = nullptr);
 // Applies every <env_prefix>* variable of `env` (NAME=value strings, null-terminated; null:
-// none). A variable with the prefix that names no parameter is an error naming it.
-Status apply_env_params(std::span<const ParamSetter> params, char** env, const ParamNaming& naming);
+// none). A variable with the prefix that names no parameter is an error naming it (with the
+// nearest one); a renamed one sets the new key and adds a warning.
+Status apply_env_params(std::span<const ParamSetter> params, char** env, const ParamNaming& naming,
+                        ParamWarnings* warnings = nullptr);
 
 }  // namespace mocap

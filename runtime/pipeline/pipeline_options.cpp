@@ -11,7 +11,7 @@ const std::vector<Param<PipelineOptions>>& PipelineOptions::params() {
                 "real-time priority of the pipeline threads (1-99; needs CAP_SYS_NICE or "
                 "LimitRTPRIO); 0 = normal scheduling",
                 &O::realtime_priority),
-      int_param("max_frames", "frames", {-1, 2147483647},
+      int_param("frames", "frames", {-1, 2147483647},
                 "stop after this many frames; -1 = run until stopped", &O::max_frames),
       int_param("metrics_window", "samples", {16, 1 << 20},
                 "samples each latency statistic is taken over", &O::metrics_window)};

@@ -1,5 +1,6 @@
 // How the real-time pipeline queues and schedules, declared once (runtime/core/params.h):
-// mocapd's queue_depth, realtime_priority and max_frames are these parameters.
+// mocapd's queue_depth, realtime_priority and frames are these parameters (frames sets
+// max_frames).
 #pragma once
 
 #include <cstdint>

@@ -30,7 +30,7 @@ struct Settings {
   }
 };
 
-const ParamNaming kNaming{"boxd", "BOXD_", "docs/boxd.md"};
+const ParamNaming kNaming{"boxd", "BOXD_", "docs/boxd.md", {{"timeout", "timeout_s"}}};
 
 Status apply_json(Settings& s, std::string_view text) {
   return apply_json_params(setters(Settings::params(), s), text, "box.json", kNaming);
@@ -95,6 +95,36 @@ TEST(ParamSources, EnvironmentVariablesWithThePrefixMustNameAParameter) {
       apply_env_params(setters(Settings::params(), s), env2.data(), kNaming).error().message(),
       AllOf(HasSubstr("BOXD_DEPTH"), HasSubstr("BOXD_* variables")));
   EXPECT_TRUE(apply_env_params(setters(Settings::params(), s), nullptr, kNaming).ok());
+}
+
+// A renamed key (issue 43's one vocabulary) still sets the new one for a release, from a file
+// and from the environment, each time with a warning naming the new spelling.
+TEST(ParamSources, AnOldSpellingSetsTheNewKeyWithAWarning) {
+  Settings s;
+  ParamWarnings warnings;
+  ASSERT_TRUE(apply_json_params(setters(Settings::params(), s), R"({"timeout": 2.5})", "box.json",
+                                kNaming, &warnings)
+                  .ok());
+  EXPECT_EQ(s.timeout_s, 2.5);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_THAT(warnings[0], AllOf(HasSubstr("box.json: key \"timeout\" is deprecated"),
+                                 HasSubstr("use \"timeout_s\""), HasSubstr("next release")));
+  std::string old_var = "BOXD_TIMEOUT=4";
+  std::vector<char*> env = {old_var.data(), nullptr};
+  ASSERT_TRUE(
+      apply_env_params(setters(Settings::params(), s), env.data(), kNaming, &warnings).ok());
+  EXPECT_EQ(s.timeout_s, 4);
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_THAT(warnings[1], AllOf(HasSubstr("environment variable BOXD_TIMEOUT is deprecated"),
+                                 HasSubstr("use BOXD_TIMEOUT_S")));
+  EXPECT_EQ(renamed_key("--timeout", kNaming), "timeout_s");
+  EXPECT_EQ(renamed_key("timeout_s", kNaming), "");
+  // A misspelt variable names the nearest one.
+  std::string typo = "BOXD_DEPTH_FRAMSE=3";
+  std::vector<char*> env2 = {typo.data(), nullptr};
+  EXPECT_THAT(
+      apply_env_params(setters(Settings::params(), s), env2.data(), kNaming).error().message(),
+      HasSubstr("did you mean \"BOXD_DEPTH_FRAMES\"?"));
 }
 
 TEST(ParamSources, PrintedJsonReadsBackToTheSameSettings) {

@@ -2,7 +2,7 @@
 // (portrait 1080p: its RGB rows are not a multiple of the converter's SIMD width, the case that
 // corrupted the heap before), 1088x1920, 638x478 and 641x479 (odd), coded as H.264, VP9, MJPEG
 // and VP9, generated here from the first frames of the shared pose2sim_multi clip with a
-// calibration that matches each view's crop, scale and padding. `mocapd --replay`, `mocap
+// calibration that matches each view's crop, scale and padding. `mocapd --recording`, `mocap
 // replay` and `mocap bench pipeline` (the binaries of this build: ASan + UBSan in the sanitizer
 // suite) must each exit 0 and give the same skeletons, frame by frame: they run one pipeline.
 //
@@ -221,7 +221,7 @@ TEST(MixedGeometry, ThreeToolsOnePipelineSameSkeletons) {
   // (decoding and the CNN take far longer than a loopback connect; frame ids are checked).
   const int port = free_port();
   testing::ChildProcess daemon(
-      {bin + "/mocapd", "--replay", rec.string(), "--model", model.string(), "--bind-address",
+      {bin + "/mocapd", "--recording", rec.string(), "--model", model.string(), "--bind-address",
        "127.0.0.1", "--stream-port", std::to_string(port), "--http-port", "-1", "--state-dir",
        (tmp.path() / "state").string()},
       tmp.path(), "mocapd");

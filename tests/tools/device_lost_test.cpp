@@ -49,7 +49,7 @@ TEST(DeviceLost, MocapdReopensTheCnnAndKeepsStreaming) {
   testing::TestTempDir dir("device-lost");
   ::setenv("MOCAP_FAULT_DEVICE_LOST_AT_SUBMIT", "6", 1);
   testing::MocapdProcess m =
-      testing::start_mocapd(kBin, dir.path(), {"--replay", recording.string(), "--loop"});
+      testing::start_mocapd(kBin, dir.path(), {"--recording", recording.string(), "--loop"});
   ::unsetenv("MOCAP_FAULT_DEVICE_LOST_AT_SUBMIT");
   ASSERT_TRUE(m.process->started());
   ASSERT_GT(m.http_port, 0) << m.process->err_so_far();

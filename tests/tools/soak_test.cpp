@@ -1,4 +1,4 @@
-// The 3-minute soak (docs/hardening.md): `mocap soak --replay pose2sim_multi --minutes 3` as a
+// The 3-minute soak (docs/hardening.md): `mocap soak --recording pose2sim_multi --minutes 3` as a
 // user runs it: build/bin/mocapd on the looping real recording with clients coming and going,
 // the page's endpoints polled, takes started and stopped. Passes when the tool does: no stream
 // message lost by a connected reader, no id switch, no HTTP error, mocapd alive, fds flat.

@@ -447,7 +447,7 @@ TEST_F(Browser, BoardCalibrationFromThePage) {
   MOCAP_REQUIRE_DATA(data, "caliscope_charuco");
   testing::MocapdProcess m = testing::start_mocapd(
       kBin, dir_.path(),
-      {"--replay", data.string(), "--loop", "--gpu", "cpu", "--input-size-px", "64"});
+      {"--recording", data.string(), "--loop", "--gpu", "cpu", "--input-size-px", "64"});
   ASSERT_GT(m.http_port, 0) << m.process->err_so_far();
   const fs::path out = artefacts("board");
   const json r = drive(m, out, "board", 150, dir_.path(),

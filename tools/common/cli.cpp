@@ -11,6 +11,8 @@
 #include <filesystem>
 #include <sstream>
 
+#include "runtime/core/nearest_name.h"
+
 namespace mocap::cli {
 
 ArgParser::ArgParser(std::string command, std::string summary)
@@ -199,32 +201,8 @@ int usage_error(std::string_view message) {
   return 2;
 }
 
-namespace {
-
-std::size_t edit_distance(std::string_view a, std::string_view b) {
-  std::vector<std::size_t> row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    std::size_t diagonal = row[0];
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      const std::size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diagonal = up;
-    }
-  }
-  return row[b.size()];
-}
-
-}  // namespace
-
 std::string did_you_mean(std::span<const std::string_view> names, std::string_view typed) {
-  std::string_view best;
-  std::size_t best_d = std::max<std::size_t>(2, typed.size() / 3) + 1;
-  for (std::string_view n : names) {
-    const std::size_t d = edit_distance(n, typed);
-    if (d < best_d) best_d = d, best = n;
-  }
+  const std::string_view best = nearest_name(names, typed);
   return best.empty() ? std::string() : " (did you mean '" + std::string(best) + "'?)";
 }
 

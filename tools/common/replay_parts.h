@@ -1,4 +1,4 @@
-// A recording opened for the pipeline, the one way every tool does it (`mocapd --replay`,
+// A recording opened for the pipeline, the one way every tool does it (`mocapd --recording`,
 // `mocap replay`, `mocap bench pipeline`): the replay source, the pose CNN batched over its
 // views, and the association engine on its calibration (COCO-17, the PoseNet preset).
 #pragma once

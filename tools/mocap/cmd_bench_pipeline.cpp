@@ -1,6 +1,6 @@
-// mocap bench pipeline --replay DIR: the real-time pipeline on a recording (decode -> batched
+// mocap bench pipeline --recording DIR: the real-time pipeline on a recording (decode -> batched
 // GPU CNN -> association + fitting -> JSON encode -> publish to a stream server), composed as
-// `mocapd --replay` composes it (tools/common/replay_parts.h) and run the same way (three
+// `mocapd --recording` composes it (tools/common/replay_parts.h) and run the same way (three
 // threads; the CNN of frame t+1 overlaps the association of frame t), every frame processed
 // (block policy). Prints end-to-end frames/s, per-stage latency (median / p99 over the frames)
 // and the overlap ratio: the sum of the stage medians over the measured time per frame (1.0 =

@@ -32,7 +32,7 @@ namespace mocap::tools {
 namespace {
 
 constexpr const char* kHelp =
-    "Runs a recorded multi-view capture through the real-time pipeline, as `mocapd --replay`\n"
+    "Runs a recorded multi-view capture through the real-time pipeline, as `mocapd --recording`\n"
     "does (same source, detector, engine and threads; every frame processed): the N videos\n"
     "(DIR/videos/<view>.mp4, view = 0..N-1, the view ids of DIR/calibration.json) are\n"
     "decoded frame by frame, the pose CNN (MoveNet MultiPose, or PoseNet with --model\n"

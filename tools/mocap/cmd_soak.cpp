@@ -1,4 +1,4 @@
-// mocap soak --replay DIR --minutes N: runs mocapd (the sibling binary) on a looping replay of a
+// mocap soak --recording DIR --minutes N: runs mocapd (the sibling binary) on a looping replay of a
 // recording, as a box left alone for months sees it, and prints every minute what drifts when
 // something leaks: the process's RSS, open fds and threads, the pipeline stages' p99, and what
 // the clients saw: stream messages lost by connected readers, id switches, HTTP errors.
@@ -468,7 +468,7 @@ int soak(const SoakOptions& o) {
   const int http_port = free_port(), stream_port = free_port();
   const std::string box = "127.0.0.1:" + std::to_string(http_port);
   const std::vector<std::string> argv = {o.mocapd.empty() ? default_mocapd() : o.mocapd,
-                                         "--replay",
+                                         "--recording",
                                          o.replay,
                                          "--loop",
                                          "--dev-dir",

@@ -1,10 +1,12 @@
 // mocap: the operator CLI, git-style subcommands. `mocap --help` lists them.
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "runtime/core/box_defaults.h"
+#include "runtime/core/log.h"
 #include "tools/common/allocator.h"
 #include "tools/common/cli.h"
 #include "tools/mocap/commands.h"
@@ -62,6 +64,12 @@ int main(int argc, char** argv) {
   if (args[0] == "--version") {
     std::printf("mocap %s\n", mocap::kVersion);
     return 0;
+  }
+  // A misspelt MOCAP_LOG category would otherwise show only when that category first logs.
+  if (const char* spec = std::getenv("MOCAP_LOG"); spec != nullptr) {
+    if (mocap::Status s = mocap::check_log_levels(spec); !s.ok()) {
+      return mocap::cli::usage_error("environment variable MOCAP_LOG: " + s.error().message());
+    }
   }
   for (const Command& c : kCommands) {
     if (args[0] != c.name) continue;

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "runtime/core/log.h"
+#include "runtime/core/nearest_name.h"
 #include "runtime/core/param_sources.h"
 #include "runtime/out/vmc_sender.h"
 
@@ -22,17 +23,17 @@ void add_network_and_sources(std::vector<OptionSpec>& v) {
                     "client_backlog_kib", "allowed_hosts", "token_for_reading"}));
   // Sources
   v.push_back(
-      string_param("replay", "path",
+      string_param("recording", "path",
                    "run a recording (calibration.json + videos/<view>.mp4) through the whole "
-                   "pipeline instead of cameras; exits at its end unless loop",
-                   &DaemonConfig::replay));
+                   "pipeline instead of cameras; exits at its end unless loop (was replay)",
+                   &DaemonConfig::recording));
+  v.push_back(bool_param("loop", "recording: start it again at its end", &DaemonConfig::loop));
   v.push_back(
-      bool_param("loop", "replay: start the recording again at its end", &DaemonConfig::loop));
-  v.push_back(bool_param("replay_realtime",
-                         "replay: deliver frames at the recorded rate and drop what the pipeline "
-                         "cannot keep up with (as cameras would); default: every frame, as fast as "
-                         "the pipeline goes",
-                         &DaemonConfig::replay_realtime));
+      bool_param("replay_realtime",
+                 "recording: deliver frames at the recorded rate and drop what the pipeline "
+                 "cannot keep up with (as cameras would); default: every frame, as fast as "
+                 "the pipeline goes",
+                 &DaemonConfig::replay_realtime));
   v.push_back(string_param("board", "name",
                            "board/<name>/board.json to use; empty = the first board whose cameras "
                            "are found (the simulator board when none)",
@@ -44,7 +45,7 @@ void add_network_and_sources(std::vector<OptionSpec>& v) {
   v.push_back(string_param("calibration", "path",
                            "calibration file, checked at start (unusable: exit 2); empty = "
                            "<state_dir>/calibration.json, then the board's; cameras without one "
-                           "stream 2D detections; with replay it replaces the recording's",
+                           "stream 2D detections; with recording it replaces the recording's",
                            &DaemonConfig::calibration));
   v.push_back(string_param("state_dir", "path", "the box's state folder (calibration.json)",
                            &DaemonConfig::state_dir));
@@ -74,7 +75,7 @@ void add_detector_pipeline_and_outputs(std::vector<OptionSpec>& v) {
                              {"drop-oldest", DropPolicyChoice::kDropOldest},
                              {"block", DropPolicyChoice::kBlock}}));
   append(v, nested(&DaemonConfig::pipeline, pipeline::PipelineOptions::params(),
-                   {"realtime_priority", "max_frames"}));
+                   {"realtime_priority", "frames"}));
   // Outputs
   v.push_back(string_param("vmc_targets", "host:port list",
                            "VMC protocol (OSC/UDP) receivers: HOST:PORT[,HOST:PORT...]; person in "
@@ -133,7 +134,9 @@ std::vector<OptionSpec> make_options() {
   return v;
 }
 
-const ParamNaming kNaming{"mocapd", "MOCAPD_", "docs/mocapd.md"};
+// Renamed in 0.2 (issue 43: one vocabulary with mocap's subcommands, docs/cli.md).
+const ParamNaming kNaming{
+    "mocapd", "MOCAPD_", "docs/mocapd.md", {{"replay", "recording"}, {"max_frames", "frames"}}};
 
 }  // namespace
 
@@ -145,24 +148,25 @@ const std::vector<OptionSpec>& config_options() {
 std::string env_name(const OptionSpec& o) { return param_env(o.key, kNaming); }
 std::string flag_name(const OptionSpec& o) { return param_flag(o.key); }
 
-Status apply_config_file(DaemonConfig& config, const std::string& path) {
-  return apply_json_file_params(setters(config_options(), config), path, kNaming);
+Status apply_config_file(DaemonConfig& config, const std::string& path,
+                         std::vector<std::string>* warnings) {
+  return apply_json_file_params(setters(config_options(), config), path, kNaming, warnings);
 }
 
-Status apply_config_text(DaemonConfig& config, std::string_view json_text,
-                         const std::string& path) {
-  return apply_json_params(setters(config_options(), config), json_text, path, kNaming);
+Status apply_config_text(DaemonConfig& config, std::string_view json_text, const std::string& path,
+                         std::vector<std::string>* warnings) {
+  return apply_json_params(setters(config_options(), config), json_text, path, kNaming, warnings);
 }
 
-Status apply_environment(DaemonConfig& config, char** env) {
-  return apply_env_params(setters(config_options(), config), env, kNaming);
+Status apply_environment(DaemonConfig& config, char** env, std::vector<std::string>* warnings) {
+  return apply_env_params(setters(config_options(), config), env, kNaming, warnings);
 }
 
 Status validate(const DaemonConfig& c) {
   auto err = [](const std::string& m) { return Error(ErrorCode::kInvalidArgument, m); };
   // The structs DaemonConfig holds check themselves (ports, address, VMC ports).
   if (Status s = c.server.validate(); !s.ok()) return s;
-  if (c.loop && c.replay.empty()) return err("loop needs replay (a recording folder)");
+  if (c.loop && c.recording.empty()) return err("loop needs recording (a recording folder)");
   if (!c.vmc_targets.empty()) {
     auto targets = out::parse_vmc_targets(c.vmc_targets);
     if (!targets) return err("vmc_targets: " + targets.error().message());
@@ -170,11 +174,11 @@ Status validate(const DaemonConfig& c) {
     vmc.targets = *targets;
     if (Status s = vmc.validate(); !s.ok()) return s;
   }
-  if (c.replay_realtime && c.replay.empty()) {
-    return err("replay_realtime needs replay (a recording folder)");
+  if (c.replay_realtime && c.recording.empty()) {
+    return err("replay_realtime needs recording (a recording folder)");
   }
   if (!c.log.empty()) {
-    if (Status s = set_log_levels(c.log); !s.ok()) {
+    if (Status s = check_log_levels(c.log); !s.ok()) {
       return err("log \"" + c.log + "\": " + s.error().message());
     }
   }
@@ -194,6 +198,38 @@ std::string options_help(const DaemonConfig& defaults) {
 std::string options_markdown(const DaemonConfig& defaults) {
   return params_markdown(describe(config_options(), defaults), kNaming);
 }
+
+namespace {
+
+using OptionIt = std::vector<OptionSpec>::const_iterator;
+
+// The option whose flag is `flag`, or the renamed one an old flag now sets (with a warning).
+OptionIt find_flag(std::string_view flag, std::vector<std::string>& warnings) {
+  const auto by_key = [](std::string_view key) {
+    return std::find_if(config_options().begin(), config_options().end(),
+                        [&](const OptionSpec& o) { return o.key == key; });
+  };
+  auto found = std::find_if(config_options().begin(), config_options().end(),
+                            [&](const OptionSpec& o) { return flag_name(o) == flag; });
+  if (found != config_options().end()) return found;
+  const std::string renamed = renamed_key(flag, kNaming);
+  if (renamed.empty() || flag.substr(0, 2) != "--") return config_options().end();
+  found = by_key(renamed);
+  if (found != config_options().end()) {
+    warnings.push_back(deprecation_warning("mocapd " + std::string(flag), flag_name(*found)));
+  }
+  return found;
+}
+
+std::string nearest_flag(std::string_view typed) {
+  std::vector<std::string> flags{"--config", "--print-config", "--help", "--version", "--vmc"};
+  for (const OptionSpec& o : config_options()) flags.push_back(flag_name(o));
+  const std::vector<std::string_view> names(flags.begin(), flags.end());
+  const std::string_view near = nearest_name(names, typed);
+  return near.empty() ? std::string() : " (did you mean '" + std::string(near) + "'?)";
+}
+
+}  // namespace
 
 Result<CommandLine> parse_command_line(std::span<const std::string_view> args) {
   CommandLine cmd;
@@ -233,11 +269,10 @@ Result<CommandLine> parse_command_line(std::span<const std::string_view> args) {
       if (!v) return v.error();
       cmd.config_file = *v;
     } else {
-      auto found = std::find_if(config_options().begin(), config_options().end(),
-                                [&](const OptionSpec& o) { return flag_name(o) == a; });
+      auto found = find_flag(a, cmd.warnings);
       if (found == config_options().end()) {
-        return Error(ErrorCode::kInvalidArgument,
-                     "unknown option '" + std::string(args[i]) + "' (see mocapd --help)");
+        return Error(ErrorCode::kInvalidArgument, "unknown option '" + std::string(args[i]) + "'" +
+                                                      nearest_flag(a) + " (see mocapd --help)");
       }
       if (found->type == OptionType::kBool && !has_value) {
         cmd.settings.emplace_back(&*found, "true");
@@ -251,12 +286,22 @@ Result<CommandLine> parse_command_line(std::span<const std::string_view> args) {
   return cmd;
 }
 
-Result<DaemonConfig> load_config(const CommandLine& cmd, char** env) {
+Result<DaemonConfig> load_config(const CommandLine& cmd, char** env,
+                                 std::vector<std::string>* warnings) {
   DaemonConfig c;
   if (!cmd.config_file.empty()) {
-    if (Status s = apply_config_file(c, cmd.config_file); !s.ok()) return s.error();
+    if (Status s = apply_config_file(c, cmd.config_file, warnings); !s.ok()) return s.error();
   }
-  if (Status s = apply_environment(c, env); !s.ok()) return s.error();
+  if (Status s = apply_environment(c, env, warnings); !s.ok()) return s.error();
+  // MOCAP_LOG is every program's (runtime/core/log.h); mocapd refuses a bad one at start.
+  for (char** e = env; e != nullptr && *e != nullptr; ++e) {
+    const std::string_view kv(*e);
+    if (kv.substr(0, 10) != "MOCAP_LOG=") continue;
+    if (Status s = check_log_levels(kv.substr(10)); !s.ok()) {
+      return Error(ErrorCode::kInvalidArgument,
+                   "environment variable MOCAP_LOG: " + s.error().message());
+    }
+  }
   for (const auto& [o, v] : cmd.settings) {
     if (Status s = o->set(c, v); !s.ok()) {
       return Error(ErrorCode::kInvalidArgument, flag_name(*o) + ": " + s.error().message());

@@ -46,7 +46,7 @@ struct DaemonConfig {
   // the daemon from <state_dir>/token)
   net::StreamServerOptions server;
   // Where frames come from
-  std::string replay;  // recording folder; empty = cameras, or the simulator when none
+  std::string recording;  // recording folder; empty = cameras, or the simulator when none
   bool loop = false;
   bool replay_realtime = false;
   std::string board;        // board name; empty = auto (first board whose cameras are found)
@@ -93,12 +93,16 @@ std::string flag_name(const OptionSpec& o);  // --stream-port
 
 // Applies a JSON config file's object. Unknown keys and wrong types are errors naming the
 // file and the key.
-Status apply_config_file(DaemonConfig& config, const std::string& path);
+// A renamed key sets its new one and adds a deprecation warning to `warnings` (when given).
+Status apply_config_file(DaemonConfig& config, const std::string& path,
+                         std::vector<std::string>* warnings = nullptr);
 // The same for the file's text; `path` names it in the errors (apply_config_file reads the
 // file and calls this; tests/fuzz/fuzz_config_json.cpp feeds it arbitrary bytes).
-Status apply_config_text(DaemonConfig& config, std::string_view text, const std::string& path);
+Status apply_config_text(DaemonConfig& config, std::string_view text, const std::string& path,
+                         std::vector<std::string>* warnings = nullptr);
 // Applies MOCAPD_* variables from `env` (KEY=VALUE strings, e.g. environ).
-Status apply_environment(DaemonConfig& config, char** env);
+Status apply_environment(DaemonConfig& config, char** env,
+                         std::vector<std::string>* warnings = nullptr);
 // Cross-field checks after all sources are applied.
 Status validate(const DaemonConfig& config);
 
@@ -116,12 +120,15 @@ struct CommandLine {
   bool print_config = false;
   bool help_markdown = false;
   std::vector<std::pair<const OptionSpec*, std::string>> settings;  // flag values, in order
+  std::vector<std::string> warnings;  // old flag spellings used (each names the new one)
 };
 // Parses --config, --help, --version, --print-config and every option flag (--key VALUE or
 // --key=VALUE; boolean flags take no value, or =true/false).
 Result<CommandLine> parse_command_line(std::span<const std::string_view> args);
 
-// The whole chain: defaults, --config file, environment, flags, validate().
-Result<DaemonConfig> load_config(const CommandLine& cmd, char** env);
+// The whole chain: defaults, --config file, environment, flags, validate(); a MOCAP_LOG in
+// `env` is checked too. Deprecated keys and variables add to `warnings`.
+Result<DaemonConfig> load_config(const CommandLine& cmd, char** env,
+                                 std::vector<std::string>* warnings = nullptr);
 
 }  // namespace mocap::daemon

@@ -95,7 +95,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
   if (Status s = check_calibration_file(config); !s.ok()) return s.error();
   box::CalibrationLifecycleOptions lo = config.lifecycle;
   // A recording's calibration is not checked: a replay gives the same skeletons every time.
-  lo.calibration_check = lo.calibration_check && config.replay.empty();
+  lo.calibration_check = lo.calibration_check && config.recording.empty();
   lo.state_file = fs::path(config.state_dir) / "calibration.json";
   if (Status s = lo.validate(); !s.ok()) return s.error();
   d->lifecycle_ = std::make_unique<box::CalibrationLifecycle>(lo, d->problems_);
@@ -105,7 +105,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
   if (config.role == Role::kFusion) {
     s = d->open_fusion();
   } else {
-    s = config.replay.empty() ? d->open_board(board_dir) : d->open_replay();
+    s = config.recording.empty() ? d->open_board(board_dir) : d->open_replay();
     if (s.ok() && config.role == Role::kDetector) s = d->become_detector_node();
   }
   if (!s.ok()) return s.error();
@@ -124,14 +124,14 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config, Daemo
 
 Status Daemon::open_replay() {
   tools::ReplayPartsOptions o;
-  o.source.dir = config_.replay;
+  o.source.dir = config_.recording;
   o.source.loop = config_.loop;
   o.source.realtime = config_.replay_realtime;
   if (Status s = tools::apply_cnn_choice(config_.cnn, "", o.cnn); !s.ok()) return s;
   o.source.calibration_optional = true;             // a fresh recording: calibrated while it plays
   o.source.calibration_file = config_.calibration;  // the one named, else the recording's
   auto parts = tools::open_replay(o);
-  if (!parts.ok()) return parts.error().with_context("replay");
+  if (!parts.ok()) return parts.error().with_context("recording");
   source_kind_ = box::SourceKind::kReplay;
   lifecycle_->set_recipe(coco17_topology(), o.assoc);
   for (std::size_t v = 0; v < parts->cameras.size(); ++v) {
@@ -144,8 +144,8 @@ Status Daemon::open_replay() {
     // Like cameras without a calibration: 2D detections, and the box calibrates itself from
     // the people (or from a board: "Calibrate with a board").
     lifecycle_->set_uncalibrated(CalibrationState::kMissing, "");
-    const std::string subject =
-        "the " + std::to_string(parts->cameras.size()) + " cameras of recording " + config_.replay;
+    const std::string subject = "the " + std::to_string(parts->cameras.size()) +
+                                " cameras of recording " + config_.recording;
     add_problem(box::ProblemCode::kCalibrationMissing,
                 subject +
                     " have no calibration (no calibration.json): streaming 2D detections only; use "
@@ -167,7 +167,7 @@ Status Daemon::open_replay() {
   }
   lifecycle_->adopt_engine(Calibration{std::move(parts->cameras), camera_names_},
                            config_.calibration.empty()
-                               ? (fs::path(config_.replay) / "calibration.json").string()
+                               ? (fs::path(config_.recording) / "calibration.json").string()
                                : config_.calibration,
                            std::move(parts->engine));
   return {};

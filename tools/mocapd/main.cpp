@@ -1,7 +1,7 @@
 // mocapd: the headless appliance daemon. With no configuration it finds the cameras (the
 // first board whose cameras are present; the built-in simulator when none), their
 // calibration and the GPU, and streams skeletons on TCP port 9870 (newline-delimited JSON)
-// and over WebSocket on the HTTP port 9871, which also serves GET /health. `--replay DIR` runs
+// and over WebSocket on the HTTP port 9871, which also serves GET /health. `--recording DIR` runs
 // a recording through the same path and exits at its end. docs/mocapd.md has every option.
 #include <csignal>
 #include <cstdio>
@@ -42,7 +42,7 @@ int main(int argc, char** argv) {
   if (cmd->help) {
     std::printf(
         "usage: mocapd [--config FILE] [OPTIONS]\n\n"
-        "Headless multi-person motion capture: cameras (or --replay DIR, or the built-in\n"
+        "Headless multi-person motion capture: cameras (or --recording DIR, or the built-in\n"
         "simulator when no camera is attached) -> pose CNN on the GPU -> 4D association ->\n"
         "skeleton fitting -> skeletons streamed as newline-delimited JSON on the stream port\n"
         "and over WebSocket (GET /stream) on the HTTP port, with GET /health for status.\n"
@@ -62,11 +62,14 @@ int main(int argc, char** argv) {
     std::printf("mocapd %s\n", kDaemonVersion);
     return 0;
   }
-  auto config = load_config(*cmd, environ);
+  std::vector<std::string> warnings = cmd->warnings;
+  auto config = load_config(*cmd, environ, &warnings);
+  for (const std::string& w : warnings) std::fprintf(stderr, "mocapd: %s\n", w.c_str());
   if (!config.ok()) {
     std::fprintf(stderr, "mocapd: %s\n", config.error().message().c_str());
     return kExitConfig;
   }
+  if (!config->log.empty()) (void)mocap::set_log_levels(config->log);  // checked by validate()
   if (cmd->print_config) {
     std::printf("%s\n", config_to_json(*config).c_str());
     return 0;

@@ -99,8 +99,8 @@ TEST(MocapdBoardCalibration, CaliscopeWebcamsCalibratedFromOutside) {
 
   // The people CNN at a small input: the replay's pace (and the test's time) is the CNN's on
   // lavapipe, and nothing here needs its skeletons.
-  auto m = testing::start_mocapd(kBin, dir.path(),
-                                 {"--replay", data.string(), "--loop", "--input-size-px", "192"});
+  auto m = testing::start_mocapd(
+      kBin, dir.path(), {"--recording", data.string(), "--loop", "--input-size-px", "192"});
   if (m.http_port == 0) {
     const std::string err = m.process->err_so_far();
     if (err.find("model") != std::string::npos || err.find("Vulkan") != std::string::npos) {

@@ -40,7 +40,7 @@ TEST(DaemonConfig, DefaultsAreTheDocumentedPorts) {
   EXPECT_EQ(c->drop_policy, DropPolicyChoice::kAuto);
   EXPECT_EQ(c->cnn.input_size_px, 0);  // the model's default
   EXPECT_EQ(c->cnn.input_fit, gpu::InputFit::kAuto);
-  EXPECT_TRUE(c->replay.empty());
+  EXPECT_TRUE(c->recording.empty());
 }
 
 TEST(DaemonConfig, FileThenEnvironmentThenFlags) {
@@ -80,11 +80,14 @@ TEST(DaemonConfig, BadValuesNameTheSourceAndTheKey) {
   expect_error(load({"--gpu", "tpu"}), {"--gpu", "auto, vulkan, cpu", "tpu"});
   expect_error(load({"--stream-port"}), {"--stream-port", "needs a value"});
   expect_error(load({"--frobnicate"}), {"unknown option", "--frobnicate"});
+  expect_error(load({"--stream-prot", "1"}), {"unknown option", "did you mean '--stream-port'?"});
+  expect_error(load({}, {"MOCAP_LOG=Pipline:debug"}),
+               {"MOCAP_LOG", "no log category 'Pipline'", "did you mean 'Pipeline'?"});
   expect_error(load({}, {"MOCAPD_HTTP_PORT=abc"}), {"MOCAPD_HTTP_PORT", "abc"});
   expect_error(load({}, {"MOCAPD_NOPE=1"}), {"MOCAPD_NOPE", "no such option"});
   expect_error(load({"--stream-port", "9000", "--http-port", "9000"}),
                {"stream_port and http_port", "9000"});
-  expect_error(load({"--loop"}), {"loop needs replay"});
+  expect_error(load({"--loop"}), {"loop needs recording"});
   expect_error(load({"--log", "Net:loud"}), {"log", "loud"});
   // The server's and VMC's own validate() at load, not at start.
   expect_error(load({"--bind-address", "box.local"}), {"bind_address 'box.local'", "IPv4"});
@@ -122,9 +125,45 @@ TEST(DaemonConfig, ChoicesBecomeEnumsAtTheBoundary) {
       << bad_fit.error().message();
 }
 
+// Issue 43's one vocabulary: replay -> recording, max_frames -> frames. The old flag, key and
+// variable still work for a release, each with a warning naming the new spelling.
+TEST(DaemonConfig, OldSpellingsStillWorkWithAWarning) {
+  testing::TestTempDir dir("cfg");
+  auto cmd =
+      parse_command_line(std::vector<std::string_view>{"--replay", "/rec", "--max-frames", "7"});
+  ASSERT_TRUE(cmd.ok()) << cmd.error().message();
+  ASSERT_EQ(cmd->warnings.size(), 2u);
+  EXPECT_NE(cmd->warnings[0].find("mocapd --replay is deprecated: use --recording"),
+            std::string::npos)
+      << cmd->warnings[0];
+  EXPECT_NE(cmd->warnings[1].find("use --frames"), std::string::npos) << cmd->warnings[1];
+  const std::string f = write(dir.path() / "old.json", R"({"replay": "/file", "max_frames": 3})");
+  auto file_cmd = parse_command_line(std::vector<std::string_view>{"--config", f});
+  ASSERT_TRUE(file_cmd.ok());
+  std::string var = "MOCAPD_REPLAY=/env";
+  std::vector<char*> env{var.data(), nullptr};
+  std::vector<std::string> warnings;
+  auto c = load_config(*file_cmd, env.data(), &warnings);
+  ASSERT_TRUE(c.ok()) << c.error().message();
+  EXPECT_EQ(c->recording, "/env");  // the variable over the file, as for any key
+  EXPECT_EQ(c->pipeline.max_frames, 3);
+  ASSERT_EQ(warnings.size(), 3u);
+  EXPECT_NE((warnings[0] + warnings[1]).find("key \"replay\" is deprecated: use \"recording\""),
+            std::string::npos)
+      << warnings[0] << "\n"
+      << warnings[1];
+  EXPECT_NE(warnings[2].find("MOCAPD_REPLAY is deprecated: use MOCAPD_RECORDING"),
+            std::string::npos)
+      << warnings[2];
+  auto flags = load({"--recording", "/x", "--frames", "5"});
+  ASSERT_TRUE(flags.ok()) << flags.error().message();
+  EXPECT_EQ(flags->recording, "/x");
+  EXPECT_EQ(flags->pipeline.max_frames, 5);
+}
+
 TEST(DaemonConfig, BooleanFlagsAndPrintConfigRoundTrip) {
   testing::TestTempDir dir("cfg");
-  auto c = load({"--replay", "/x", "--loop"});
+  auto c = load({"--recording", "/x", "--loop"});
   ASSERT_TRUE(c.ok()) << c.error().message();
   EXPECT_TRUE(c->loop);
   // What --print-config prints is a valid config file giving the same configuration.
@@ -137,7 +176,7 @@ TEST(DaemonConfig, BooleanFlagsAndPrintConfigRoundTrip) {
 // Found by fuzz_config_json: --print-config threw (and mocapd aborted) for a flag value that
 // is not UTF-8, and for a subnormal number (std::stod's out_of_range).
 TEST(DaemonConfig, PrintConfigNeverThrows) {
-  auto bytes = load({"--node-name=\xff\xfe", "--replay=/rec\xc3"});
+  auto bytes = load({"--node-name=\xff\xfe", "--recording=/rec\xc3"});
   ASSERT_TRUE(bytes.ok()) << bytes.error().message();
   std::string printed;
   ASSERT_NO_THROW(printed = config_to_json(*bytes));

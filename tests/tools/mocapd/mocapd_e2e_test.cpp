@@ -1,4 +1,4 @@
-// mocapd end to end on the real recording: `--replay ../shared/data/pose2sim_multi` through
+// mocapd end to end on the real recording: `--recording ../shared/data/pose2sim_multi` through
 // the daemon's whole path (videos -> batched GPU PoseNet -> association and fitting -> JSON
 // encoding -> TCP stream), with a client on the stream port.
 //
@@ -71,7 +71,7 @@ TEST(MocapdE2e, ReplayStreamsEveryFrameWithStableIds) {
   testing::TestTempDir dir("mocapd-e2e");
   DaemonConfig c;
   c.state_dir = (dir.path() / "state").string();  // its token, not the machine's
-  c.replay = data.string();
+  c.recording = data.string();
   c.cnn.model = model.string();
   c.cnn.backend = gpu::BackendRequest::kVulkan;
   c.server.bind_address = "127.0.0.1";
