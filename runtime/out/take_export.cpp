@@ -149,6 +149,12 @@ Status make_export_folder(const fs::path& dir) {
   return {};
 }
 
+std::string sidecar_name(std::string_view exported) {
+  std::string name(exported);
+  name += ".json";
+  return name;
+}
+
 Result<ExportedFiles> export_bvh(const ExportSource& src, const Animation& anim,
                                  const BvhOptions& options, const fs::path& dir) {
   if (Status s = make_export_folder(dir); !s.ok()) return s.error();
@@ -161,7 +167,7 @@ Result<ExportedFiles> export_bvh(const ExportSource& src, const Animation& anim,
     out.person_files.push_back(bvh_file_name(src.name, p.person_id));
   }
   const char* units = options.units == BvhUnits::kMetres ? "m" : "cm";
-  out.sidecar = src.name + ".json";
+  out.sidecar = sidecar_name(src.name + ".bvh");
   const json sidecar = export_sidecar_json(src, anim, "bvh", units, out.person_files);
   if (Status s = write_sidecar(dir / out.sidecar, sidecar); !s.ok()) return s.error();
   return out;
@@ -171,8 +177,7 @@ Result<ExportedFiles> export_gltf(const ExportSource& src, const Animation& anim
                                   const GltfOptions& options, const fs::path& file) {
   if (Status s = make_export_folder(file.parent_path()); !s.ok()) return s.error();
   if (Status s = write_gltf(anim, options, file); !s.ok()) return s.error();
-  fs::path sidecar_file = file;
-  sidecar_file.replace_extension(".take.json");
+  const fs::path sidecar_file = file.parent_path() / sidecar_name(file.filename().string());
   const json sidecar = export_sidecar_json(src, anim, "gltf", "m", {});
   if (Status s = write_sidecar(sidecar_file, sidecar); !s.ok()) return s.error();
   ExportedFiles out;

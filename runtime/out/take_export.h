@@ -47,13 +47,19 @@ struct ExportedFiles {
   std::string sidecar;
 };
 
-// One BVH per person in `dir` (written on several threads) and <dir>/<take>.json; `dir` is
+// The sidecar of an export is its file's name + ".json": one rule for every format, so a BVH
+// set (`walk.bvh.json`, for walk_person<id>.bvh), `walk.gltf.json` and `walk.glb.json` never
+// overwrite each other nor a take's own take.json (issue 43; they were <take>.json and
+// <stem>.take.json).
+std::string sidecar_name(std::string_view exported);
+
+// One BVH per person in `dir` (written on several threads) and <dir>/<take>.bvh.json; `dir` is
 // created when missing. Files are replaced atomically and durably.
 Result<ExportedFiles> export_bvh(const ExportSource& src, const Animation& anim,
                                  const BvhOptions& options, const std::filesystem::path& dir);
 
-// Every person in `file` (.gltf or .glb, as options.binary says) and <file's stem>.take.json
-// beside it; the folder is created when missing.
+// Every person in `file` (.gltf or .glb, as options.binary says) and <file name>.json beside
+// it; the folder is created when missing.
 Result<ExportedFiles> export_gltf(const ExportSource& src, const Animation& anim,
                                   const GltfOptions& options, const std::filesystem::path& file);
 

@@ -122,7 +122,7 @@ TEST(ExportCli, BvhPerPersonWithSidecar) {
     EXPECT_NE(r.out.find((out / name).string()), std::string::npos) << r.out;
   }
   const auto sidecar =
-      nlohmann::json::parse(testing::read_text(out / "dance.json"), nullptr, false);
+      nlohmann::json::parse(testing::read_text(out / "dance.bvh.json"), nullptr, false);
   ASSERT_TRUE(sidecar.is_object());
   EXPECT_EQ(sidecar["take"], "dance");
   EXPECT_EQ(sidecar["frame_count"], kFrames);
@@ -155,7 +155,7 @@ TEST(ExportCli, BvhFromAStreamInMetresAtAGivenRate) {
   EXPECT_NEAR(std::stod(text.substr(at + 12)), 1.0 / 24, 1e-7);
   EXPECT_EQ(bvh_frames(text), kFrames);
   const auto sidecar =
-      nlohmann::json::parse(testing::read_text(out / "saved.json"), nullptr, false);
+      nlohmann::json::parse(testing::read_text(out / "saved.bvh.json"), nullptr, false);
   EXPECT_EQ(sidecar["units"], "m");
   EXPECT_FALSE(sidecar.contains("software"));  // a bare stream has no take.json
 }
@@ -163,7 +163,9 @@ TEST(ExportCli, BvhFromAStreamInMetresAtAGivenRate) {
 TEST(ExportCli, GltfAndGlb) {
   testing::TestTempDir dir("export_gltf");
   const fs::path take = write_take(dir.path(), "jump");
-  for (const char* name : {"anim/jump.gltf", "jump.glb"}) {
+  // .gltf and .glb of one take into one folder: each keeps its sidecar (issue 43: both were
+  // jump.take.json, the second export overwrote the first's).
+  for (const char* name : {"jump.gltf", "jump.glb", "anim/jump.gltf"}) {
     const fs::path out = dir.path() / name;
     auto r = testing::run_process(
         {kBin, "export", "gltf", "--take", take.string(), "--out", out.string()}, dir.path(),
@@ -178,9 +180,14 @@ TEST(ExportCli, GltfAndGlb) {
       ASSERT_TRUE(j.is_object());
       EXPECT_EQ(j["asset"]["version"], "2.0");
     }
-    fs::path sidecar = out;
-    sidecar.replace_extension(".take.json");
-    EXPECT_TRUE(fs::exists(sidecar)) << sidecar;
+    const fs::path sidecar = out.parent_path() / (out.filename().string() + ".json");
+    EXPECT_NE(r.out.find("wrote " + sidecar.string()), std::string::npos) << r.out;
+  }
+  for (const char* name : {"jump.gltf.json", "jump.glb.json", "anim/jump.gltf.json"}) {
+    const auto sidecar =
+        nlohmann::json::parse(testing::read_text(dir.path() / name), nullptr, false);
+    ASSERT_TRUE(sidecar.is_object()) << name;
+    EXPECT_EQ(sidecar["format"], "gltf") << name;
   }
 }
 

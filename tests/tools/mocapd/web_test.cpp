@@ -168,7 +168,7 @@ TEST_F(WebTest, TakeDownloadsAndNothingOutsideTakes) {
   // ndjson, take.json, 2 BVH, glb and the two sidecars `mocap export` writes
   ASSERT_GE(files.size(), 7u) << take.dump();
   EXPECT_EQ(files[0], "skeletons.ndjson");
-  const Answer sidecar = request(port_, "GET", "/takes/walk/walk.json");
+  const Answer sidecar = request(port_, "GET", "/takes/walk/walk.bvh.json");
   ASSERT_EQ(sidecar.status, 200) << sidecar.body;
   const json meta = json::parse(sidecar.body, nullptr, false);
   EXPECT_EQ(meta["schema"], "mocap-box.export/1") << sidecar.body;
@@ -176,7 +176,7 @@ TEST_F(WebTest, TakeDownloadsAndNothingOutsideTakes) {
   EXPECT_EQ(meta["format"], "bvh");
   ASSERT_GE(meta["persons"].size(), 1u);
   EXPECT_EQ(meta["persons"][0]["file"], "walk_person0.bvh");
-  EXPECT_EQ(request(port_, "GET", "/takes/walk/walk.take.json").status, 200);
+  EXPECT_EQ(request(port_, "GET", "/takes/walk/walk.glb.json").status, 200);
   const Answer bvh = request(port_, "GET", "/takes/walk/walk_person0.bvh");
   ASSERT_EQ(bvh.status, 200) << bvh.body;
   EXPECT_EQ(bvh.body.substr(0, 9), "HIERARCHY");
