@@ -1,8 +1,8 @@
 // The downloads of a take on the box's page (docs/web.md): when a take ends, a background
 // thread writes its exports next to it — <take>/exports/<take>_person<id>.bvh (one per person,
 // centimetres) with their sidecar <take>.bvh.json, and <take>/exports/<take>.glb (every person)
-// with <take>.glb.json — with the same code as `mocap export` (runtime/out/take_export.h). Nothing runs
-// on the HTTP or pipeline threads; an export that fails leaves its reason in
+// with <take>.glb.json — with the same code as `mocap export` (runtime/out/take_export.h). Nothing
+// runs on the HTTP or pipeline threads; an export that fails leaves its reason in
 // <take>/exports/error.txt and the take itself untouched.
 #pragma once
 

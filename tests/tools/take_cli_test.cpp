@@ -38,6 +38,9 @@ TEST(TakeCli, SigkillMidTakeLeavesAReadableInterruptedTake) {
                                 dir.path(), "start_no_token", 30000);
   EXPECT_EQ(r.exit_code, 1) << r.out;
   EXPECT_NE(r.err.find("--token"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("no token: token file " + (dir.path() / "elsewhere" / "token").string()),
+            std::string::npos)
+      << "the fix names the file it tried: " << r.err;
   // `mocap token` on the box prints it; `mocap take` finds it in the state folder itself.
   r = testing::run_process({kBin + "/mocap", "token", "--state-dir", state.string()}, dir.path(),
                            "token", 30000);

@@ -55,6 +55,23 @@ struct BoxArgs {
     auto t = net::read_token(std::filesystem::path(state_dir) / "token");
     return t.ok() ? *t : std::string();
   }
+  // What to do when the box refused the token sent (or none): names where it came from.
+  std::string token_fix() const {
+    if (!token.empty()) return "the box refused --token: `mocap token` on the box prints its token";
+    if (const char* env = std::getenv("MOCAP_TOKEN"); env != nullptr && *env != '\0') {
+      return "the box refused $MOCAP_TOKEN: `mocap token` on the box prints its token";
+    }
+    const std::string file = (std::filesystem::path(state_dir) / "token").string();
+    auto t = net::read_token(file);
+    if (t.ok()) {
+      return "the box refused the token of " + file +
+             ": is --box the box whose state folder that is? (else give its --state-dir, or "
+             "--token with what `mocap token` prints there)";
+    }
+    return "no token: " + t.error().message() +
+           "; from another machine: --token or MOCAP_TOKEN with what `mocap token` prints on the "
+           "box";
+  }
 };
 
 std::string percent_encode(std::string_view s) {
@@ -89,11 +106,7 @@ std::optional<json> call(const BoxArgs& b, const std::string& method, const std:
                                 ? j["error"].get<std::string>()
                                 : "HTTP " + std::to_string(a->status) + ": " + a->body;
     std::fprintf(stderr, "error: %s\n", msg.c_str());
-    if (a->status == 401) {
-      std::fprintf(stderr,
-                   "fix: pass --token (or set MOCAP_TOKEN) with the token `mocap token` prints on "
-                   "the box, or run this on the box as a user who can read <state_dir>/token\n");
-    }
+    if (a->status == 401) std::fprintf(stderr, "fix: %s\n", b.token_fix().c_str());
     return std::nullopt;
   }
   return j;
