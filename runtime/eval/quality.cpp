@@ -203,6 +203,7 @@ QualityReport QualityMeter::finish() const {
     q.jitter_m_s2 = median(t.second_diff_m) * fps2;
     q.loo_samples = t.loo_px.size();
     q.loo_reprojection_px = median(t.loo_px);
+    r.min_track_frames = options_.min_track_frames;
     if (t.frames >= options_.min_track_frames) {
       ++r.persons_measured;
       r.bone_std_mm = std::max(r.bone_std_mm, q.bone_std_mm);

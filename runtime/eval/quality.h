@@ -60,6 +60,7 @@ struct QualityReport {
   double jitter_m_s2 = 0;              // the worst person's median (of those with min_track_frames)
   int ids = 0;                         // track ids output during the run
   int persons_measured = 0;  // persons with min_track_frames (bone_std_mm, jitter_m_s2 are theirs)
+  int min_track_frames = 0;  // the options' (a person line says when it is below)
   double frame_rate_hz = 0;  // from the frames' timestamps (median interval)
   std::vector<PersonQuality> persons;  // by id
   // "loo_reprojection_px=X.X bone_std_mm=X.X jitter_m_s2=X ids=N"; a figure without samples

@@ -295,6 +295,42 @@ TEST(UserCli, AMisspeltLogCategoryAndAnOldMocapdFlagAreNamed) {
   EXPECT_NE(typo.err.find("did you mean '--recording'?"), std::string::npos) << typo.err;
 }
 
+// Items 6, 7 and 9 as typed: a figure without samples is n/a (not a perfect 0), messages name
+// what a user can give (flags, commands), the shelf ceiling says why the engine can beat it,
+// and docs/stream-format.md names the models and states there are.
+TEST(UserCli, FiguresWithoutSamplesAndMessagesAUserCanActOn) {
+  TestTempDir dir("user-cli-figures");
+  const ProcessResult rig = mocap({"bench", "assoc", "--synthetic", "--views", "1"}, dir, "rig");
+  EXPECT_EQ(rig.exit_code, 2);
+  EXPECT_NE(rig.err.find("--views in [2, 64]"), std::string::npos) << rig.err;
+  EXPECT_EQ(rig.err.find("field"), std::string::npos) << rig.err;
+  const ProcessResult trigger = mocap(
+      {"trigger", "--chip", "nosuchchip", "--line", "0", "--frame-rate-hz", "60", "--pulses", "1"},
+      dir, "trigger");
+  EXPECT_EQ(trigger.exit_code, 1);
+  EXPECT_NE(trigger.err.find("--chip/--line"), std::string::npos) << trigger.err;
+  EXPECT_EQ(trigger.err.find("board file"), std::string::npos) << trigger.err;
+  std::ifstream doc(fs::path(MOCAP_SOURCE_DIR) / "docs/stream-format.md");
+  std::stringstream format;
+  format << doc.rdbuf();
+  EXPECT_NE(format.str().find("calibrating"), std::string::npos);
+  EXPECT_NE(format.str().find("MoveNet"), std::string::npos);
+  MOCAP_REQUIRE_DATA(data, "pose2sim_multi");
+  const ProcessResult five =
+      mocap({"replay", "--recording", data.string(), "--frames", "5"}, dir, "five", 300000);
+  ASSERT_EQ(five.exit_code, 0) << five.err;
+  EXPECT_NE(five.out.find("bone_std_mm=n/a jitter_m_s2=n/a"), std::string::npos) << five.out;
+  EXPECT_NE(five.out.find("(too short for the summary)"), std::string::npos) << five.out;
+  EXPECT_EQ(five.out.find(" 0.0 px (0)"), std::string::npos) << "a figure of no samples";
+  MOCAP_REQUIRE_DATA(shelf, "shelf");
+  const ProcessResult ceiling = mocap(
+      {"eval", "shelf-ceiling", "--data", shelf.string(), "--views", "0,2,4"}, dir, "ceiling");
+  ASSERT_EQ(ceiling.exit_code, 0) << ceiling.err;
+  EXPECT_NE(ceiling.out.find("the engine scores above the ceiling: its skeleton fit"),
+            std::string::npos)
+      << ceiling.out;
+}
+
 // Item 4: docs/mocapd.md's exit status table is what mocapd does: every example command of each
 // row (in backticks) is run (state in a temporary folder, no camera) and exits with the row's
 // status.

@@ -133,20 +133,31 @@ void print_reprojection(const eval::ReplaySummary& sum, int views) {
 }
 
 void print_quality(const eval::QualityReport& q) {
+  // A figure without samples is n/a, not a perfect 0 (issue 43).
+  const auto figure = [](bool measured, int decimals, double v) {
+    char buf[32] = "n/a";
+    if (measured) std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+    return std::string(buf);
+  };
   std::printf("\nquality (label-free, %.1f fps):\n", q.frame_rate_hz);
-  std::printf("  leave-one-view-out reprojection: median %.1f px, p90 %.1f px (%zu)\n",
-              q.loo_reprojection_px, q.loo_reprojection_p90_px, q.loo_samples);
+  std::printf("  leave-one-view-out reprojection: median %s px, p90 %s px (%zu)\n",
+              figure(q.loo_samples > 0, 1, q.loo_reprojection_px).c_str(),
+              figure(q.loo_samples > 0, 1, q.loo_reprojection_p90_px).c_str(), q.loo_samples);
   std::printf("  by view (median px):");
   for (std::size_t v = 0; v < q.loo_by_view_px.size(); ++v) {
-    std::printf(" %zu: %.1f", v, q.loo_by_view_px[v]);
+    std::printf(" %zu: %s", v, figure(q.loo_samples > 0, 1, q.loo_by_view_px[v]).c_str());
   }
   std::printf("\n");
   for (const eval::PersonQuality& p : q.persons) {
+    const bool bones = !p.worst_bone.empty();
     std::printf(
-        "  id %d: %d frames, bone std %.1f mm (worst %s %.1f), limb jitter %.0f m/s^2 (%zu), "
-        "loo %.1f px (%zu)\n",
-        p.id, p.frames, p.bone_std_mm, p.worst_bone.empty() ? "-" : p.worst_bone.c_str(),
-        p.worst_bone_std_mm, p.jitter_m_s2, p.jitter_samples, p.loo_reprojection_px, p.loo_samples);
+        "  id %d: %d frames%s, bone std %s mm (worst %s %s), limb jitter %s m/s^2 (%zu), "
+        "loo %s px (%zu)\n",
+        p.id, p.frames, p.frames < q.min_track_frames ? " (too short for the summary)" : "",
+        figure(bones, 1, p.bone_std_mm).c_str(), bones ? p.worst_bone.c_str() : "-",
+        figure(bones, 1, p.worst_bone_std_mm).c_str(),
+        figure(p.jitter_samples > 0, 0, p.jitter_m_s2).c_str(), p.jitter_samples,
+        figure(p.loo_samples > 0, 1, p.loo_reprojection_px).c_str(), p.loo_samples);
   }
 }
 
