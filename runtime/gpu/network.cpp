@@ -325,6 +325,16 @@ std::vector<Network::FusedHead> Network::fuse_output_heads(const nn::Model& mode
   return fused;
 }
 
+// Vec4 channel groups; a fused group's leader holds every head of its group.
+std::uint64_t Network::value_buffer_bytes(const std::vector<nn::Shape>& shapes, const std::vector<int>& c4,
+                                 const std::vector<FusedHead>& fused, std::size_t v) {
+  const nn::Shape& s = shapes[v];
+  const bool leader = v > 0 && fused[v - 1].leader == static_cast<int>(v - 1);
+  const auto groups = static_cast<std::uint64_t>(leader ? fused[v - 1].stride4 : c4[v]);
+  return static_cast<std::uint64_t>(s.n) * static_cast<std::uint64_t>(s.h) *
+         static_cast<std::uint64_t>(s.w) * groups * 16;
+}
+
 Result<std::uint64_t> Network::largest_buffer_bytes(const nn::Model& model,
                                                     const NetworkOptions& options) {
   auto shapes = model.infer_shapes(
@@ -335,11 +345,7 @@ Result<std::uint64_t> Network::largest_buffer_bytes(const nn::Model& model,
   const std::vector<FusedHead> fused = fuse_output_heads(model, c4);
   std::uint64_t largest = 0;
   for (std::size_t v = 0; v < shapes->size(); ++v) {
-    const nn::Shape& s = (*shapes)[v];
-    const bool leader = v > 0 && fused[v - 1].leader == static_cast<int>(v - 1);
-    const auto groups = static_cast<std::uint64_t>(leader ? fused[v - 1].stride4 : c4[v]);
-    largest = std::max(largest, static_cast<std::uint64_t>(s.n) * static_cast<std::uint64_t>(s.h) *
-                                    static_cast<std::uint64_t>(s.w) * groups * 16);
+    largest = std::max(largest, value_buffer_bytes(*shapes, c4, fused, v));
   }
   return largest;
 }
@@ -381,12 +387,7 @@ Status Network::allocate_buffers(const nn::Model& model, const std::vector<Fused
   }
   // Activation buffers (vec4 channel groups).
   for (std::size_t v = 0; v < V; ++v) {
-    const nn::Shape& s = shapes_[v];
-    const bool leader = v > 0 && fused[v - 1].leader == static_cast<int>(v - 1);
-    const int groups = leader ? fused[v - 1].stride4 : c4_[v];
-    const VkDeviceSize bytes =
-        static_cast<VkDeviceSize>(s.n) * s.h * s.w * static_cast<VkDeviceSize>(groups) * 16;
-    auto b = ctx_.create_buffer(bytes, false);
+    auto b = ctx_.create_buffer(value_buffer_bytes(shapes_, c4_, fused, v), false);
     if (!b.ok()) return b.error();
     values_.push_back(std::move(*b));
   }

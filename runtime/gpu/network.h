@@ -109,6 +109,10 @@ class Network {
                                                   const std::vector<int>& c4);
   // build()'s stages: value, staging and output buffers (and the dummy constant); the
   // descriptor pool; one step per conv layer or fused group of heads (its weights uploaded).
+  // Bytes of value v's activation buffer (largest_buffer_bytes and allocate_buffers).
+  static std::uint64_t value_buffer_bytes(const std::vector<nn::Shape>& shapes,
+                                          const std::vector<int>& c4,
+                                          const std::vector<FusedHead>& fused, std::size_t v);
   Status allocate_buffers(const nn::Model& model, const std::vector<FusedHead>& fused);
   Status create_descriptor_pool(const nn::Model& model);
   Status add_conv_step(const nn::Model& model, std::size_t li, const std::vector<FusedHead>& fused);
