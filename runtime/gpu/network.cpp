@@ -326,8 +326,9 @@ std::vector<Network::FusedHead> Network::fuse_output_heads(const nn::Model& mode
 }
 
 // Vec4 channel groups; a fused group's leader holds every head of its group.
-std::uint64_t Network::value_buffer_bytes(const std::vector<nn::Shape>& shapes, const std::vector<int>& c4,
-                                 const std::vector<FusedHead>& fused, std::size_t v) {
+std::uint64_t Network::value_buffer_bytes(const std::vector<nn::Shape>& shapes,
+                                          const std::vector<int>& c4,
+                                          const std::vector<FusedHead>& fused, std::size_t v) {
   const nn::Shape& s = shapes[v];
   const bool leader = v > 0 && fused[v - 1].leader == static_cast<int>(v - 1);
   const auto groups = static_cast<std::uint64_t>(leader ? fused[v - 1].stride4 : c4[v]);

@@ -16,12 +16,15 @@ namespace mocap {
 namespace {
 
 // With the output smoother on (runtime/fit/pose_filter.h; off: 97.20, 92.05-95.69, 95.84).
-constexpr double kFloorAllViews = 97.4;    // measured 97.51 (5 views)
-constexpr double kFloorThreeViews = 92.3;  // measured 92.41-95.61 over the 3-view subsets below
-constexpr double kFloorFourViews = 95.9;   // measured 95.99 (views 0,1,2,3)
-// Per actor, all five views: measured A1 99.86, A2 94.59, A3 98.07.
+// Its lag compensation (issue 42, 2026-12-07) costs Shelf a little: 97.51 -> 97.40 for all
+// views, the 3-view minimum 92.41 -> 92.16, A2 94.59 -> 94.32 (the plain One-Euro trailed a
+// steady move by 1.1-1.75 frames; the floors below are the compensated filter's).
+constexpr double kFloorAllViews = 97.3;    // measured 97.40 (5 views)
+constexpr double kFloorThreeViews = 92.0;  // measured 92.16 and up over the 3-view subsets below
+constexpr double kFloorFourViews = 95.9;   // measured 95.95 (views 0,1,2,3; 95.99 before)
+// Per actor, all five views: measured A1 99.86, A2 94.32, A3 98.01.
 constexpr double kFloorA1 = 99.7;
-constexpr double kFloorA2 = 94.4;
+constexpr double kFloorA2 = 94.2;
 constexpr double kFloorA3 = 97.9;
 
 PcpReport run(const std::filesystem::path& dir, std::vector<int> views) {

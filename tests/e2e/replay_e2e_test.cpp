@@ -65,17 +65,20 @@ struct Floors {
   const char* crop_model = nullptr;  // under models/: 3D-guided crops (null: none)
   int crop_size_px = 0;
 };
-// PoseNet 353 (square), measured 2026-12-01 with limb sanity and the smoother on: loo 47.7 px,
-// bone std woman 3.2 / man 14.4 mm, jitter woman 25 / man 138 m/s^2.
-constexpr Floors kPoseNet353{"posenet.mcnn", 353, 52, 18, 35, 165, 0, 0};
-// MoveNet MultiPose 448 fitted to the frames (256x448; the default), measured 2026-12-02: loo
-// 24.4 px, bone std woman 1.2 / man 2.0 / bystander 3.4 mm, jitter woman 6 / man 18 /
-// bystander 11 m/s^2, the bystander in 100 of 100 frames under one id.
-constexpr Floors kMoveNet448{"movenet-multipose.mcnn", 448, 27, 5, 10, 25, 95, 8};
-// The same with 3D-guided crops, MoveNet Thunder 256 (docs/crops.md), measured 2026-12-02: loo
-// 22.6 px, bone std man 1.8 / woman 0.9 / bystander 3.4 mm, jitter man 18 / woman 7 / bystander
-// 4 m/s^2. Its loo floor is below what the detector alone measures (24.4 px).
-constexpr Floors kMoveNet448Thunder{"movenet-multipose.mcnn", 448, 23.5, 3, 10, 22, 95, 6,
+// The jitter floors are the lag-compensated smoother's (issue 42, 2026-12-07: no lag at a
+// steady move; its jitter target is 1.5x the plain One-Euro's, whose figures follow "was").
+// PoseNet 353 (square), measured 2026-12-07 with limb sanity and the smoother on: loo 47.9 px,
+// bone std woman 3.2 / man 15.2 mm, jitter woman 41 / man 209 m/s^2 (was 25 / 138).
+constexpr Floors kPoseNet353{"posenet.mcnn", 353, 52, 18, 48, 240, 0, 0};
+// MoveNet MultiPose 448 fitted to the frames (256x448; the default), measured 2026-12-07: loo
+// 24.4 px, bone std woman 1.2 / man 1.7 / bystander 3.4 mm, jitter woman 9 / man 26 /
+// bystander 19 m/s^2 (was 6 / 18 / 11), the bystander in 100 of 100 frames under one id.
+constexpr Floors kMoveNet448{"movenet-multipose.mcnn", 448, 27, 5, 12, 31, 95, 8};
+// The same with 3D-guided crops, MoveNet Thunder 256 (docs/crops.md), measured 2026-12-07: loo
+// 22.8 px, bone std man 1.8 / woman 0.9 / bystander 3.5 mm, jitter man 24 / woman 10 /
+// bystander 6 m/s^2 (was 18 / 7 / 4). Its loo floor is below what the detector alone measures
+// (24.4 px).
+constexpr Floors kMoveNet448Thunder{"movenet-multipose.mcnn", 448, 23.5, 3, 12, 28, 95, 6,
                                     "movenet-thunder.mcnn",   256};
 constexpr int kMaxStrayFrames = 20;
 

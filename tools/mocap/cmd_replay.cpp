@@ -58,9 +58,10 @@ constexpr const char* kHelp =
     "1088x1920 portrait frames: --input-fit auto fits MoveNet's input to the frames)\n"
     "by default, chosen by measurement on pose2sim_multi (docs/quality.md): all three\n"
     "people (the bystander ~400 px tall) in 100 of 100 frames with 3 ids, bone-length\n"
-    "std 1-4 mm, limb jitter 6-18 m/s^2, leave-one-view-out 24 px, ~1.1 s per frame (4\n"
-    "views on lavapipe, 2 cores). PoseNet 353 (square): 0.55 s, loo 48 px, the man's\n"
-    "bone std 14 mm and jitter 138 m/s^2, the bystander's bones 64 mm. MoveNet 256:\n"
+    "std 1-4 mm, limb jitter 9-26 m/s^2 (the lag-compensated smoother), leave-one-view-out\n"
+    "24 px, ~1.1 s per frame (4 views on lavapipe, 2 cores). PoseNet 353 (square): 0.55 s, loo 48 "
+    "px, the man's\n"
+    "bone std 15 mm and jitter 209 m/s^2, the bystander's bones 64 mm. MoveNet 256:\n"
     "0.42 s, the bystander never found.";
 
 // "frame 12: 2 person(s) | id 0: 17/17 joints at (x, y, z) | ...  [fitted 2; source ..., ms]"
