@@ -31,11 +31,11 @@ struct Track {
 };
 
 struct LagFigures {
-  double lag_frames = 0;    // the best-aligning shift (output behind the truth: > 0)
-  double error_mm = 0;      // mean limb joint error at that shift
-  double error_0_mm = 0;    // ... and at no shift
-  double speed_m_s = 0;     // median limb joint speed of the truth
-  double jitter_m_s2 = 0;   // median |second difference| of the output limb joints
+  double lag_frames = 0;   // the best-aligning shift (output behind the truth: > 0)
+  double error_mm = 0;     // mean limb joint error at that shift
+  double error_0_mm = 0;   // ... and at no shift
+  double speed_m_s = 0;    // median limb joint speed of the truth
+  double jitter_m_s2 = 0;  // median |second difference| of the output limb joints
   long samples = 0;
 };
 
@@ -76,8 +76,8 @@ std::map<int, Track> run(const assoc::AssociationOptions& options, double rate_h
       for (int j : truth_ix) tv.push_back(g.joints_m[static_cast<std::size_t>(j)]);
       if (f < warmup) continue;
       // The output person nearest by pelvis (hips' mean), within 0.5 m.
-      const Eigen::Vector3d pelvis = g.joints_m[static_cast<std::size_t>(
-          body19_topology().find_joint("pelvis"))];
+      const Eigen::Vector3d pelvis =
+          g.joints_m[static_cast<std::size_t>(body19_topology().find_joint("pelvis"))];
       const PersonSkeleton* best = nullptr;
       double best_d = 0.5;
       for (const PersonSkeleton& o : out) {
