@@ -28,10 +28,10 @@ Eigen::Vector3d one_euro(const PoseFilterOptions& o, double dt_s, double scale_m
   const double a_d = alpha(o.derivative_cutoff_hz, dt_s);
   dx_hat += a_d * (dx - dx_hat);
   const double cutoff = o.min_cutoff_hz + o.beta_per_m * scale_m * dx_hat.norm();
-  const Eigen::Vector3d step = alpha(cutoff, dt_s) * (x - x_hat);
+  const double a = alpha(cutoff, dt_s);
+  const Eigen::Vector3d step = a * (x - x_hat);
   x_hat += step;
   if (!o.lag_compensation) return x_hat;
-  const double a = alpha(cutoff, dt_s);
   const Eigen::Vector3d dvel = a * (step / dt_s - vel);
   vel += dvel;
   const double tau = 1 / (2 * std::numbers::pi * cutoff);
