@@ -632,9 +632,11 @@ function showBoard(b) {
   if (phase !== "idle") $("board-panel").open = true;
   const parts = [];
   if (phase !== "idle") {
-    parts.push(`<div><b>${escapeHtml(phase)}</b> · ${escapeHtml(b.board ?? "")} · ${b.samples ?? 0} frame sets with the board` +
-               ` · detection ${fmt(b.detect_ms_median)} ms</div>`);
-    if (b.what_to_do) parts.push(`<div class="muted">${escapeHtml(b.what_to_do)}</div>`);
+    // Lines of a fixed height (one line each, the advice three): the progress redraws twice a
+    // second, and a height that follows its numbers moved the page under the user's pointer.
+    parts.push(`<div class="line"><b>${escapeHtml(phase)}</b> · ${escapeHtml(b.board ?? "")}</div>`);
+    parts.push(`<div class="line">${b.samples ?? 0} frame sets with the board · detection ${fmt(b.detect_ms_median)} ms</div>`);
+    parts.push(`<div class="muted what">${escapeHtml(b.what_to_do ?? "")}</div>`);
   }
   const result = b.result;
   if (result && Array.isArray(result.cameras)) {
