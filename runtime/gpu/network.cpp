@@ -443,8 +443,8 @@ Status Network::add_conv_step(const nn::Model& model, std::size_t li,
   g.out = shapes_[li + 1];
   g.cin4 = c4_[ix(in_v)];
   g.cout4 = fused[li].leader >= 0 ? fused[li].stride4 : c4_[li + 1];
-  g.pad_top = nn::conv_pad_before(g.in.h, l.kernel_h, l.stride_h, l.padding);
-  g.pad_left = nn::conv_pad_before(g.in.w, l.kernel_w, l.stride_w, l.padding);
+  g.pad_top = nn::window_pad_top(l, g.in.h);
+  g.pad_left = nn::window_pad_left(l, g.in.w);
   std::vector<int> first_channel;  // of each member in the leader's buffer
   for (std::size_t m : members) {
     first_channel.push_back(fused[li].leader >= 0 ? fused[m].offset4 * 4 : 0);
@@ -575,8 +575,8 @@ Status Network::add_data_step(const nn::Model& model, std::size_t li) {
                        has_b ? values_[ix(l.inputs[1])] : dummy, l.name);
     }
     case nn::OpType::kMaxPool: {
-      const int pad_top = nn::conv_pad_before(is.h, l.kernel_h, l.stride_h, l.padding);
-      const int pad_left = nn::conv_pad_before(is.w, l.kernel_w, l.stride_w, l.padding);
+      const int pad_top = nn::window_pad_top(l, is.h);
+      const int pad_left = nn::window_pad_left(l, is.w);
       return push_step(
           Shader::kMaxPool, {act, l.kernel_h, l.kernel_w},
           {os.n, is.h, is.w, c4, os.h, os.w, l.stride_h, l.stride_w, pad_top, pad_left},

@@ -22,8 +22,8 @@ float alpha_of(const float* alpha, int c) { return alpha ? alpha[c] : 0.f; }
 template <typename Begin, typename Tap, typename End>
 void for_each_window(const Layer& l, const Tensor& in, Tensor& out, Begin&& begin, Tap&& tap,
                      End&& end) {
-  const int pt = conv_pad_before(in.shape.h, l.kernel_h, l.stride_h, l.padding);
-  const int pl = conv_pad_before(in.shape.w, l.kernel_w, l.stride_w, l.padding);
+  const int pt = window_pad_top(l, in.shape.h);
+  const int pl = window_pad_left(l, in.shape.w);
   for (int n = 0; n < out.shape.n; ++n) {
     for (int oy = 0; oy < out.shape.h; ++oy) {
       for (int ox = 0; ox < out.shape.w; ++ox) {

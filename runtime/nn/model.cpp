@@ -37,6 +37,21 @@ int conv_pad_before(int in, int kernel, int stride, Padding padding) {
   return total / 2;  // TensorFlow: the odd pixel goes after
 }
 
+int window_out_h(const Layer& l, int in_h) {
+  return conv_out_size(in_h + l.pad_top + l.pad_bottom, l.kernel_h, l.stride_h, l.padding);
+}
+int window_out_w(const Layer& l, int in_w) {
+  return conv_out_size(in_w + l.pad_left + l.pad_right, l.kernel_w, l.stride_w, l.padding);
+}
+int window_pad_top(const Layer& l, int in_h) {
+  return l.pad_top +
+         conv_pad_before(in_h + l.pad_top + l.pad_bottom, l.kernel_h, l.stride_h, l.padding);
+}
+int window_pad_left(const Layer& l, int in_w) {
+  return l.pad_left +
+         conv_pad_before(in_w + l.pad_left + l.pad_right, l.kernel_w, l.stride_w, l.padding);
+}
+
 const char* to_string(OpType op) {
   switch (op) {
     case OpType::kConv2D:
@@ -144,6 +159,16 @@ Status Model::validate() const {
     if (l.padding != Padding::kSame && l.padding != Padding::kValid) {
       return layer_error(i, l, "unknown padding");
     }
+    if (l.pad_top < 0 || l.pad_bottom < 0 || l.pad_left < 0 || l.pad_right < 0 ||
+        l.pad_top >= kMaxExplicitPad || l.pad_bottom >= kMaxExplicitPad ||
+        l.pad_left >= kMaxExplicitPad || l.pad_right >= kMaxExplicitPad) {
+      return layer_error(
+          i, l, "explicit padding must be in [0, " + std::to_string(kMaxExplicitPad) + ")");
+    }
+    if (l.has_explicit_pad() && l.op != OpType::kConv2D && l.op != OpType::kDepthwiseConv2D &&
+        l.op != OpType::kMaxPool) {
+      return layer_error(i, l, "explicit padding is only for convolutions and max-pool");
+    }
     switch (l.activation) {
       case Activation::kNone:
       case Activation::kRelu:
@@ -243,8 +268,8 @@ Result<Shape> layer_output_shape(const Model& model, const Layer& l,
                                  " input channels, the input has " + std::to_string(in.c));
         }
       }
-      out.h = conv_out_size(in.h, l.kernel_h, l.stride_h, l.padding);
-      out.w = conv_out_size(in.w, l.kernel_w, l.stride_w, l.padding);
+      out.h = window_out_h(l, in.h);
+      out.w = window_out_w(l, in.w);
       if (l.op == OpType::kConv2D) out.c = l.out_channels;
       break;
     }

@@ -80,6 +80,13 @@ struct Layer {
   int bias = -1;
   int alpha = -1;         // PReLU slopes
   int resize_factor = 1;  // kResize*: integer upsampling factor
+  // Windowed ops (conv, depthwise, max-pool): zero rows/columns added around the input before
+  // `padding` applies (a folded TF zero Pad, e.g. BlazePose's before its stride-2 VALID convs).
+  int pad_top = 0;
+  int pad_bottom = 0;
+  int pad_left = 0;
+  int pad_right = 0;
+  bool has_explicit_pad() const { return pad_top || pad_bottom || pad_left || pad_right; }
 };
 
 struct ModelOutput {
@@ -114,9 +121,19 @@ struct Model {
 Result<Shape> layer_output_shape(const Model& model, const Layer& layer,
                                  std::span<const Shape> input_shapes, long index = -1);
 
+// The largest explicit zero padding of a windowed layer (Layer::pad_*), exclusive.
+constexpr int kMaxExplicitPad = 64;
+
 // Output size of a convolution/pool along one axis, and the padding before the first element.
 int conv_out_size(int in, int kernel, int stride, Padding padding);
 int conv_pad_before(int in, int kernel, int stride, Padding padding);
+// The same for a windowed layer, its explicit zero padding (Layer::pad_*) included: the output
+// height/width for an input of in_h/in_w, and the zero rows/columns before the first input
+// pixel (what a kernel's window starts at, negated).
+int window_out_h(const Layer& l, int in_h);
+int window_out_w(const Layer& l, int in_w);
+int window_pad_top(const Layer& l, int in_h);
+int window_pad_left(const Layer& l, int in_w);
 
 const char* to_string(OpType op);
 const char* to_string(Activation a);

@@ -266,7 +266,11 @@ Json layer_json(const Layer& l) {
               {"weights", l.weights},
               {"bias", l.bias},
               {"alpha", l.alpha},
-              {"resize_factor", l.resize_factor}};
+              {"resize_factor", l.resize_factor},
+              {"pad_top", l.pad_top},
+              {"pad_bottom", l.pad_bottom},
+              {"pad_left", l.pad_left},
+              {"pad_right", l.pad_right}};
 }
 
 Result<ConstTensor> parse_tensor(const FileContext& ctx, const Json& j, std::size_t index,
@@ -375,6 +379,16 @@ Result<Layer> parse_layer(const FileContext& ctx, const Json& j, std::size_t ind
     Result<std::int64_t> v = ctx.int_field(j, f.key, f.lo, f.hi, where);
     if (!v.ok()) return v.error();
     *f.out = static_cast<int>(*v);
+  }
+
+  // Explicit zero padding (a folded Pad): absent in files written before it existed.
+  for (auto [key, out] :
+       {std::pair{"pad_top", &l.pad_top}, std::pair{"pad_bottom", &l.pad_bottom},
+        std::pair{"pad_left", &l.pad_left}, std::pair{"pad_right", &l.pad_right}}) {
+    if (!j.contains(key)) continue;
+    Result<std::int64_t> v = ctx.int_field(j, key, 0, kMaxExplicitPad - 1, where);
+    if (!v.ok()) return v.error();
+    *out = static_cast<int>(*v);
   }
 
   Result<std::int64_t> padding = ctx.int_field(j, "padding", 0, kMaxEnum, where);

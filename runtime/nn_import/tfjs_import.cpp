@@ -63,7 +63,7 @@ const std::set<std::string, std::less<>>& supported_ops() {
   static const std::set<std::string, std::less<>> ops = {
       "Placeholder", "Const", "Identity", "Conv2D", "DepthwiseConv2dNative", "_FusedConv2D",
       "FusedDepthwiseConv2dNative", "BiasAdd", "Relu", "Relu6", "Sigmoid", "Prelu", "Add", "AddV2",
-      "ConcatV2", "MaxPool", "ResizeBilinear", "ResizeNearestNeighbor",
+      "ConcatV2", "MaxPool", "ResizeBilinear", "ResizeNearestNeighbor", "Pad",
       // only as a resize's run-time size:
       "Shape", "StridedSlice", "Mul"};
   return ops;
@@ -194,6 +194,9 @@ struct NodeValue {
   const Weight* weight = nullptr;  // the constant
   std::string const_name;
   std::optional<SizeExpr> size;  // a Shape / StridedSlice / Mul node of a resize size
+  // A spatial zero Pad of `value` (top, bottom, left, right): only a VALID convolution or
+  // max-pool takes it, as its explicit padding (Layer::pad_*).
+  std::optional<std::array<int, 4>> pad;
 
   static NodeValue activation(int value_id) {
     NodeValue v;
@@ -267,6 +270,8 @@ class Importer {
   Status map_add(const TfNode& n);
   Status map_concat(const TfNode& n);
   Status map_max_pool(const TfNode& n);
+  Status map_pad(const TfNode& n);
+  Result<int> windowed_input(const TfNode& n, Padding padding, Layer& l) const;
   Status map_resize(const TfNode& n);
 
   // Attribute readers; a missing attribute gives nullopt.
@@ -855,7 +860,69 @@ Result<int> Importer::activation_input(const TfNode& n, std::size_t i) const {
                           (v.size ? "run-time size" : "constant") + "; an activation is needed",
                       ErrorCode::kUnsupported);
   }
+  if (v.pad) {
+    return node_error(n,
+                      "input " + std::to_string(i) + " ('" + n.inputs[i] +
+                          "') is a zero Pad: only a VALID convolution or max-pool takes one "
+                          "(as its own padding)",
+                      ErrorCode::kUnsupported);
+  }
   return v.value;
+}
+
+// Input 0 of a windowed op: a zero Pad's input with the pad moved into l (VALID only), else
+// the activation itself.
+Result<int> Importer::windowed_input(const TfNode& n, Padding padding, Layer& l) const {
+  if (n.inputs.empty()) return node_error(n, "has no inputs");
+  const NodeValue& v = values_.at(n.inputs[0]);
+  if (!v.pad) return activation_input(n, 0);
+  if (padding != Padding::kValid) {
+    return node_error(n,
+                      "takes the zero Pad '" + n.inputs[0] +
+                          "' with SAME padding: only VALID folds an explicit pad",
+                      ErrorCode::kUnsupported);
+  }
+  l.pad_top = (*v.pad)[0];
+  l.pad_bottom = (*v.pad)[1];
+  l.pad_left = (*v.pad)[2];
+  l.pad_right = (*v.pad)[3];
+  return v.value;
+}
+
+// Pad(x, [[0, 0], [top, bottom], [left, right], [0, 0]]): zeros around the image only, taken
+// by the VALID convolution or max-pool that consumes it (NodeValue::pad).
+Status Importer::map_pad(const TfNode& n) {
+  if (n.inputs.size() != 2) {
+    return node_error(n, "has " + std::to_string(n.inputs.size()) + " inputs, needs 2");
+  }
+  Result<int> x = activation_input(n, 0);
+  if (!x.ok()) return x.error();
+  Result<const NodeValue*> p = const_input(n, 1);
+  if (!p.ok()) return p.error();
+  const Weight& w = *(*p)->weight;
+  if (!w.is_int || w.shape != std::vector<int>{static_cast<int>(kNhwcRank), 2}) {
+    return node_error(n, "paddings '" + (*p)->const_name + "' must be a 4x2 int32 tensor, is " +
+                             shape_text(w.shape));
+  }
+  const std::vector<std::int32_t>& q = w.ints;
+  if (q[0] != 0 || q[1] != 0 || q[6] != 0 || q[7] != 0) {
+    return node_error(n,
+                      "pads the batch or the channels: only the image's rows and columns are "
+                      "supported",
+                      ErrorCode::kUnsupported);
+  }
+  for (int k = 2; k < 6; ++k) {
+    if (q[static_cast<std::size_t>(k)] < 0 || q[static_cast<std::size_t>(k)] >= kMaxExplicitPad) {
+      return node_error(n,
+                        "pads by " + std::to_string(q[static_cast<std::size_t>(k)]) + ": [0, " +
+                            std::to_string(kMaxExplicitPad) + ") is supported",
+                        ErrorCode::kUnsupported);
+    }
+  }
+  NodeValue v = NodeValue::activation(*x);
+  v.pad = std::array<int, 4>{q[2], q[3], q[4], q[5]};
+  values_[n.name] = std::move(v);
+  return Status::Ok();
 }
 
 Result<const NodeValue*> Importer::const_input(const TfNode& n, std::size_t i) const {
@@ -1066,7 +1133,10 @@ Status Importer::map_conv(const TfNode& n) {
   const bool depthwise = n.op == "DepthwiseConv2dNative" || n.op == "FusedDepthwiseConv2dNative";
   const bool fused = n.op == "_FusedConv2D" || n.op == "FusedDepthwiseConv2dNative";
   if (Status s = check_common_attrs(n); !s.ok()) return s;
-  Result<int> x = activation_input(n, 0);
+  Result<Padding> padding = padding_attr(n);
+  if (!padding.ok()) return padding.error();
+  Layer l;
+  Result<int> x = windowed_input(n, *padding, l);
   if (!x.ok()) return x.error();
   Result<const NodeValue*> filter = const_input(n, 1);
   if (!filter.ok()) return filter.error();
@@ -1089,10 +1159,7 @@ Status Importer::map_conv(const TfNode& n) {
   }
   Result<std::array<int, 2>> strides = window_attr(n, "strides", true);
   if (!strides.ok()) return strides.error();
-  Result<Padding> padding = padding_attr(n);
-  if (!padding.ok()) return padding.error();
 
-  Layer l;
   l.name = n.name;
   l.op = depthwise ? OpType::kDepthwiseConv2D : OpType::kConv2D;
   l.inputs = {*x};
@@ -1148,8 +1215,8 @@ Status Importer::map_conv(const TfNode& n) {
   Shape out = in;
   out.c = l.out_channels;
   if (sizes_known_) {
-    out.h = conv_out_size(in.h, l.kernel_h, l.stride_h, l.padding);
-    out.w = conv_out_size(in.w, l.kernel_w, l.stride_w, l.padding);
+    out.h = window_out_h(l, in.h);
+    out.w = window_out_w(l, in.w);
   }
   values_[n.name] = NodeValue::activation(add_layer(std::move(l), out));
   return Status::Ok();
@@ -1288,15 +1355,15 @@ Status Importer::map_max_pool(const TfNode& n) {
     return node_error(n, "has " + std::to_string(n.inputs.size()) + " inputs, needs 1");
   }
   if (Status s = check_common_attrs(n); !s.ok()) return s;
-  Result<int> x = activation_input(n, 0);
+  Result<Padding> padding = padding_attr(n);
+  if (!padding.ok()) return padding.error();
+  Layer l;
+  Result<int> x = windowed_input(n, *padding, l);
   if (!x.ok()) return x.error();
   Result<std::array<int, 2>> ksize = window_attr(n, "ksize", true);
   if (!ksize.ok()) return ksize.error();
   Result<std::array<int, 2>> strides = window_attr(n, "strides", true);
   if (!strides.ok()) return strides.error();
-  Result<Padding> padding = padding_attr(n);
-  if (!padding.ok()) return padding.error();
-  Layer l;
   l.name = n.name;
   l.op = OpType::kMaxPool;
   l.inputs = {*x};
@@ -1308,8 +1375,8 @@ Status Importer::map_max_pool(const TfNode& n) {
   const Shape in = shape_of(*x);
   Shape out = in;
   if (sizes_known_) {
-    out.h = conv_out_size(in.h, l.kernel_h, l.stride_h, l.padding);
-    out.w = conv_out_size(in.w, l.kernel_w, l.stride_w, l.padding);
+    out.h = window_out_h(l, in.h);
+    out.w = window_out_w(l, in.w);
   }
   values_[n.name] = NodeValue::activation(add_layer(std::move(l), out));
   return Status::Ok();
@@ -1511,6 +1578,7 @@ Status Importer::map_node(const TfNode& n) {
   if (op == "Add" || op == "AddV2") return map_add(n);
   if (op == "ConcatV2") return map_concat(n);
   if (op == "MaxPool") return map_max_pool(n);
+  if (op == "Pad") return map_pad(n);
   if (op == "ResizeBilinear" || op == "ResizeNearestNeighbor") return map_resize(n);
   return node_error(n, "op '" + op + "' is not supported by the importer", ErrorCode::kUnsupported);
 }

@@ -5,9 +5,10 @@
 // FusedDepthwiseConv2dNative (fused_ops BiasAdd, then optionally Relu, Relu6, Prelu or
 // Sigmoid), standalone BiasAdd/Relu/Relu6/Sigmoid/Prelu (folded into the producing convolution
 // when it is that convolution's only consumer, otherwise an activation layer; an unfoldable
-// BiasAdd is unsupported), Add/AddV2, ConcatV2 along channels, MaxPool, ResizeBilinear
-// (half-pixel centres) and ResizeNearestNeighbor with an integer factor: a constant size at the
-// Placeholder's declared size, or the size Keras' UpSampling2D computes at run time,
+// BiasAdd is unsupported), Add/AddV2, ConcatV2 along channels, MaxPool, a zero Pad of the
+// image's rows and columns taken by a VALID convolution or max-pool (as its Layer::pad_*),
+// ResizeBilinear (half-pixel centres) and ResizeNearestNeighbor with an integer factor: a constant
+// size at the Placeholder's declared size, or the size Keras' UpSampling2D computes at run time,
 // Mul(StridedSlice(Shape(x), [1], [3], [1]), [f, f]) for the resized value x itself (Shape,
 // StridedSlice and int32 Mul are accepted in that pattern only, so dynamic input sizes work).
 // Anything else is an ErrorCode::kUnsupported error naming the node and op. Only the nodes the

@@ -383,6 +383,37 @@ TEST_F(GpuTest, MaxPoolMatchesCpuWithStridesAndPadding) {
   }
 }
 
+// A folded zero Pad (Layer::pad_*, BlazePose's stride-2 VALID convolutions): uneven pads on
+// every side, for the conv, depthwise and max-pool kernels.
+TEST_F(GpuTest, ExplicitPaddingMatchesCpu) {
+  std::mt19937 rng(12);
+  for (nn::OpType op : {nn::OpType::kConv2D, nn::OpType::kDepthwiseConv2D, nn::OpType::kMaxPool}) {
+    for (int stride : {1, 2}) {
+      nn::Model m =
+          op == nn::OpType::kMaxPool
+              ? empty_model(6)
+              : one_layer(op, 3, stride, 6, 5, nn::Activation::kRelu6, nn::Padding::kValid, rng);
+      if (op == nn::OpType::kMaxPool) {
+        const int v = add_layer(m, op, {0}, nn::Activation::kNone, 6, rng);
+        m.layers.back().kernel_h = m.layers.back().kernel_w = 3;
+        m.layers.back().stride_h = m.layers.back().stride_w = stride;
+        m.outputs = {{"out", v}};
+      }
+      nn::Layer& l = m.layers.back();
+      l.padding = nn::Padding::kValid;
+      l.pad_top = 1;
+      l.pad_bottom = 2;
+      l.pad_left = 2;
+      l.pad_right = 0;
+      ASSERT_TRUE(m.validate().ok()) << m.validate().error().message();
+      const nn::Tensor in = random_input({1, 11, 10, 6}, rng);
+      std::string what;
+      EXPECT_LT(compare(*ctx_, m, in, &what), kTolerance)
+          << what << " " << nn::to_string(op) << " s" << stride;
+    }
+  }
+}
+
 TEST_F(GpuTest, ResizeMatchesCpu) {
   std::mt19937 rng(10);
   for (nn::OpType op : {nn::OpType::kResizeNearest, nn::OpType::kResizeBilinear}) {

@@ -69,6 +69,30 @@ TEST(CpuOpsTest, StrideTwoOnEvenSizePadsAfter) {
   EXPECT_FLOAT_EQ(out.at(0, 0, 1, 0), in.at(0, 0, 2, 0));
 }
 
+// Explicit padding (a folded zero Pad) is the same as running VALID on the zero-padded input.
+TEST(CpuOpsTest, ExplicitPaddingIsAZeroBorder) {
+  Model m;
+  m.input_channels = 1;
+  m.tensors.push_back({"w", {3, 3, 1, 1}, {1, 2, 3, 4, 5, 6, 7, 8, 9}});
+  m.layers.push_back(conv_layer(OpType::kConv2D, 3, 2, Padding::kValid, 1, 0, -1));
+  Model padded = m;
+  padded.layers[0].pad_top = 1;
+  padded.layers[0].pad_bottom = 2;
+  padded.layers[0].pad_left = 2;
+  const Tensor in = ramp({1, 5, 4, 1});
+  Tensor border({1, 8, 6, 1});  // 1 + 5 + 2 rows, 2 + 4 + 0 columns
+  for (int y = 0; y < 5; ++y) {
+    for (int x = 0; x < 4; ++x) border.at(0, y + 1, x + 2, 0) = in.at(0, y, x, 0);
+  }
+  Tensor want;
+  Tensor got;
+  ASSERT_TRUE(run1(m, border, want).ok());
+  ASSERT_TRUE(run1(padded, in, got).ok());
+  ASSERT_EQ(got.shape, want.shape);
+  EXPECT_EQ(got.shape, (Shape{1, 3, 2, 1}));
+  EXPECT_EQ(got.data, want.data);
+}
+
 TEST(CpuOpsTest, PointwiseIsAMatrixProductWithRelu6) {
   Model m;
   m.input_channels = 2;

@@ -414,6 +414,81 @@ TEST_F(TfjsImportTest, StandalonePreluFoldsWithReshapedSlopes) {
   EXPECT_EQ(r->outputs[0].name, "prelu");
 }
 
+// BlazePose's pattern: a zero Pad of the rows and columns, then a stride-2 VALID convolution
+// (and a max-pool): the pad becomes the layer's explicit padding, and the output size is the
+// padded input's (9x9 + 1 each side, 3x3/2 VALID: 5x5; SAME of the unpadded 9x9 would be 5x5
+// too, but shifted by a pixel).
+TEST_F(TfjsImportTest, AZeroPadFoldsIntoTheValidConvolutionAfterIt) {
+  g_.placeholder("x", {1, 9, 9, 2});
+  g_.const_i("pads", {4, 2}, {0, 0, 1, 1, 1, 1, 0, 0});
+  g_.const_i("pads2", {4, 2}, {0, 0, 0, 1, 2, 0, 0, 0});
+  g_.const_f("w", {3, 3, 2, 3}, ramp(54, -0.2f, 0.01f));
+  g_.node("pad", "Pad", {"x", "pads"});
+  g_.node("conv", "Conv2D", {"pad", "w"}, conv_attrs(2, "VALID"));
+  g_.node("pad2", "Pad", {"conv", "pads2"});
+  Json pool{{"ksize", ints_attr({1, 2, 2, 1})},
+            {"strides", ints_attr({1, 2, 2, 1})},
+            {"padding", s_attr("VALID")}};
+  g_.node("pool", "MaxPool", {"pad2"}, pool);
+  Result<Model> r = import_tfjs(g_.write(dir_));
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  ASSERT_EQ(r->layers.size(), 2u);
+  const Layer& conv = r->layers[0];
+  EXPECT_EQ(conv.inputs, std::vector<int>{0});
+  EXPECT_EQ(conv.padding, Padding::kValid);
+  EXPECT_EQ((std::vector<int>{conv.pad_top, conv.pad_bottom, conv.pad_left, conv.pad_right}),
+            (std::vector<int>{1, 1, 1, 1}));
+  const Layer& mp = r->layers[1];
+  EXPECT_EQ((std::vector<int>{mp.pad_top, mp.pad_bottom, mp.pad_left, mp.pad_right}),
+            (std::vector<int>{0, 1, 2, 0}));
+  auto shapes = r->infer_shapes({1, 9, 9, 2});
+  ASSERT_TRUE(shapes.ok()) << shapes.error().message();
+  EXPECT_EQ((*shapes)[1], (Shape{1, 5, 5, 3}));
+  EXPECT_EQ((*shapes)[2], (Shape{1, 3, 3, 3}));  // (5 + 1) / 2 rows, (5 + 2) / 2 columns
+
+  // The model file keeps the pads.
+  const auto file = dir_ / "padded.mcnn";
+  ASSERT_TRUE(write_model_file(*r, file).ok());
+  Result<Model> back = read_model_file(file);
+  ASSERT_TRUE(back.ok()) << back.error().message();
+  EXPECT_EQ(back->layers[1].pad_left, 2);
+  EXPECT_EQ(back->layers[0].pad_bottom, 1);
+}
+
+// What a pad cannot fold into is named: a SAME convolution, an add, the channels.
+TEST_F(TfjsImportTest, APadThatCannotFoldIsNamed) {
+  struct Case {
+    const char* consumer;
+    std::vector<std::int32_t> pads;
+    const char* says;
+  };
+  const Case cases[] = {
+      {"same", {0, 0, 1, 1, 1, 1, 0, 0}, "only VALID folds"},
+      {"add", {0, 0, 1, 1, 1, 1, 0, 0}, "is a zero Pad"},
+      {"valid", {0, 0, 1, 1, 1, 1, 0, 2}, "pads the batch or the channels"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.consumer);
+    TfjsGraph g;
+    g.placeholder("x", {1, 6, 6, 2});
+    g.const_i("pads", {4, 2}, c.pads);
+    g.const_f("w", {3, 3, 2, 2}, ramp(36, 0.0f, 0.01f));
+    g.node("pad", "Pad", {"x", "pads"});
+    if (std::string(c.consumer) == "add") {
+      g.node("out", "AddV2", {"pad", "pad"});
+    } else {
+      g.node("out", "Conv2D", {"pad", "w"},
+             conv_attrs(1, std::string(c.consumer) == "same" ? "SAME" : "VALID"));
+    }
+    const auto dir = dir_ / c.consumer;
+    std::filesystem::create_directories(dir);
+    Result<Model> r = import_tfjs(g.write(dir));
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.error().code(), ErrorCode::kUnsupported);
+    EXPECT_THAT(r.error().message(), HasSubstr(c.says));
+  }
+}
+
 TEST_F(TfjsImportTest, QuantizedWeightsAreDequantized) {
   g_.placeholder("x", {1, 2, 2, 2});
   g_.const_q("w", {1, 1, 2, 2}, {0, 1, 128, 255}, 1, 0.5f, -2.0f);

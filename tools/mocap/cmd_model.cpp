@@ -10,6 +10,7 @@
 #include "runtime/nn/model.h"
 #include "runtime/nn/model_file.h"
 #include "runtime/nn/movenet.h"
+#include "runtime/nn_import/blazepose_cut.h"
 #include "runtime/nn_import/movenet_cuts.h"
 #include "runtime/nn_import/tfjs_import.h"
 #include "tools/common/cli.h"
@@ -68,6 +69,10 @@ std::string window_text(const nn::Layer& l) {
         s += std::to_string(l.stride_w);
       }
       s += l.padding == nn::Padding::kSame ? " same" : " valid";
+      if (l.has_explicit_pad()) {
+        s += " +pad " + std::to_string(l.pad_top) + "," + std::to_string(l.pad_bottom) + "," +
+             std::to_string(l.pad_left) + "," + std::to_string(l.pad_right);
+      }
       return s;
     case nn::OpType::kResizeBilinear:
     case nn::OpType::kResizeNearest:
@@ -116,8 +121,10 @@ Result<nn::TfjsImportOptions> cut_options(const std::string& name) {
   if (name.empty()) return nn::TfjsImportOptions{};
   if (name == "movenet-multipose") return nn::movenet_multipose_cut();
   if (name == "movenet-singlepose") return nn::movenet_singlepose_cut();
-  return Error(ErrorCode::kInvalidArgument,
-               "--cut '" + name + "' is unknown (known: movenet-multipose, movenet-singlepose)");
+  if (name == "blazepose") return nn::blazepose_landmarks_cut();
+  return Error(
+      ErrorCode::kInvalidArgument,
+      "--cut '" + name + "' is unknown (known: movenet-multipose, movenet-singlepose, blazepose)");
 }
 
 Status check_size(int size_px) {
@@ -148,7 +155,9 @@ int run_convert(Args args) {
   parser.option("--cut", &cut, "NAME",
                 "import a known graph cut at its heads: movenet-multipose (MoveNet MultiPose "
                 "from the normalised image to its four heads, runtime/nn/movenet.h) or "
-                "movenet-singlepose (MoveNet Thunder or Lightning, the same four heads)");
+                "movenet-singlepose (MoveNet Thunder or Lightning, the same four heads) or "
+                "blazepose (BlazePose lite or full: landmarks, person flag and heatmaps, "
+                "without the segmentation)");
   if (int rc = cli::handle_parse(parser, args); rc >= 0) return rc;
   if (tfjs.empty() || out.empty()) {
     return cli::usage_error("--tfjs and --out are required (see mocap model convert --help)");

@@ -1,0 +1,181 @@
+// BlazePose's landmark models (blazepose-lite.json, blazepose-full.json of the npm package),
+// cut as runtime/nn_import/blazepose_cut.h imports them (their zero Pads folded into the
+// stride-2 convolutions as explicit padding), on the Vulkan backend and the CPU reference
+// against TF.js (cpu backend, pinned npm versions, tools/tfjs_ref/blazepose_ref.mjs) on crops
+// of real photos (Debian opencv-doc): every output within 1e-4 of its largest magnitude. Prints
+// the cost of one 256x256 crop: multiply-adds (GFLOP = 2x) and the Vulkan run's median on this
+// driver. Needs models/blazepose-*.json (tools/fetch_models.sh), the photos
+// (tools/fetch_test_photos.sh) and Node with tools/tfjs_ref/node_modules (tools/setup.sh);
+// without them the test skips, except under CI=true, where it fails.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "runtime/core/stats.h"
+#include "runtime/gpu/context.h"
+#include "runtime/gpu/network.h"
+#include "runtime/image/image.h"
+#include "runtime/nn/cpu_ops.h"
+#include "runtime/nn/preprocess.h"
+#include "runtime/nn_import/blazepose_cut.h"
+#include "runtime/nn_import/tfjs_import.h"
+#include "tests/support/data.h"
+#include "tests/support/tensor_compare.h"
+
+namespace mocap::gpu {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kSource = MOCAP_SOURCE_DIR;
+constexpr double kTolerance = 1e-4;
+constexpr int kCropPx = 256;
+
+std::vector<float> read_f32(const fs::path& p) {
+  std::vector<float> v(static_cast<std::size_t>(fs::file_size(p) / 4));
+  std::ifstream f(p, std::ios::binary);
+  f.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(v.size() * 4));
+  return v;
+}
+
+void write_bytes(const fs::path& p, const void* data, std::size_t bytes) {
+  std::ofstream f(p, std::ios::binary | std::ios::trunc);
+  f.write(static_cast<const char*>(data), static_cast<std::streamsize>(bytes));
+}
+
+// The photo letterboxed to the crop, rounded to 8 bits and scaled to [0, 1] (RGB / 255: the
+// graph's own input).
+nn::Tensor crop_of(const image::ImageRgb8& img) {
+  nn::Tensor t({1, kCropPx, kCropPx, 3});
+  EXPECT_TRUE(nn::letterbox_rgb8(img.rgb, img.width_px, img.height_px, t).ok());
+  for (float& v : t.data) {
+    const long q = std::lround((static_cast<double>(v) + 1.0) * 127.5);
+    v = static_cast<float>(static_cast<double>(std::clamp(q, 0L, 255L)) / 255.0);
+  }
+  return t;
+}
+
+class BlazePoseTfjsTest : public ::testing::TestWithParam<const char*> {
+ protected:
+  void SetUp() override {
+    model_json_ = kSource / "models" / (std::string(GetParam()) + ".json");
+    if (!fs::exists(model_json_)) {
+      MOCAP_SKIP_OR_FAIL_IN_CI(model_json_.string() + " missing (tools/fetch_models.sh)");
+    }
+    if (!fs::exists(kSource / "tools/tfjs_ref/node_modules") ||
+        std::system("command -v node >/dev/null 2>&1") != 0) {
+      MOCAP_SKIP_OR_FAIL_IN_CI("Node or tools/tfjs_ref/node_modules missing (tools/setup.sh)");
+    }
+    for (const auto& p : photos_) {
+      if (!fs::exists(kSource / ".cache/photos" / p)) {
+        MOCAP_SKIP_OR_FAIL_IN_CI(".cache/photos/" + p + " missing (tools/fetch_test_photos.sh)");
+      }
+    }
+    tmp_ = fs::temp_directory_path() / ("mocap-blazepose-" + std::to_string(::getpid()));
+    fs::create_directories(tmp_);
+  }
+  void TearDown() override {
+    if (!tmp_.empty()) fs::remove_all(tmp_);
+  }
+  void reference(const fs::path& input, const fs::path& out) {
+    const std::string cmd = "node '" + (kSource / "tools/tfjs_ref/blazepose_ref.mjs").string() +
+                            "' --model '" + model_json_.string() + "' --input-f32 '" +
+                            input.string() + "' --out '" + out.string() +
+                            "' --backend cpu 2>/dev/null >/dev/null";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  }
+
+  fs::path model_json_;
+  const std::vector<std::string> photos_ = {"messi5.jpg", "basketball1.png"};
+  fs::path tmp_;
+};
+
+TEST_P(BlazePoseTfjsTest, VulkanAndCpuOutputsMatchTfjsOnPhotos) {
+  auto model = nn::import_tfjs(model_json_, nn::blazepose_landmarks_cut());
+  ASSERT_TRUE(model.ok()) << model.error().message();
+  int explicit_pads = 0;
+  for (const nn::Layer& l : model->layers) explicit_pads += l.has_explicit_pad() ? 1 : 0;
+  EXPECT_EQ(explicit_pads, 5) << "the graph's five zero Pads, folded";
+  GpuOptions go;
+  go.validation = true;
+  auto ctx = Context::create(go);
+  if (!ctx.ok()) MOCAP_SKIP_OR_FAIL_IN_CI("no Vulkan device: " + ctx.error().message());
+  NetworkOptions no;
+  no.height_px = no.width_px = kCropPx;
+  auto net = Network::create(**ctx, *model, no);
+  ASSERT_TRUE(net.ok()) << net.error().message();
+  const nn::Shape want[] = {{1, 1, 1, 195}, {1, 1, 1, 1}, {1, 64, 64, 39}};
+  for (const auto& photo : photos_) {
+    SCOPED_TRACE(photo);
+    auto img = image::load_image(kSource / ".cache/photos" / photo);
+    ASSERT_TRUE(img.ok()) << img.error().message();
+    const nn::Tensor in = crop_of(*img);
+    write_bytes(tmp_ / "input.f32", in.data.data(), in.data.size() * 4);
+    reference(tmp_ / "input.f32", tmp_ / "ref");
+    ASSERT_TRUE((*net)->run(in.data).ok());
+    std::vector<nn::Tensor> cpu;
+    if (!::mocap::testing::driver_run()) {
+      auto r = nn::run_model_cpu(*model, in);
+      ASSERT_TRUE(r.ok()) << r.error().message();
+      cpu = std::move(*r);
+    }
+    ASSERT_EQ(model->outputs.size(), 3u);
+    for (std::size_t o = 0; o < model->outputs.size(); ++o) {
+      const std::string& name = model->outputs[o].name;
+      const std::vector<float> ref = read_f32(tmp_ / "ref" / (name + ".f32"));
+      nn::Tensor got;
+      ASSERT_TRUE((*net)->read_output(o, got).ok());
+      EXPECT_EQ(got.shape, want[o]) << name;
+      const double err = ::mocap::testing::max_relative_error(got.data, ref);
+      EXPECT_LT(err, kTolerance) << "vulkan " << name;
+      std::printf("[ blazepose ] %s %s %-9s vulkan rel err %.2e", GetParam(), photo.c_str(),
+                  name.c_str(), err);
+      if (!cpu.empty()) {
+        const auto& c = cpu[static_cast<std::size_t>(model->outputs[o].value)].data;
+        const double cerr = ::mocap::testing::max_relative_error(c, ref);
+        EXPECT_LT(cerr, kTolerance) << "cpu " << name;
+        std::printf("  cpu rel err %.2e", cerr);
+      }
+      std::printf("\n");
+    }
+  }
+  // The cost of one crop: the figure to size the feet's crops by.
+  auto mac = model->multiply_adds({1, kCropPx, kCropPx, 3});
+  ASSERT_TRUE(mac.ok());
+  const nn::Tensor in = crop_of(*image::load_image(kSource / ".cache/photos" / photos_[0]));
+  std::vector<double> ms;
+  for (int i = 0; i < 5; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    ASSERT_TRUE((*net)->run(in.data).ok());
+    ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  }
+  std::printf(
+      "[ blazepose ] %s per %dx%d crop: %.3f GFLOP (%.1f M parameters), %s median %.1f ms "
+      "of 5 runs\n",
+      GetParam(), kCropPx, kCropPx, 2.0 * *mac / 1e9,
+      static_cast<double>(model->parameter_count()) / 1e6, (*ctx)->device_info().name.c_str(),
+      median(ms));
+  EXPECT_EQ((*ctx)->validation_errors(), 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, BlazePoseTfjsTest,
+                         ::testing::Values("blazepose-lite", "blazepose-full"),
+                         [](const auto& param_info) {
+                           std::string n = param_info.param;
+                           std::replace(n.begin(), n.end(), '-', '_');
+                           return n;
+                         });
+
+}  // namespace
+}  // namespace mocap::gpu
