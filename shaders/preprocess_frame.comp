@@ -1,7 +1,7 @@
 #version 450
 // Camera frame -> network input: RGB24 / YUYV / NV12 bytes (any row stride), letterboxed into
 // out_w x out_h (aspect kept, bilinear with half-pixel centres, centred, black borders),
-// normalised to [-1, 1], NHWC float32, written at batch item n. GPU version of
+// normalised to [-1, 1] (or another range: value_divisor, value_offset), NHWC float32, written at batch item n. GPU version of
 // nn::letterbox_frame (runtime/nn/preprocess.cpp), which documents the conventions: BT.601
 // limited-range YUV, colour converted per source pixel before the filter, chroma not
 // interpolated. One invocation per output pixel. The frame bytes are read as 32-bit words
@@ -28,6 +28,8 @@ layout(push_constant) uniform Params {
   float scale;    // network px per image px
   float offset_x;
   float offset_y;
+  float value_divisor;  // RGB in [0, 255] / value_divisor + value_offset (black: value_offset)
+  float value_offset;
 } pc;
 
 float byte_at(int i) {
@@ -63,9 +65,9 @@ void main() {
   const int yy = gid / pc.out_w;
   const int o = ((pc.n * pc.out_h + yy) * pc.out_w + x) * 3;
   if (x < pc.x_begin || x >= pc.x_end || yy < pc.y_begin || yy >= pc.y_end) {
-    y[o] = -1.0;
-    y[o + 1] = -1.0;
-    y[o + 2] = -1.0;
+    y[o] = pc.value_offset;
+    y[o + 1] = pc.value_offset;
+    y[o + 2] = pc.value_offset;
     return;
   }
   const float sx = (float(x) + 0.5 - pc.offset_x) / pc.scale - 0.5;
@@ -80,7 +82,7 @@ void main() {
   const float fy = cy - float(y0);
   const vec3 top = sample_rgb(x0, y0) * (1.0 - fx) + sample_rgb(x1, y0) * fx;
   const vec3 bot = sample_rgb(x0, y1) * (1.0 - fx) + sample_rgb(x1, y1) * fx;
-  const vec3 v = (top * (1.0 - fy) + bot * fy) / 127.5 - 1.0;
+  const vec3 v = (top * (1.0 - fy) + bot * fy) / pc.value_divisor + pc.value_offset;
   y[o] = v.x;
   y[o + 1] = v.y;
   y[o + 2] = v.z;

@@ -158,6 +158,7 @@ struct PreprocessPush {
   std::int32_t src_base, src_w, src_h, stride, uv_offset, out_w, out_h, n;
   std::int32_t x_begin, x_end, y_begin, y_end;
   float scale, offset_x, offset_y;
+  float value_divisor, value_offset;
 };
 
 int format_index(PixelFormat f) {
@@ -176,7 +177,8 @@ int format_index(PixelFormat f) {
 }  // namespace
 
 Result<std::unique_ptr<FramePreprocessor>> FramePreprocessor::create(Context& ctx, int width_px,
-                                                                     int height_px, int max_views) {
+                                                                     int height_px, int max_views,
+                                                                     nn::InputRange range) {
   if (width_px < 1 || width_px > 4096 || height_px < 1 || height_px > 4096 || max_views < 1 ||
       max_views > 64) {
     return Error(ErrorCode::kInvalidArgument,
@@ -188,6 +190,7 @@ Result<std::unique_ptr<FramePreprocessor>> FramePreprocessor::create(Context& ct
   p->width_px_ = width_px;
   p->height_px_ = height_px;
   p->max_views_ = max_views;
+  p->range_ = range;
   for (int f = 0; f < 3; ++f) {
     auto k = BoundKernel::create(ctx, Shader::kPreprocessFrame, 2, sizeof(PreprocessPush), {f});
     if (!k.ok()) return k.error();
@@ -286,6 +289,8 @@ Result<std::vector<nn::Letterbox>> FramePreprocessor::run(std::span<const nn::Fr
     pc.scale = static_cast<float>(g.box.scale);
     pc.offset_x = static_cast<float>(g.box.offset_x_px);
     pc.offset_y = static_cast<float>(g.box.offset_y_px);
+    pc.value_divisor = range_.divisor;
+    pc.value_offset = range_.offset;
     pushes.push_back(pc);
     used[format_index(f.format)] = true;
   }

@@ -68,8 +68,10 @@ struct PreprocessItem {
 
 class FramePreprocessor {
  public:
-  static Result<std::unique_ptr<FramePreprocessor>> create(Context& ctx, int width_px,
-                                                           int height_px, int max_views);
+  // range: the network input's values (nn::InputRange; BlazePose takes nn::kUnitInput).
+  static Result<std::unique_ptr<FramePreprocessor>> create(
+      Context& ctx, int width_px, int height_px, int max_views,
+      nn::InputRange range = nn::kSignedUnitInput);
   // Validates every frame first (nn::validate_frame; the error names the frame index), then
   // writes batch items 0..frames.size()-1 and returns their letterboxes.
   Result<std::vector<nn::Letterbox>> run(std::span<const nn::FrameView> frames);
@@ -92,6 +94,7 @@ class FramePreprocessor {
   int width_px_ = 0;
   int height_px_ = 0;
   int max_views_ = 0;
+  nn::InputRange range_;
   std::unique_ptr<BoundKernel> kernels_[3];  // per format: RGB24, YUYV, NV12
   Buffer staging_;
   Buffer output_;

@@ -162,8 +162,8 @@ Result<Letterbox> letterbox_frame(const FrameView& frame, Tensor& out, int n) {
       frame, letterbox_grid(frame.width_px, frame.height_px, out.shape.w, out.shape.h), out, n);
 }
 
-Result<Letterbox> resample_frame(const FrameView& frame, const LetterboxGrid& g, Tensor& out,
-                                 int n) {
+Result<Letterbox> resample_frame(const FrameView& frame, const LetterboxGrid& g, Tensor& out, int n,
+                                 InputRange range) {
   if (Status st = validate_frame(frame); !st.ok()) return st.error();
   if (!(g.box.scale > 0) || !std::isfinite(g.box.scale) || !std::isfinite(g.box.offset_x_px) ||
       !std::isfinite(g.box.offset_y_px)) {
@@ -210,7 +210,7 @@ Result<Letterbox> resample_frame(const FrameView& frame, const LetterboxGrid& g,
       const double sx = (x + 0.5 - lb.offset_x_px) / lb.scale - 0.5;
       float* dst = &out.at(n, y, x, 0);
       if (x < g.x_begin || x >= g.x_end || y < g.y_begin || y >= g.y_end) {
-        dst[0] = dst[1] = dst[2] = -1.f;  // black
+        dst[0] = dst[1] = dst[2] = range.offset;  // black
         continue;
       }
       const double cx = std::clamp(sx, 0.0, width_px - 1.0);
@@ -229,7 +229,7 @@ Result<Letterbox> resample_frame(const FrameView& frame, const LetterboxGrid& g,
       for (int c = 0; c < 3; ++c) {
         const float top = p00[c] * (1.f - fx) + p10[c] * fx;
         const float bot = p01[c] * (1.f - fx) + p11[c] * fx;
-        dst[c] = (top * (1.f - fy) + bot * fy) / 127.5f - 1.f;
+        dst[c] = (top * (1.f - fy) + bot * fy) / range.divisor + range.offset;
       }
     }
   }

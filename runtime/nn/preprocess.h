@@ -88,6 +88,15 @@ Status validate_frame(const FrameView& frame);
 // reference and the GPU kernel use.
 void yuv_to_rgb_bt601_limited(float y, float u, float v, float rgb[3]);
 
+// The network input's values: RGB in [0, 255] / divisor + offset (black, also the border:
+// offset). The default is [-1, 1] (PoseNet, MoveNet's cut); BlazePose takes [0, 1].
+struct InputRange {
+  float divisor = 127.5f;
+  float offset = -1.f;
+};
+inline constexpr InputRange kSignedUnitInput{};
+inline constexpr InputRange kUnitInput{255.f, 0.f};
+
 // Writes batch item `n` of `out` (shape [N, H, W, 3], allocated by the caller).
 Result<Letterbox> letterbox_frame(const FrameView& frame, Tensor& out, int n = 0);
 
@@ -95,7 +104,7 @@ Result<Letterbox> letterbox_frame(const FrameView& frame, Tensor& out, int n = 0
 // crop_grid of this frame's size and out's), the pixels outside it black.
 // shaders/preprocess_frame.comp takes the same grid, so GPU crops are tested against this.
 Result<Letterbox> resample_frame(const FrameView& frame, const LetterboxGrid& grid, Tensor& out,
-                                 int n = 0);
+                                 int n = 0, InputRange range = kSignedUnitInput);
 
 // letterbox_frame of a packed RGB24 image.
 Result<Letterbox> letterbox_rgb8(std::span<const std::uint8_t> rgb, int width_px, int height_px,

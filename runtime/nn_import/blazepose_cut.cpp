@@ -5,9 +5,9 @@ namespace mocap::nn {
 TfjsImportOptions blazepose_landmarks_cut() {
   TfjsImportOptions o;
   o.outputs = {
-      {"StatefulPartitionedCall/model/convld_3d/BiasAdd", kBlazePoseLandmarks},
-      {"StatefulPartitionedCall/model/activation_poseflag/Sigmoid", kBlazePoseFlag},
-      {"StatefulPartitionedCall/model/activation_heatmap/Sigmoid", kBlazePoseHeatmap},
+      {"StatefulPartitionedCall/model/convld_3d/BiasAdd", kBlazePoseLandmarksOutput},
+      {"StatefulPartitionedCall/model/activation_poseflag/Sigmoid", kBlazePoseFlagOutput},
+      {"StatefulPartitionedCall/model/activation_heatmap/Sigmoid", kBlazePoseHeatmapOutput},
   };
   return o;
 }

@@ -10,9 +10,10 @@
 namespace mocap::nn {
 
 // Output names of the cut (and of the converted model).
-inline constexpr const char* kBlazePoseLandmarks = "landmarks";  // [1,1,1,39*5]: x y z vis pres
-inline constexpr const char* kBlazePoseFlag = "poseflag";        // [1,1,1,1]: a person, sigmoid
-inline constexpr const char* kBlazePoseHeatmap = "heatmap";      // [1,64,64,39]: sigmoid
+inline constexpr const char* kBlazePoseLandmarksOutput =
+    "landmarks";                                                   // [1,1,1,39*5]: x y z vis pres
+inline constexpr const char* kBlazePoseFlagOutput = "poseflag";    // [1,1,1,1]: a person, sigmoid
+inline constexpr const char* kBlazePoseHeatmapOutput = "heatmap";  // [1,64,64,39]: sigmoid
 
 TfjsImportOptions blazepose_landmarks_cut();
 

@@ -129,22 +129,34 @@ TEST_F(PoseKernelsTest, PreprocessCropsMatchTheCpuReference) {
       {1, nn::crop_grid(nn::crop_letterbox(24, 10, 70, kS, kS), 48, 64, kS, kS)},    // upscaled?
       {1, nn::crop_grid(nn::crop_letterbox(400, 400, 10, kS, kS), 48, 64, kS, kS)},  // off it
   };
-  auto pre = FramePreprocessor::create(*ctx_, kS, kS, 4);
-  ASSERT_TRUE(pre.ok()) << pre.error().message();
-  auto boxes = (*pre)->run(views, items);
-  ASSERT_TRUE(boxes.ok()) << boxes.error().message();
-  nn::Tensor ref({4, kS, kS, 3});
-  const std::size_t item = static_cast<std::size_t>(kS) * kS * 3;
-  for (std::size_t i = 0; i < items.size(); ++i) {
-    auto lb = nn::resample_frame(views[items[i].frame], items[i].grid, ref, static_cast<int>(i));
-    ASSERT_TRUE(lb.ok()) << lb.error().message();
-    EXPECT_DOUBLE_EQ((*boxes)[i].offset_x_px, lb->offset_x_px);
-    const double err = max_abs_diff((*pre)->output().subspan(i * item, item),
-                                    std::span<const float>(ref.data).subspan(i * item, item));
-    EXPECT_LT(err, 2e-3) << "crop " << i;
+  // [-1, 1] (PoseNet, MoveNet) and [0, 1] (BlazePose: black and the border 0).
+  for (const nn::InputRange range : {nn::kSignedUnitInput, nn::kUnitInput}) {
+    SCOPED_TRACE(range.offset);
+    auto pre = FramePreprocessor::create(*ctx_, kS, kS, 4, range);
+    ASSERT_TRUE(pre.ok()) << pre.error().message();
+    auto boxes = (*pre)->run(views, items);
+    ASSERT_TRUE(boxes.ok()) << boxes.error().message();
+    nn::Tensor ref({4, kS, kS, 3});
+    const std::size_t item = static_cast<std::size_t>(kS) * kS * 3;
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      auto lb =
+          nn::resample_frame(views[items[i].frame], items[i].grid, ref, static_cast<int>(i), range);
+      ASSERT_TRUE(lb.ok()) << lb.error().message();
+      EXPECT_DOUBLE_EQ((*boxes)[i].offset_x_px, lb->offset_x_px);
+      const double err = max_abs_diff((*pre)->output().subspan(i * item, item),
+                                      std::span<const float>(ref.data).subspan(i * item, item));
+      EXPECT_LT(err, 2e-3 * 127.5 / static_cast<double>(range.divisor)) << "crop " << i;
+    }
+    // The crop off the image is all border: black in this range.
+    for (std::size_t k = 3 * item; k < 4 * item; ++k) {
+      ASSERT_EQ((*pre)->output()[k], range.offset) << k;
+    }
+    const auto [lo, hi] = std::minmax_element(ref.data.begin(), ref.data.end());
+    EXPECT_GE(*lo, range.offset);
+    EXPECT_LE(*hi, range.offset + 255.f / range.divisor);
+    const PreprocessItem stray[1] = {{2, items[0].grid}};
+    EXPECT_FALSE((*pre)->run(views, stray).ok());
   }
-  const PreprocessItem stray[1] = {{2, items[0].grid}};
-  EXPECT_FALSE((*pre)->run(views, stray).ok());
 }
 
 TEST_F(PoseKernelsTest, PreprocessRejectsBadFrames) {
