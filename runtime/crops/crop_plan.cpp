@@ -20,7 +20,11 @@ const PersonSkeleton* find_person(const SkeletonSet* set, int person_id) {
   return nullptr;
 }
 
-// The person's joints at target_ns (finite ones only).
+// COCO-17's hips (runtime/skeleton/topology.h: coco17_topology()).
+constexpr std::size_t kLeftHip = 11;
+constexpr std::size_t kRightHip = 12;
+
+// The person's joints at target_ns, by index (non-finite where unknown).
 std::vector<Eigen::Vector3d> predict(const PersonSkeleton& now, std::int64_t now_ns,
                                      const PersonSkeleton* before, std::int64_t before_ns,
                                      std::int64_t target_ns) {
@@ -34,9 +38,30 @@ std::vector<Eigen::Vector3d> predict(const PersonSkeleton& now, std::int64_t now
   for (std::size_t j = 0; j < now.joints_m.size(); ++j) {
     Eigen::Vector3d p = now.joints_m[j];
     if (k > 0 && before->joints_m[j].allFinite()) p += k * (p - before->joints_m[j]);
-    if (p.allFinite()) out.push_back(p);
+    out.push_back(p);
   }
   return out;
+}
+
+// kHipCentred: the centre and side from the projected hips and the farthest projected joint.
+void frame_on_hips(const std::vector<Eigen::Vector3d>& joints, const Camera& camera,
+                   const CropPlanOptions& o, PlannedCrop& crop) {
+  if (joints.size() <= kRightHip || !joints[kLeftHip].allFinite() ||
+      !joints[kRightHip].allFinite()) {
+    return;
+  }
+  const auto hip = camera.project(0.5 * (joints[kLeftHip] + joints[kRightHip]));
+  if (!hip || !hip->allFinite()) return;
+  double reach = 0;
+  for (const Eigen::Vector3d& X : joints) {
+    if (!X.allFinite()) continue;
+    if (const auto p = camera.project(X); p && p->allFinite()) {
+      reach = std::max(reach, (*p - *hip).norm());
+    }
+  }
+  crop.center_x_px = (*hip)(0);
+  crop.center_y_px = (*hip)(1);
+  crop.side_px = std::max(o.min_side_px, o.hip_reach_factor * reach);
 }
 
 struct Scored {
@@ -48,8 +73,10 @@ struct Scored {
 std::optional<Scored> crop_in_view(const std::vector<Eigen::Vector3d>& joints, const Camera& camera,
                                    const CropPlanOptions& o) {
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
-  int projected = 0, inside = 0;
+  int projected = 0, inside = 0, known = 0;
   for (const Eigen::Vector3d& X : joints) {
+    if (!X.allFinite()) continue;
+    ++known;
     std::optional<Eigen::Vector2d> p = camera.project(X);
     if (!p || !p->allFinite()) continue;
     ++projected;
@@ -62,13 +89,14 @@ std::optional<Scored> crop_in_view(const std::vector<Eigen::Vector3d>& joints, c
     y0 = std::min(y0, (*p)(1));
     y1 = std::max(y1, (*p)(1));
   }
-  const double fraction = joints.empty() ? 0 : static_cast<double>(inside) / joints.size();
+  const double fraction = known == 0 ? 0 : static_cast<double>(inside) / known;
   if (projected == 0 || fraction < o.min_inside_fraction) return std::nullopt;
   const double long_side = std::max(x1 - x0, y1 - y0);
   Scored s;
   s.crop.center_x_px = 0.5 * (x0 + x1);
   s.crop.center_y_px = 0.5 * (y0 + y1);
   s.crop.side_px = std::max(o.min_side_px, long_side * (1 + 2 * o.margin));
+  if (o.framing == CropFraming::kHipCentred) frame_on_hips(joints, camera, o, s.crop);
   s.inside = fraction;
   return s;
 }
@@ -77,6 +105,9 @@ std::optional<Scored> crop_in_view(const std::vector<Eigen::Vector3d>& joints, c
 
 Status CropPlanOptions::validate() const {
   if (!(margin >= 0 && margin <= 2)) return invalid_argument(kStage, "margin must be in [0, 2]");
+  if (!(hip_reach_factor >= 1 && hip_reach_factor <= 10)) {
+    return invalid_argument(kStage, "hip_reach_factor must be in [1, 10]");
+  }
   if (!(min_side_px > 0) || !std::isfinite(min_side_px)) {
     return invalid_argument(kStage, "min_side_px must be > 0");
   }

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "runtime/core/clock.h"
+#include "runtime/nn/blazepose.h"
 #include "runtime/nn/cpu_ops.h"
 #include "runtime/nn/movenet.h"
 #include "runtime/nn/movenet_single.h"
@@ -16,8 +17,16 @@ constexpr std::string_view kStage = "crop refiner";
 
 constexpr int kMaxCrops = 16;
 constexpr int kMaxCropInputPx = 1024;
-constexpr const char* kHeads[4] = {nn::kMoveNetKeypointHeatmap, nn::kMoveNetCenterHeatmap,
-                                   nn::kMoveNetKeypointRegression, nn::kMoveNetKeypointOffsets};
+constexpr const char* kMoveNetHeads[4] = {nn::kMoveNetKeypointHeatmap, nn::kMoveNetCenterHeatmap,
+                                          nn::kMoveNetKeypointRegression,
+                                          nn::kMoveNetKeypointOffsets};
+constexpr const char* kBlazePoseHeads[2] = {nn::kBlazePoseLandmarksOutput,
+                                            nn::kBlazePoseFlagOutput};
+
+JointCandidate image_joint(const nn::Letterbox& box, float x_net_px, float y_net_px, float score) {
+  return {static_cast<float>(box.image_x(static_cast<double>(x_net_px))),
+          static_cast<float>(box.image_y(static_cast<double>(y_net_px))), score};
+}
 
 }  // namespace
 
@@ -41,17 +50,27 @@ Result<std::unique_ptr<CropRefiner>> CropRefiner::create(const nn::Model& model,
                                                          const CropRefinerOptions& options,
                                                          Context* ctx) {
   if (Status s = options.validate(); !s.ok()) return s.error();
-  if (!nn::is_movenet(model)) {
+  const bool blazepose = nn::is_blazepose(model);
+  if (!nn::is_movenet(model) && !blazepose) {
     return invalid_argument(
         kStage, "model '" + model.name +
-                    "' lacks MoveNet's four heads (convert movenet-thunder.json with --cut "
-                    "movenet-singlepose)");
+                    "' has neither MoveNet's four heads (convert movenet-thunder.json with --cut "
+                    "movenet-singlepose) nor BlazePose's landmarks (blazepose-full.json with "
+                    "--cut blazepose)");
+  }
+  if (blazepose && options.input_size_px != nn::kBlazePoseInputPx) {
+    return invalid_argument(
+        kStage, "BlazePose takes 256x256 crops, not " + std::to_string(options.input_size_px));
   }
   std::unique_ptr<CropRefiner> r(new CropRefiner());
   r->options_ = options;
-  for (int h = 0; h < 4; ++h) {
+  r->blazepose_ = blazepose;
+  const std::span<const char* const> names = blazepose
+                                                 ? std::span<const char* const>(kBlazePoseHeads)
+                                                 : std::span<const char* const>(kMoveNetHeads);
+  for (const char* name : names) {
     for (std::size_t i = 0; i < model.outputs.size(); ++i) {
-      if (model.outputs[i].name == kHeads[h]) r->heads_[h] = i;
+      if (model.outputs[i].name == name) r->heads_.push_back(i);
     }
   }
   r->model_ = model;
@@ -73,7 +92,8 @@ Result<CropRefiner::Batch*> CropRefiner::batch(int size) {
   no.timestamps = false;
   auto net = Network::create(*ctx_, model_, no);
   if (!net.ok()) return net.error();
-  auto pre = FramePreprocessor::create(*ctx_, S, S, size);
+  auto pre = FramePreprocessor::create(*ctx_, S, S, size,
+                                       blazepose_ ? nn::kUnitInput : nn::kSignedUnitInput);
   if (!pre.ok()) return pre.error();
   Batch& b = batches_[size];
   b.net = std::move(*net);
@@ -118,23 +138,37 @@ Result<std::vector<CropPose>> CropRefiner::run_chunk(std::span<const nn::FrameVi
   auto heads = options_.backend == PoseBackend::kVulkan ? network_vulkan(frames, items)
                                                         : network_cpu(frames, items);
   if (!heads.ok()) return heads.error();
-  const std::vector<nn::Tensor>& h = *heads;
   std::vector<CropPose> out;
   for (std::size_t i = 0; i < items.size(); ++i) {
-    auto pose = nn::movenet_single_person_cpu(h[0], h[1], h[2], h[3], static_cast<int>(i),
-                                              options_.input_size_px);
+    auto pose = decode(*heads, static_cast<int>(i), items[i].grid.box);
     if (!pose.ok()) return pose.error();
-    const nn::Letterbox& box = items[i].grid.box;
-    CropPose p;
-    p.center_score = pose->center_score;
-    for (const nn::SinglePoseJoint& j : pose->joints) {
-      p.joints.push_back({static_cast<float>(box.image_x(static_cast<double>(j.x_net_px))),
-                          static_cast<float>(box.image_y(static_cast<double>(j.y_net_px))),
-                          j.score});
-    }
-    out.push_back(std::move(p));
+    out.push_back(std::move(*pose));
   }
   return out;
+}
+
+Result<CropPose> CropRefiner::decode(const std::vector<nn::Tensor>& h, int item,
+                                     const nn::Letterbox& box) const {
+  CropPose p;
+  if (blazepose_) {
+    auto pose = nn::blazepose_decode_cpu(h[0], h[1], item);
+    if (!pose.ok()) return pose.error();
+    p.center_score = pose->person_score;
+    auto joint = [&](int landmark) {
+      const nn::BlazePoseLandmark& l = pose->landmarks[static_cast<std::size_t>(landmark)];
+      return image_joint(box, l.x_net_px, l.y_net_px, l.visibility * l.presence);
+    };
+    for (int landmark : nn::kBlazePoseCoco17) p.joints.push_back(joint(landmark));
+    for (int landmark : nn::kBlazePoseFeet) p.feet.push_back(joint(landmark));
+    return p;
+  }
+  auto pose = nn::movenet_single_person_cpu(h[0], h[1], h[2], h[3], item, options_.input_size_px);
+  if (!pose.ok()) return pose.error();
+  p.center_score = pose->center_score;
+  for (const nn::SinglePoseJoint& j : pose->joints) {
+    p.joints.push_back(image_joint(box, j.x_net_px, j.y_net_px, j.score));
+  }
+  return p;
 }
 
 Result<std::vector<nn::Tensor>> CropRefiner::network_vulkan(std::span<const nn::FrameView> frames,
@@ -144,11 +178,9 @@ Result<std::vector<nn::Tensor>> CropRefiner::network_vulkan(std::span<const nn::
   auto boxes = (*b)->pre->run(frames, items);
   if (!boxes.ok()) return boxes.error();
   if (Status s = (*b)->net->run((*b)->pre->output()); !s.ok()) return s.error();
-  std::vector<nn::Tensor> heads(4);
-  for (int h = 0; h < 4; ++h) {
-    if (Status s = (*b)->net->read_output(heads_[h], heads[static_cast<std::size_t>(h)]); !s.ok()) {
-      return s.error();
-    }
+  std::vector<nn::Tensor> heads(heads_.size());
+  for (std::size_t h = 0; h < heads_.size(); ++h) {
+    if (Status s = (*b)->net->read_output(heads_[h], heads[h]); !s.ok()) return s.error();
   }
   return heads;
 }
@@ -158,15 +190,16 @@ Result<std::vector<nn::Tensor>> CropRefiner::network_cpu(std::span<const nn::Fra
   const int S = options_.input_size_px;
   nn::Tensor input({static_cast<int>(items.size()), S, S, 3});
   for (std::size_t i = 0; i < items.size(); ++i) {
-    auto lb = nn::resample_frame(frames[static_cast<std::size_t>(items[i].frame)], items[i].grid,
-                                 input, static_cast<int>(i));
+    auto lb =
+        nn::resample_frame(frames[static_cast<std::size_t>(items[i].frame)], items[i].grid, input,
+                           static_cast<int>(i), blazepose_ ? nn::kUnitInput : nn::kSignedUnitInput);
     if (!lb.ok()) return lb.error().with_context("crop " + std::to_string(i));
   }
   auto values = nn::run_model_cpu(model_, input);
   if (!values.ok()) return values.error();
   std::vector<nn::Tensor> heads;
-  for (int h = 0; h < 4; ++h) {
-    heads.push_back((*values)[static_cast<std::size_t>(model_.outputs[heads_[h]].value)]);
+  for (std::size_t h : heads_) {
+    heads.push_back((*values)[static_cast<std::size_t>(model_.outputs[h].value)]);
   }
   return heads;
 }

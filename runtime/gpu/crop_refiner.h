@@ -1,5 +1,7 @@
 // The single-person stage of 3D-guided crops: MoveNet SinglePose (Thunder or Lightning,
-// runtime/nn/movenet_single.h) run on crops of the camera frames, one per (person, view), as
+// runtime/nn/movenet_single.h) or BlazePose's landmark model (lite or full,
+// runtime/nn/blazepose.h: the COCO-17 joints and the feet, on crops framed
+// crops::CropFraming::kHipCentred) run on crops of the camera frames, one per (person, view), as
 // planned from the tracked skeletons (runtime/crops/crop_plan.h). All crops of a frame go
 // through one pre-processing submission and one network batch (in chunks of max_crops). The
 // CPU backend runs the same stages with the CPU references (nn::resample_frame,
@@ -26,7 +28,8 @@
 
 namespace mocap::gpu {
 
-// MoveNet SinglePose's input: Thunder 256, Lightning 192 (square, a multiple of 32).
+// MoveNet SinglePose's input: Thunder 256, Lightning 192 (square, a multiple of 32); BlazePose
+// 256 only.
 inline constexpr int kDefaultCropInputSizePx = 256;
 
 struct CropRefinerOptions {
@@ -45,16 +48,21 @@ struct CropRequest {
   double side_px = 0;
 };
 
-// One crop's person: joints in image pixels of its frame, scores in [0, 1].
+// One crop's person: joints in image pixels of its frame, scores in [0, 1] (MoveNet: the
+// heatmap's sigmoid; BlazePose: visibility x presence).
 struct CropPose {
-  float center_score = 0;
+  float center_score = 0;              // MoveNet: the centre's score; BlazePose: the person flag
   std::vector<JointCandidate> joints;  // [joint], COCO-17
+  // BlazePose only (empty for MoveNet): left heel, right heel, left foot index, right foot
+  // index (nn::kBlazePoseFeet).
+  std::vector<JointCandidate> feet;
 };
 
 class CropRefiner {
  public:
-  // `model` must have MoveNet's four heads (nn::movenet_singlepose_cut). `ctx` is needed (and
-  // must outlive the refiner) for the Vulkan backend.
+  // `model` must have MoveNet's four heads (nn::movenet_singlepose_cut) or BlazePose's
+  // landmarks and flag (nn::blazepose_landmarks_cut). `ctx` is needed (and must outlive the
+  // refiner) for the Vulkan backend.
   static Result<std::unique_ptr<CropRefiner>> create(const nn::Model& model,
                                                      const CropRefinerOptions& options,
                                                      Context* ctx);
@@ -72,6 +80,8 @@ class CropRefiner {
   CropRefiner() = default;
   Result<std::vector<CropPose>> run_chunk(std::span<const nn::FrameView> frames,
                                           std::span<const PreprocessItem> items);
+  Result<CropPose> decode(const std::vector<nn::Tensor>& heads, int item,
+                          const nn::Letterbox& box) const;
   Result<std::vector<nn::Tensor>> network_vulkan(std::span<const nn::FrameView> frames,
                                                  std::span<const PreprocessItem> items);
   Result<std::vector<nn::Tensor>> network_cpu(std::span<const nn::FrameView> frames,
@@ -88,7 +98,8 @@ class CropRefiner {
   CropRefinerOptions options_;
   nn::Model model_;
   Context* ctx_ = nullptr;
-  std::size_t heads_[4] = {};
+  bool blazepose_ = false;
+  std::vector<std::size_t> heads_;  // model output index of each head the decoding reads
   std::map<int, Batch> batches_;
   double last_ms_ = 0;
 };

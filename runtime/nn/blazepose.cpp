@@ -11,6 +11,16 @@ float sigmoid(float v) { return 1.f / (1.f + std::exp(-v)); }
 
 }  // namespace
 
+bool is_blazepose(const Model& model) {
+  auto has = [&](const char* name) {
+    for (const ModelOutput& o : model.outputs) {
+      if (o.name == name) return true;
+    }
+    return false;
+  };
+  return has(kBlazePoseLandmarksOutput) && has(kBlazePoseFlagOutput);
+}
+
 Result<BlazePosePose> blazepose_decode_cpu(const Tensor& landmarks, const Tensor& flag, int n) {
   const Shape& ls = landmarks.shape;
   const Shape& fs = flag.shape;

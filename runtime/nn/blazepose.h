@@ -13,6 +13,7 @@
 
 #include "runtime/core/error.h"
 #include "runtime/nn/cpu_ops.h"
+#include "runtime/nn/model.h"
 
 namespace mocap::nn {
 
@@ -20,6 +21,11 @@ inline constexpr int kBlazePoseLandmarks = 33;
 inline constexpr int kBlazePoseRows = 39;  // 33 + 6 alignment points
 inline constexpr int kBlazePoseValues = 5;
 inline constexpr int kBlazePoseInputPx = 256;
+
+// Output names of the converted model (runtime/nn_import/blazepose_cut.h).
+inline constexpr const char* kBlazePoseLandmarksOutput = "landmarks";  // [N,1,1,195]
+inline constexpr const char* kBlazePoseFlagOutput = "poseflag";        // [N,1,1,1], a sigmoid
+inline constexpr const char* kBlazePoseHeatmapOutput = "heatmap";      // [N,64,64,39], sigmoids
 
 // BlazePose landmark of each COCO-17 joint (nose, eyes, ears, shoulders, elbows, wrists, hips,
 // knees, ankles; left before right).
@@ -40,6 +46,9 @@ struct BlazePosePose {
   float person_score = 0;  // the person flag, [0, 1]
   std::array<BlazePoseLandmark, kBlazePoseLandmarks> landmarks{};
 };
+
+// Whether the model has the landmark and flag outputs.
+bool is_blazepose(const Model& model);
 
 // Batch item n of the landmark and flag outputs.
 Result<BlazePosePose> blazepose_decode_cpu(const Tensor& landmarks, const Tensor& flag, int n);

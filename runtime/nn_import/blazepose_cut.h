@@ -5,16 +5,12 @@
 // left out (not mapped, not run). blazepose-heavy's channel-padding Pads are not supported.
 #pragma once
 
+#include "runtime/nn/blazepose.h"
 #include "runtime/nn_import/tfjs_import.h"
 
 namespace mocap::nn {
 
-// Output names of the cut (and of the converted model).
-inline constexpr const char* kBlazePoseLandmarksOutput =
-    "landmarks";                                                   // [1,1,1,39*5]: x y z vis pres
-inline constexpr const char* kBlazePoseFlagOutput = "poseflag";    // [1,1,1,1]: a person, sigmoid
-inline constexpr const char* kBlazePoseHeatmapOutput = "heatmap";  // [1,64,64,39]: sigmoid
-
+// Outputs named kBlazePose*Output (runtime/nn/blazepose.h).
 TfjsImportOptions blazepose_landmarks_cut();
 
 }  // namespace mocap::nn

@@ -57,6 +57,31 @@ TEST(CropPlanTest, ASquareAroundTheProjectedPersonWithItsMargin) {
   EXPECT_NEAR(c.side_px, 400 * 1.5, 1e-6);
 }
 
+// MediaPipe's framing for BlazePose: centred on the hips (joints 11 and 12: z = 1.2 and 1.3 m,
+// their midpoint 1.25 m, 0.35 m above the camera's 0.9 m: 87.5 px above the image centre at
+// 250 px/m), the side 2.5 times the farthest joint (z = 0.1 m, 1.15 m from the hips: 287.5 px).
+// Without hips the joints' box is used.
+TEST(CropPlanTest, HipCentredFramingForBlazePose) {
+  CropPlanOptions o;
+  o.framing = CropFraming::kHipCentred;
+  auto plan = plan_crops(frame(0, {standing(7, 0, 0)}), nullptr, 0, cameras(), {0}, o);
+  ASSERT_TRUE(plan.ok()) << plan.error().message();
+  ASSERT_EQ(plan->size(), 1u);
+  const PlannedCrop& c = (*plan)[0];
+  EXPECT_NEAR(c.center_x_px, 500, 1e-6);
+  EXPECT_NEAR(c.center_y_px, 500 - 87.5, 1e-6);
+  EXPECT_NEAR(c.side_px, 2.5 * 287.5, 1e-6);
+
+  PersonSkeleton no_hips = standing(8, 0, 0);
+  no_hips.joints_m[11] = Eigen::Vector3d::Constant(std::nan(""));
+  auto box = plan_crops(frame(0, {no_hips}), nullptr, 0, cameras(), {0}, o);
+  ASSERT_TRUE(box.ok());
+  ASSERT_EQ(box->size(), 1u);
+  EXPECT_NEAR((*box)[0].center_y_px, 500, 1e-6);  // the joints' box
+  o.hip_reach_factor = 0.5;
+  EXPECT_FALSE(o.validate().ok());
+}
+
 TEST(CropPlanTest, PredictsAtConstantVelocity) {
   // Moving 0.1 m per 10 ms along -y (to the image's right... whichever way): the crop for
   // 10 ms later is where the person will be, the centre of the two steps' projection.

@@ -18,6 +18,7 @@
 #include "runtime/image/image.h"
 #include "runtime/nn/model_file.h"
 #include "runtime/nn/movenet.h"
+#include "runtime/nn_import/blazepose_cut.h"
 #include "runtime/nn_import/movenet_cuts.h"
 #include "runtime/nn_import/tfjs_import.h"
 #include "runtime/skeleton/topology.h"
@@ -139,6 +140,21 @@ class CropRefinerTest : public PoseDetectorTest {
       MOCAP_SKIP_OR_FAIL_IN_CI("models/movenet-thunder.json missing (tools/fetch_models.sh)");
     }
     auto m = nn::import_tfjs(json, nn::movenet_singlepose_cut());
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    model_ = std::move(*m);
+    open_device();
+  }
+};
+
+// BlazePose full's landmark model on crops (runtime/gpu/crop_refiner.h): the feet too.
+class BlazePoseCropTest : public PoseDetectorTest {
+ protected:
+  void SetUp() override {
+    const fs::path json = kSource / "models/blazepose-full.json";
+    if (!fs::exists(json)) {
+      MOCAP_SKIP_OR_FAIL_IN_CI("models/blazepose-full.json missing (tools/fetch_models.sh)");
+    }
+    auto m = nn::import_tfjs(json, nn::blazepose_landmarks_cut());
     ASSERT_TRUE(m.ok()) << m.error().message();
     model_ = std::move(*m);
     open_device();
@@ -546,6 +562,77 @@ TEST_F(CropRefinerTest, FindsThePersonInItsCropOnBothBackends) {
       EXPECT_NEAR(j[k].x_px, c.x_px, 0.5f) << "joint " << k;
       EXPECT_NEAR(j[k].y_px, c.y_px, 0.5f) << "joint " << k;
       EXPECT_NEAR(j[k].score, c.score, 1e-3f) << "joint " << k;
+    }
+    EXPECT_TRUE(by_backend[0][i].feet.empty()) << "MoveNet has no feet";
+  }
+}
+
+// The same photos' people, cropped as MediaPipe frames them (crops::CropFraming::kHipCentred:
+// on the hips, 2.5x the farthest part of the person): the joints where the photos have them,
+// the four foot points below the shoulders and in the person's box, Vulkan and CPU agreeing.
+// BlazePose takes 256x256 crops only.
+TEST_F(BlazePoseCropTest, FindsThePersonAndTheFeetInItsCropOnBothBackends) {
+  std::vector<image::ImageRgb8> images;
+  std::vector<nn::FrameView> views;
+  std::vector<CropRequest> crops;
+  for (const Photo& p : photos())
+    images.push_back(*image::load_image(kSource / ".cache/photos" / p.file));
+  for (std::size_t i = 0; i < images.size(); ++i) {
+    const image::ImageRgb8& img = images[i];
+    views.push_back(nn::FrameView{img.rgb, img.width_px, img.height_px, 0, PixelFormat::kRGB24});
+    const Box& b = photos()[i].people[0];
+    const Box& h = photos()[i].hips;
+    const double hx = 0.5 * static_cast<double>(h.x0 + h.x1);
+    const double hy = 0.5 * static_cast<double>(h.y0 + h.y1);
+    const double reach = std::max({hx - static_cast<double>(b.x0), static_cast<double>(b.x1) - hx,
+                                   hy - static_cast<double>(b.y0), static_cast<double>(b.y1) - hy});
+    crops.push_back({static_cast<int>(i), hx, hy, 2.5 * reach});
+  }
+  std::vector<std::vector<CropPose>> by_backend;
+  for (PoseBackend backend : {PoseBackend::kVulkan, PoseBackend::kCpu}) {
+    CropRefinerOptions o;
+    o.backend = backend;
+    auto r = CropRefiner::create(model_, o, ctx_.get());
+    ASSERT_TRUE(r.ok()) << r.error().message();
+    auto poses = (*r)->run(views, crops);
+    ASSERT_TRUE(poses.ok()) << poses.error().message();
+    by_backend.push_back(std::move(*poses));
+    o.input_size_px = 192;
+    EXPECT_FALSE(CropRefiner::create(model_, o, ctx_.get()).ok());
+  }
+  for (std::size_t i = 0; i < crops.size(); ++i) {
+    const Photo& p = photos()[i];
+    SCOPED_TRACE(p.file);
+    const CropPose& pose = by_backend[0][i];
+    EXPECT_GT(pose.center_score, 0.5f);
+    ASSERT_EQ(pose.joints.size(), 17u);
+    ASSERT_EQ(pose.feet.size(), 4u);
+    EXPECT_TRUE(p.face.contains(pose.joints[0]))
+        << pose.joints[0].x_px << ", " << pose.joints[0].y_px;
+    EXPECT_TRUE(p.shoulders.contains(pose.joints[5]) && p.shoulders.contains(pose.joints[6]));
+    EXPECT_TRUE(p.hips.contains(pose.joints[11]) && p.hips.contains(pose.joints[12]));
+    // Within the person's box (hand-drawn, the image's edge for basketball1, whose toes the
+    // model places just past it: 5 % of slack) and below the shoulders (Messi kicks: his
+    // raised foot is level with his hips).
+    const Box& b = p.people[0];
+    const float slack = 0.05f * (b.y1 - b.y0);
+    const Box near{b.x0 - slack, b.y0 - slack, b.x1 + slack, b.y1 + slack};
+    for (const JointCandidate& f : pose.feet) {
+      EXPECT_GT(f.y_px, p.shoulders.y1) << "a foot point above the shoulders";
+      EXPECT_TRUE(near.contains(f)) << f.x_px << ", " << f.y_px;
+      std::printf("[ blazepose ] %s foot point (%.0f, %.0f) px, score %.2f\n", p.file.c_str(),
+                  static_cast<double>(f.x_px), static_cast<double>(f.y_px),
+                  static_cast<double>(f.score));
+    }
+    const CropPose& cpu = by_backend[1][i];
+    for (std::size_t k = 0; k < pose.feet.size(); ++k) {
+      EXPECT_NEAR(pose.feet[k].x_px, cpu.feet[k].x_px, 0.5f) << "foot " << k;
+      EXPECT_NEAR(pose.feet[k].y_px, cpu.feet[k].y_px, 0.5f) << "foot " << k;
+      EXPECT_NEAR(pose.feet[k].score, cpu.feet[k].score, 1e-3f) << "foot " << k;
+    }
+    for (std::size_t k = 0; k < pose.joints.size(); ++k) {
+      EXPECT_NEAR(pose.joints[k].x_px, cpu.joints[k].x_px, 0.5f) << "joint " << k;
+      EXPECT_NEAR(pose.joints[k].y_px, cpu.joints[k].y_px, 0.5f) << "joint " << k;
     }
   }
 }
