@@ -16,6 +16,9 @@ namespace {
 constexpr std::string_view kStage = "crop refiner";
 
 constexpr int kMaxCrops = 16;
+// BlazePose landmarks this close to the image's edge (a fraction of the crop's side) are not
+// observed (CropRefiner::decode).
+constexpr double kEdgeMarginOfCrop = 0.02;
 constexpr int kMaxCropInputPx = 1024;
 constexpr const char* kMoveNetHeads[4] = {nn::kMoveNetKeypointHeatmap, nn::kMoveNetCenterHeatmap,
                                           nn::kMoveNetKeypointRegression,
@@ -140,7 +143,8 @@ Result<std::vector<CropPose>> CropRefiner::run_chunk(std::span<const nn::FrameVi
   if (!heads.ok()) return heads.error();
   std::vector<CropPose> out;
   for (std::size_t i = 0; i < items.size(); ++i) {
-    auto pose = decode(*heads, static_cast<int>(i), items[i].grid.box);
+    const nn::FrameView& f = frames[static_cast<std::size_t>(items[i].frame)];
+    auto pose = decode(*heads, static_cast<int>(i), items[i].grid.box, f.width_px, f.height_px);
     if (!pose.ok()) return pose.error();
     out.push_back(std::move(*pose));
   }
@@ -148,15 +152,24 @@ Result<std::vector<CropPose>> CropRefiner::run_chunk(std::span<const nn::FrameVi
 }
 
 Result<CropPose> CropRefiner::decode(const std::vector<nn::Tensor>& h, int item,
-                                     const nn::Letterbox& box) const {
+                                     const nn::Letterbox& box, int width_px, int height_px) const {
   CropPose p;
   if (blazepose_) {
     auto pose = nn::blazepose_decode_cpu(h[0], h[1], item);
     if (!pose.ok()) return pose.error();
     p.center_score = pose->person_score;
+    // A landmark outside the image or on its edge (within kEdgeMarginOfCrop of the crop's
+    // side) is not observed: BlazePose puts a cut-off foot in the crop's black border, or on
+    // the image's last rows, with visibility and presence over 0.9.
+    const float margin = static_cast<float>(kEdgeMarginOfCrop * options_.input_size_px / box.scale);
     auto joint = [&](int landmark) {
       const nn::BlazePoseLandmark& l = pose->landmarks[static_cast<std::size_t>(landmark)];
-      return image_joint(box, l.x_net_px, l.y_net_px, l.visibility * l.presence);
+      JointCandidate c = image_joint(box, l.x_net_px, l.y_net_px, l.visibility * l.presence);
+      if (!(c.x_px >= margin && c.x_px < static_cast<float>(width_px) - margin &&
+            c.y_px >= margin && c.y_px < static_cast<float>(height_px) - margin)) {
+        c.score = 0;
+      }
+      return c;
     };
     for (int landmark : nn::kBlazePoseCoco17) p.joints.push_back(joint(landmark));
     for (int landmark : nn::kBlazePoseFeet) p.feet.push_back(joint(landmark));

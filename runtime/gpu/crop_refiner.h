@@ -49,7 +49,7 @@ struct CropRequest {
 };
 
 // One crop's person: joints in image pixels of its frame, scores in [0, 1] (MoveNet: the
-// heatmap's sigmoid; BlazePose: visibility x presence).
+// heatmap's sigmoid; BlazePose: visibility x presence, 0 outside the image or on its edge).
 struct CropPose {
   float center_score = 0;              // MoveNet: the centre's score; BlazePose: the person flag
   std::vector<JointCandidate> joints;  // [joint], COCO-17
@@ -80,8 +80,8 @@ class CropRefiner {
   CropRefiner() = default;
   Result<std::vector<CropPose>> run_chunk(std::span<const nn::FrameView> frames,
                                           std::span<const PreprocessItem> items);
-  Result<CropPose> decode(const std::vector<nn::Tensor>& heads, int item,
-                          const nn::Letterbox& box) const;
+  Result<CropPose> decode(const std::vector<nn::Tensor>& heads, int item, const nn::Letterbox& box,
+                          int width_px, int height_px) const;
   Result<std::vector<nn::Tensor>> network_vulkan(std::span<const nn::FrameView> frames,
                                                  std::span<const PreprocessItem> items);
   Result<std::vector<nn::Tensor>> network_cpu(std::span<const nn::FrameView> frames,

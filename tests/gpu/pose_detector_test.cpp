@@ -637,5 +637,47 @@ TEST_F(BlazePoseCropTest, FindsThePersonAndTheFeetInItsCropOnBothBackends) {
   }
 }
 
+// Feet the image does not show are reported not observed, never invented: the same photos cut
+// below the hips (the frame ends there, so the hip-centred crop reaches past the image's edge
+// into black border). The shoulders are still found; a foot point placed outside the frame or
+// on its last rows scores 0 (BlazePose itself put Messi's cut-off right heel 2 px above the
+// cut with visibility x presence 0.92), one inside it (Messi's raised foot, level with his
+// hips) is kept.
+TEST_F(BlazePoseCropTest, FeetOutsideTheImageAreNotObserved) {
+  for (const Photo& p : photos()) {
+    SCOPED_TRACE(p.file);
+    const image::ImageRgb8 img = *image::load_image(kSource / ".cache/photos" / p.file);
+    const int rows = static_cast<int>(p.hips.y1) + 10;  // a frame that ends below the hips
+    const nn::FrameView cut{std::span(img.rgb).first(static_cast<std::size_t>(rows) *
+                                                     static_cast<std::size_t>(img.width_px) * 3),
+                            img.width_px, rows, 0, PixelFormat::kRGB24};
+    const Box& b = p.people[0];
+    const double hx = 0.5 * static_cast<double>(p.hips.x0 + p.hips.x1);
+    const double hy = 0.5 * static_cast<double>(p.hips.y0 + p.hips.y1);
+    const double reach = std::max({hx - static_cast<double>(b.x0), static_cast<double>(b.x1) - hx,
+                                   hy - static_cast<double>(b.y0), static_cast<double>(b.y1) - hy});
+    const CropRequest crop[1] = {{0, hx, hy, 2.5 * reach}};
+    CropRefinerOptions o;
+    auto r = CropRefiner::create(model_, o, ctx_.get());
+    ASSERT_TRUE(r.ok()) << r.error().message();
+    const nn::FrameView views[1] = {cut};
+    auto poses = (*r)->run(views, crop);
+    ASSERT_TRUE(poses.ok()) << poses.error().message();
+    const CropPose& pose = (*poses)[0];
+    EXPECT_TRUE(p.shoulders.contains(pose.joints[5]) && p.shoulders.contains(pose.joints[6]));
+    int outside = 0;
+    for (const JointCandidate& f : pose.feet) {
+      std::printf("[ blazepose ] %s cut below the hips: foot point (%.0f, %.0f) score %.2f\n",
+                  p.file.c_str(), static_cast<double>(f.x_px), static_cast<double>(f.y_px),
+                  static_cast<double>(f.score));
+      if (f.y_px >= static_cast<float>(rows) - 5.f) {
+        ++outside;
+        EXPECT_EQ(f.score, 0.f) << "a foot invented outside the image";
+      }
+    }
+    EXPECT_GE(outside, 2) << "the cut-off foot";
+  }
+}
+
 }  // namespace
 }  // namespace mocap::gpu
