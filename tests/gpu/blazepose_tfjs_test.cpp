@@ -33,6 +33,7 @@
 #include "runtime/nn_import/movenet_cuts.h"
 #include "runtime/nn_import/tfjs_import.h"
 #include "tests/support/data.h"
+#include "tests/support/raw_file.h"
 #include "tests/support/tensor_compare.h"
 
 namespace mocap::gpu {
@@ -44,17 +45,8 @@ const fs::path kSource = MOCAP_SOURCE_DIR;
 constexpr double kTolerance = 1e-4;
 constexpr int kCropPx = 256;
 
-std::vector<float> read_f32(const fs::path& p) {
-  std::vector<float> v(static_cast<std::size_t>(fs::file_size(p) / 4));
-  std::ifstream f(p, std::ios::binary);
-  f.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(v.size() * 4));
-  return v;
-}
-
-void write_bytes(const fs::path& p, const void* data, std::size_t bytes) {
-  std::ofstream f(p, std::ios::binary | std::ios::trunc);
-  f.write(static_cast<const char*>(data), static_cast<std::streamsize>(bytes));
-}
+using ::mocap::testing::read_f32;
+using ::mocap::testing::write_bytes;
 
 // The photo letterboxed to the crop, rounded to 8 bits and scaled to [0, 1] (RGB / 255: the
 // graph's own input).

@@ -31,6 +31,7 @@
 #include "runtime/nn_import/tfjs_import.h"
 #include "runtime/skeleton/topology.h"
 #include "tests/support/data.h"
+#include "tests/support/raw_file.h"
 #include "tests/support/tensor_compare.h"
 
 namespace mocap::gpu {
@@ -41,17 +42,8 @@ namespace fs = std::filesystem;
 const fs::path kSource = MOCAP_SOURCE_DIR;
 constexpr double kTolerance = 1e-4;
 
-std::vector<float> read_f32(const fs::path& p) {
-  std::vector<float> v(static_cast<std::size_t>(fs::file_size(p) / 4));
-  std::ifstream f(p, std::ios::binary);
-  f.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(v.size() * 4));
-  return v;
-}
-
-void write_bytes(const fs::path& p, const void* data, std::size_t bytes) {
-  std::ofstream f(p, std::ios::binary | std::ios::trunc);
-  f.write(static_cast<const char*>(data), static_cast<std::streamsize>(bytes));
-}
+using ::mocap::testing::read_f32;
+using ::mocap::testing::write_bytes;
 
 // Whether the graph has every node of the cut (a model file of another version may not).
 bool has_cut_nodes(const fs::path& model_json, const nn::TfjsImportOptions& cut) {

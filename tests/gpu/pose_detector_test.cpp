@@ -111,6 +111,17 @@ class PoseDetectorTest : public ::testing::Test {
   };
   // Runs the detector on each photo on both backends and checks what the header says.
   void expect_people_found(const Expected& e);
+  // models/<json> (tools/fetch_models.sh) imported at `cut` as the model, then the device.
+  void use_tfjs_model(const std::string& json, const nn::TfjsImportOptions& cut) {
+    const fs::path path = kSource / "models" / json;
+    if (!fs::exists(path)) {
+      MOCAP_SKIP_OR_FAIL_IN_CI("models/" + json + " missing (tools/fetch_models.sh)");
+    }
+    auto m = nn::import_tfjs(path, cut);
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    model_ = std::move(*m);
+    open_device();
+  }
 
   nn::Model model_;
   std::unique_ptr<Context> ctx_;
@@ -119,47 +130,31 @@ class PoseDetectorTest : public ::testing::Test {
 // MoveNet MultiPose, imported from the TF.js graph at its heads.
 class MoveNetDetectorTest : public PoseDetectorTest {
  protected:
-  void SetUp() override {
-    const fs::path json = kSource / "models/movenet-multipose.json";
-    if (!fs::exists(json)) {
-      MOCAP_SKIP_OR_FAIL_IN_CI("models/movenet-multipose.json missing (tools/fetch_models.sh)");
-    }
-    auto m = nn::import_tfjs(json, nn::movenet_multipose_cut());
-    ASSERT_TRUE(m.ok()) << m.error().message();
-    model_ = std::move(*m);
-    open_device();
-  }
+  void SetUp() override { use_tfjs_model("movenet-multipose.json", nn::movenet_multipose_cut()); }
 };
 
 // MoveNet SinglePose Thunder on crops (runtime/gpu/crop_refiner.h).
 class CropRefinerTest : public PoseDetectorTest {
  protected:
-  void SetUp() override {
-    const fs::path json = kSource / "models/movenet-thunder.json";
-    if (!fs::exists(json)) {
-      MOCAP_SKIP_OR_FAIL_IN_CI("models/movenet-thunder.json missing (tools/fetch_models.sh)");
-    }
-    auto m = nn::import_tfjs(json, nn::movenet_singlepose_cut());
-    ASSERT_TRUE(m.ok()) << m.error().message();
-    model_ = std::move(*m);
-    open_device();
-  }
+  void SetUp() override { use_tfjs_model("movenet-thunder.json", nn::movenet_singlepose_cut()); }
 };
 
 // BlazePose full's landmark model on crops (runtime/gpu/crop_refiner.h): the feet too.
 class BlazePoseCropTest : public PoseDetectorTest {
  protected:
-  void SetUp() override {
-    const fs::path json = kSource / "models/blazepose-full.json";
-    if (!fs::exists(json)) {
-      MOCAP_SKIP_OR_FAIL_IN_CI("models/blazepose-full.json missing (tools/fetch_models.sh)");
-    }
-    auto m = nn::import_tfjs(json, nn::blazepose_landmarks_cut());
-    ASSERT_TRUE(m.ok()) << m.error().message();
-    model_ = std::move(*m);
-    open_device();
-  }
+  void SetUp() override { use_tfjs_model("blazepose-full.json", nn::blazepose_landmarks_cut()); }
 };
+
+// The photo's main person cropped as MediaPipe frames them (crops::CropFraming::kHipCentred):
+// on the hips, 2.5 times the farthest side of the person's box from them.
+CropRequest hip_centred_crop(const Photo& p, int frame) {
+  const Box& b = p.people[0];
+  const double hx = 0.5 * static_cast<double>(p.hips.x0 + p.hips.x1);
+  const double hy = 0.5 * static_cast<double>(p.hips.y0 + p.hips.y1);
+  const double reach = std::max({hx - static_cast<double>(b.x0), static_cast<double>(b.x1) - hx,
+                                 hy - static_cast<double>(b.y0), static_cast<double>(b.y1) - hy});
+  return {frame, hx, hy, 2.5 * reach};
+}
 
 int count_in(const std::vector<JointCandidate>& list, const Box& b, float min_score) {
   return static_cast<int>(std::count_if(list.begin(), list.end(), [&](const JointCandidate& c) {
@@ -580,13 +575,7 @@ TEST_F(BlazePoseCropTest, FindsThePersonAndTheFeetInItsCropOnBothBackends) {
   for (std::size_t i = 0; i < images.size(); ++i) {
     const image::ImageRgb8& img = images[i];
     views.push_back(nn::FrameView{img.rgb, img.width_px, img.height_px, 0, PixelFormat::kRGB24});
-    const Box& b = photos()[i].people[0];
-    const Box& h = photos()[i].hips;
-    const double hx = 0.5 * static_cast<double>(h.x0 + h.x1);
-    const double hy = 0.5 * static_cast<double>(h.y0 + h.y1);
-    const double reach = std::max({hx - static_cast<double>(b.x0), static_cast<double>(b.x1) - hx,
-                                   hy - static_cast<double>(b.y0), static_cast<double>(b.y1) - hy});
-    crops.push_back({static_cast<int>(i), hx, hy, 2.5 * reach});
+    crops.push_back(hip_centred_crop(photos()[i], static_cast<int>(i)));
   }
   std::vector<std::vector<CropPose>> by_backend;
   for (PoseBackend backend : {PoseBackend::kVulkan, PoseBackend::kCpu}) {
@@ -651,12 +640,7 @@ TEST_F(BlazePoseCropTest, FeetOutsideTheImageAreNotObserved) {
     const nn::FrameView cut{std::span(img.rgb).first(static_cast<std::size_t>(rows) *
                                                      static_cast<std::size_t>(img.width_px) * 3),
                             img.width_px, rows, 0, PixelFormat::kRGB24};
-    const Box& b = p.people[0];
-    const double hx = 0.5 * static_cast<double>(p.hips.x0 + p.hips.x1);
-    const double hy = 0.5 * static_cast<double>(p.hips.y0 + p.hips.y1);
-    const double reach = std::max({hx - static_cast<double>(b.x0), static_cast<double>(b.x1) - hx,
-                                   hy - static_cast<double>(b.y0), static_cast<double>(b.y1) - hy});
-    const CropRequest crop[1] = {{0, hx, hy, 2.5 * reach}};
+    const CropRequest crop[1] = {hip_centred_crop(p, 0)};
     CropRefinerOptions o;
     auto r = CropRefiner::create(model_, o, ctx_.get());
     ASSERT_TRUE(r.ok()) << r.error().message();

@@ -21,6 +21,7 @@
 #include "runtime/nn/preprocess.h"
 #include "runtime/nn_import/tfjs_import.h"
 #include "tests/support/data.h"
+#include "tests/support/raw_file.h"
 #include "tests/support/tensor_compare.h"
 
 namespace mocap::gpu {
@@ -31,12 +32,7 @@ namespace fs = std::filesystem;
 const fs::path kSource = MOCAP_SOURCE_DIR;
 constexpr double kTolerance = 1e-4;
 
-std::vector<float> read_f32(const fs::path& p) {
-  std::vector<float> v(static_cast<std::size_t>(fs::file_size(p) / 4));
-  std::ifstream f(p, std::ios::binary);
-  f.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(v.size() * 4));
-  return v;
-}
+using ::mocap::testing::read_f32;
 
 TEST(PosenetTfjsTest, VulkanAndCpuMatchTfjsOnPhotos) {
   const fs::path model_json = kSource / "models/posenet.json";

@@ -19,7 +19,7 @@ import fs from 'node:fs';
 import path from 'node:path';
 import process from 'node:process';
 import { performance } from 'node:perf_hooks';
-import { diskModelHandler, fail, median, percentile, round3, setProgram, writeF32 } from './tfjs_common.mjs';
+import { diskModelHandler, fail, median, percentile, readF32, round3, setProgram, writeF32 } from './tfjs_common.mjs';
 
 setProgram('blazepose_ref');
 const require = createRequire(import.meta.url);
@@ -66,24 +66,6 @@ function parseArgs(argv) {
   return opts;
 }
 
-function readInput(tf, file) {
-  const n = SIZE_PX * SIZE_PX * 3;
-  let bytes;
-  try {
-    bytes = fs.readFileSync(file);
-  } catch (e) {
-    fail(`cannot read input ${file}: ${e.message}`);
-  }
-  if (bytes.length !== n * 4) fail(`${file}: ${bytes.length} bytes, float32 [1,${SIZE_PX},${SIZE_PX},3] needs ${n * 4}`);
-  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
-  const values = new Float32Array(n);
-  for (let i = 0; i < n; ++i) {
-    values[i] = view.getFloat32(i * 4, true);
-    if (!Number.isFinite(values[i])) fail(`${file}: value ${i} is not finite`);
-  }
-  return tf.tensor4d(values, [1, SIZE_PX, SIZE_PX, 3], 'float32');
-}
-
 async function main() {
   const opts = parseArgs(process.argv.slice(2));
   const tf = require('@tensorflow/tfjs-core');
@@ -94,7 +76,8 @@ async function main() {
   await tf.ready();
   const { handler, inputName } = diskModelHandler(opts.model);
   const model = await tfconv.loadGraphModel(handler);
-  const feed = { [inputName]: readInput(tf, opts.inputF32) };
+  const values = readF32(opts.inputF32, SIZE_PX * SIZE_PX * 3, `float32 [1,${SIZE_PX},${SIZE_PX},3]`);
+  const feed = { [inputName]: tf.tensor4d(values, [1, SIZE_PX, SIZE_PX, 3], 'float32') };
   const nodes = OUTPUTS.map(([, node]) => node);
   const runOnce = async () => {
     const outs = model.execute(feed, nodes);

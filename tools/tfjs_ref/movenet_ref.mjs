@@ -34,6 +34,8 @@ import {
   fail,
   median,
   percentile,
+  readBytes,
+  readF32,
   round3,
   setProgram,
   writeF32,
@@ -136,17 +138,6 @@ function parseArgs(argv) {
   return opts;
 }
 
-function readBytes(file, expected, what) {
-  let bytes;
-  try {
-    bytes = fs.readFileSync(file);
-  } catch (e) {
-    fail(`cannot read input ${file}: ${e.message}`);
-  }
-  if (bytes.length !== expected) fail(`${file}: ${bytes.length} bytes, ${what} needs ${expected}`);
-  return bytes;
-}
-
 // The feed: the normalised float image at the cut node, or the u8 image as int32 at the input.
 function readFeed(tf, opts, inputName) {
   const n = opts.size * opts.size * 3;
@@ -155,13 +146,7 @@ function readFeed(tf, opts, inputName) {
     const bytes = readBytes(opts.inputU8, n, `uint8 [1,${opts.size},${opts.size},3]`);
     return { [inputName]: tf.tensor4d(Int32Array.from(bytes), shape, 'int32') };
   }
-  const bytes = readBytes(opts.inputF32, n * 4, `float32 [1,${opts.size},${opts.size},3]`);
-  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
-  const values = new Float32Array(n);
-  for (let i = 0; i < n; ++i) {
-    values[i] = view.getFloat32(i * 4, true);
-    if (!Number.isFinite(values[i])) fail(`${opts.inputF32}: value ${i} is not finite`);
-  }
+  const values = readF32(opts.inputF32, n, `float32 [1,${opts.size},${opts.size},3]`);
   return { [NORMALISED_INPUT]: tf.tensor4d(values, shape, 'float32') };
 }
 

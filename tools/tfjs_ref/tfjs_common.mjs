@@ -1,6 +1,6 @@
-// Helpers shared by the TF.js reference runners (posenet_ref.mjs, movenet_ref.mjs): the
-// backend set-up (wasm threads under Node), a disk IOHandler for graph models, raw float32
-// output and timing statistics. Loads everything from disk: no network at run time.
+// Helpers shared by the TF.js reference runners (posenet_ref.mjs, movenet_ref.mjs,
+// blazepose_ref.mjs): the backend set-up (wasm threads under Node), a disk IOHandler for graph
+// models, raw input and float32 output, and timing statistics. Loads everything from disk: no network at run time.
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -136,6 +136,30 @@ export function diskModelHandler(modelPath) {
     }),
   };
   return { handler, inputName: placeholders[0].name, computeNodes };
+}
+
+// The bytes of an input file, which must be `expected` long (`what` names the tensor).
+export function readBytes(file, expected, what) {
+  let bytes;
+  try {
+    bytes = fs.readFileSync(file);
+  } catch (e) {
+    fail(`cannot read input ${file}: ${e.message}`);
+  }
+  if (bytes.length !== expected) fail(`${file}: ${bytes.length} bytes, ${what} needs ${expected}`);
+  return bytes;
+}
+
+// `count` little-endian float32 values of an input file, every one finite.
+export function readF32(file, count, what) {
+  const bytes = readBytes(file, count * 4, what);
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const values = new Float32Array(count);
+  for (let i = 0; i < count; ++i) {
+    values[i] = view.getFloat32(i * 4, true);
+    if (!Number.isFinite(values[i])) fail(`${file}: value ${i} is not finite`);
+  }
+  return values;
 }
 
 export function writeF32(file, typed) {
