@@ -56,7 +56,9 @@ Result<std::unique_ptr<FusionSource>> FusionSource::open(const Stage& stage,
 FusionSource::~FusionSource() {
   stop();
   reader_.reset();  // no listener call after this
+  status_reader_.reset();
   if (listener_ != nullptr) dds_delete_listener(listener_);
+  if (status_listener_ != nullptr) dds_delete_listener(status_listener_);
 }
 
 Status FusionSource::start() {
@@ -68,7 +70,9 @@ Status FusionSource::start() {
   auto r = stage_->reader(TopicKind::kDetections, listener_);
   if (!r.ok()) return r.error();
   reader_ = std::move(*r);
-  auto sr = stage_->reader(TopicKind::kStatus);
+  status_listener_ = dds_create_listener(this);
+  dds_lset_liveliness_changed(status_listener_, &FusionSource::on_liveliness);
+  auto sr = stage_->reader(TopicKind::kStatus, status_listener_);
   if (!sr.ok()) return sr.error();
   status_reader_ = std::move(*sr);
   waitset_ = Entity(dds_create_waitset(stage_->participant()));
@@ -212,6 +216,9 @@ void FusionSource::take_status() {
     const std::string name = wire_string(s->node);
     if (name.empty() || name == stage_->options().node) continue;
     NodeState& node = nodes_[name];
+    node_of_writer_[infos[i].publication_handle] = name;
+    // Its liveliness was lost before this sample was taken: the node is gone.
+    if (lost_writers_.contains(infos[i].publication_handle)) set_node_alive(name, false);
     node.role = wire_string(s->role);
     node.cameras.clear();
     for (std::uint32_t c = 0; c < s->cameras._length && c < 16; ++c) {

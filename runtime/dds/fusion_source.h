@@ -95,6 +95,7 @@ class FusionSource final : public pipeline::FrameSource {
   Entity calibration_writer_;
   Entity waitset_;
   dds_listener_t* listener_ = nullptr;
+  dds_listener_t* status_listener_ = nullptr;  // liveliness of the nodes' status writers
   std::int64_t realtime_to_monotonic_ns_ = 0;  // subtracted from a stage time
 
   std::mutex events_mu_;  // listeners (DDS threads) -> next()
@@ -104,6 +105,8 @@ class FusionSource final : public pipeline::FrameSource {
   std::unique_ptr<fusion::FrameGrouper> grouper_;
   std::unique_ptr<fusion::ClockOffsets> clocks_;
   std::map<std::string, NodeState> nodes_;
+  // Detections and status writers by node: a node is lost when either loses its liveliness
+  // (a node killed before its first detections is noticed by its status writer).
   std::map<dds_instance_handle_t, std::string> node_of_writer_;
   // Writers declared lost by liveliness: samples of theirs still queued in the reader are stale
   // and must not bring their node back (a new process of the node writes with a new handle).

@@ -177,5 +177,65 @@ TEST(FusionSourceThreads, TwoNodesAPipelineAndHealthReaders) {
       reads.load());
 }
 
+// A node killed before its first detections (it only said hello on mocap/status) is noticed as
+// lost by its status writer's liveliness: it must not stay "alive" on the page for ever.
+TEST(FusionSourceThreads, ANodeGoneBeforeItsFirstDetectionsIsLost) {
+  setenv("CYCLONEDDS_URI",
+         "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface "
+         "name=\"lo\"/></Interfaces></General><Discovery><Peers><Peer "
+         "address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>",
+         1);
+  auto st = Stage::join(stage_options("fusion"));
+  ASSERT_TRUE(st.ok()) << st.error().message();
+  auto ring = sim::simulator_ring(kPeople, kViewsPerNode);
+  ASSERT_TRUE(ring.ok());
+  FusionSourceOptions fo;
+  for (const Camera& c : ring->cameras) fo.cameras.push_back(c.name());
+  fo.topology = &body19_topology();
+  fo.grouping.frame_rate_hz = kRateHz;
+  auto src = FusionSource::open(**st, fo);
+  ASSERT_TRUE(src.ok()) << src.error().message();
+  ASSERT_TRUE((*src)->start().ok());
+  // The fusion node's pipeline thread: next() takes the samples and the liveliness events.
+  std::atomic<bool> stop{false};
+  std::thread taker([&] {
+    while (!stop) {
+      pipeline::SourceItem item;
+      ASSERT_TRUE((*src)->next(item, 20).ok());
+    }
+  });
+  const auto wait_until = [&](int ms, auto pred) {
+    for (int i = 0; i < ms / 20 && !pred(); ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return pred();
+  };
+  const auto status = [&] { return json::parse((*src)->status_json(), nullptr, false); };
+  const auto listed = [&] {
+    const json s = status();
+    if (!s.is_object() || !s.contains("nodes")) return false;
+    for (const json& n : s.at("nodes")) {
+      if (n.at("node") == "quiet") return true;
+    }
+    return false;
+  };
+  {
+    auto node = Stage::join(stage_options("quiet"));
+    ASSERT_TRUE(node.ok()) << node.error().message();
+    DetectionPublisherOptions po;
+    po.cameras = fo.cameras;
+    po.frame_rate_hz = kRateHz;
+    auto pub = DetectionPublisher::create(**node, po);  // says hello, publishes nothing else
+    ASSERT_TRUE(pub.ok()) << pub.error().message();
+    ASSERT_TRUE(wait_until(10000, listed)) << (*src)->status_json();
+    EXPECT_TRUE(node_alive(status(), "quiet"));
+  }  // the node leaves (its participant deleted) before any detection
+  EXPECT_TRUE(wait_until(5000, [&] { return !node_alive(status(), "quiet"); }))
+      << (*src)->status_json();
+  stop = true;
+  taker.join();
+  (*src)->stop();
+}
+
 }  // namespace
 }  // namespace mocap::dds
