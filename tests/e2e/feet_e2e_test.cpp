@@ -27,6 +27,7 @@
 #include "runtime/assoc/triangulate.h"
 #include "runtime/core/stats.h"
 #include "runtime/crops/crop_plan.h"
+#include "runtime/fit/foot_contact.h"
 #include "runtime/gpu/context.h"
 #include "runtime/gpu/crop_refiner.h"
 #include "runtime/nn_import/blazepose_cut.h"
@@ -52,6 +53,33 @@ struct Track {
   std::vector<Eigen::Vector3d> X_m;
   std::vector<double> reprojection_px;  // every view used, every frame
 };
+
+// The foot point through the contact filter (runtime/fit/foot_contact.h, 60 Hz): the output
+// positions (NaN where none) and the frames said planted.
+struct Held {
+  std::vector<Eigen::Vector3d> X_m;
+  int planted = 0;
+};
+Held hold_contacts(const std::vector<Eigen::Vector3d>& xs) {
+  fit::FootContactOptions o;
+  o.frame_rate_hz = 60;
+  fit::FootPointFilter filter(o);
+  Held h;
+  for (const Eigen::Vector3d& x : xs) {
+    const fit::FootPointEstimate e =
+        filter.update(x.allFinite() ? std::optional<Eigen::Vector3d>(x) : std::nullopt);
+    h.X_m.push_back(e.has_position ? e.X_m : Eigen::Vector3d::Constant(std::nan("")));
+    h.planted += e.state == fit::ContactState::kPlanted ? 1 : 0;
+  }
+  return h;
+}
+double lowest_z_m(const std::vector<Eigen::Vector3d>& xs) {
+  double z = 1e9;
+  for (const Eigen::Vector3d& x : xs) {
+    if (x.allFinite()) z = std::min(z, x.z());
+  }
+  return z;
+}
 
 // The horizontal distances of a foot point from its median position over the clip.
 std::vector<double> horizontal_offsets_m(const std::vector<Eigen::Vector3d>& xs) {
@@ -201,6 +229,13 @@ TEST(FeetE2e, Pose2SimMultiHeelsAndToesFromBlazePoseCrops) {
                     z.empty() ? std::nan("") : median(z),
                     z.empty() ? std::nan("") : *std::min_element(z.begin(), z.end()),
                     drift_m(t[k].X_m, 0.5), drift_m(t[k].X_m, 0.9), drift_m(t[k].X_m, 1.0));
+      line += buf;
+      const Held h = hold_contacts(t[k].X_m);
+      std::snprintf(buf, sizeof buf,
+                    "\n           held (contact filter): planted %d/%zu frames, from its median "
+                    "place p50 %.3f p90 %.3f max %.3f m, lowest %.3f m",
+                    h.planted, h.X_m.size(), drift_m(h.X_m, 0.5), drift_m(h.X_m, 0.9),
+                    drift_m(h.X_m, 1.0), lowest_z_m(h.X_m));
       line += buf;
     }
     for (int side = 0; side < 2; ++side) {
