@@ -98,6 +98,8 @@ convert_models() {
   convert_model movenet-multipose movenet-multipose
   convert_model movenet-thunder movenet-singlepose
   convert_model movenet-lightning movenet-singlepose
+  convert_model blazepose-lite blazepose
+  convert_model blazepose-full blazepose
 }
 
 install_packages

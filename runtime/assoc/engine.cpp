@@ -64,9 +64,13 @@ Engine::Engine(const SkeletonTopology& topology, std::vector<Camera> cameras,
       limb_template_m_(limb_template_lengths_m(topology)),
       fitter_(std::move(fitter)),
       tracker_(topology, options.tracking, fitter_ ? &*fitter_ : nullptr),
-      sanity_(topology, options.sanity) {}
+      sanity_(topology, options.sanity),
+      feet_(options.feet, options.triangulation, cameras_) {}
 
-void Engine::reset() { tracker_.reset(); }
+void Engine::reset() {
+  tracker_.reset();
+  feet_.reset();
+}
 
 Result<FrameResult> Engine::process(const DetectionSet& det) {
   if (det.topology != &topology_) {
@@ -102,6 +106,7 @@ Result<FrameResult> Engine::process(const DetectionSet& det) {
   merge_fragments(det.frame_id, st);
   track_persons(st);
   write_outputs(det, res);
+  feet_.process(det, res.skeletons);
   tracker_.end_frame();
   const TrackerFrameStats& ts = tracker_.frame_stats();
   st.fragment_observations = ts.fragment_observations;

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "runtime/assoc/bundles.h"
+#include "runtime/assoc/feet.h"
 #include "runtime/assoc/graph.h"
 #include "runtime/assoc/limb_sanity.h"
 #include "runtime/assoc/options.h"
@@ -129,6 +130,7 @@ class Engine {
   std::optional<fit::SkeletonFitter> fitter_;  // empty: fitting off
   Tracker tracker_;
   LimbSanity sanity_;
+  FeetStage feet_;  // after cameras_ (it keeps a reference)
 
   // Per-frame scratch, reused (no per-frame growth once warmed up).
   FrameGraph graph_;

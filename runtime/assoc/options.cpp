@@ -91,8 +91,17 @@ Status LimbSanityOptions::validate() const {
   return {};
 }
 
+Status FeetOptions::validate() const {
+  if (!(min_score > 0 && min_score <= 1)) {
+    return invalid_argument("assoc",
+                            "feet.min_score must be in (0, 1], got " + std::to_string(min_score));
+  }
+  return contact.validate();
+}
+
 Status AssociationOptions::validate() const {
   if (Status s = sanity.validate(); !s.ok()) return s;
+  if (Status s = feet.validate(); !s.ok()) return s;
   if (Status s = graph.validate(); !s.ok()) return s;
   if (Status s = clique.validate(); !s.ok()) return s;
   if (Status s = tracking.validate(); !s.ok()) return s;

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "runtime/core/error.h"
+#include "runtime/fit/foot_contact.h"
 #include "runtime/fit/skeleton_fitter.h"
 
 namespace mocap::assoc {
@@ -129,6 +130,13 @@ struct LimbSanityOptions {
   Status validate() const;
 };
 
+// The feet (feet.h): foot points from the feet crops, triangulated and held while planted.
+struct FeetOptions {
+  float min_score = 0.5f;           // (0, 1]: a crop's foot point counts from this score
+  fit::FootContactOptions contact;  // contact with the floor (runtime/fit/foot_contact.h)
+  Status validate() const;
+};
+
 struct AssociationOptions {
   GraphOptions graph;
   CliqueOptions clique;
@@ -136,6 +144,7 @@ struct AssociationOptions {
   TriangulationOptions triangulation;
   fit::FitOptions fit;  // parametric skeleton fitting (needs a tree topology while enabled)
   LimbSanityOptions sanity;
+  FeetOptions feet;
 
   Status validate() const;
 };

@@ -25,9 +25,6 @@ double median_of(std::vector<double>& v) {
 }  // namespace
 
 Status FootContactOptions::validate() const {
-  if (!(frame_rate_hz > 0 && frame_rate_hz <= 1000)) {
-    return bad("frame_rate_hz", "must be in (0, 1000]", frame_rate_hz);
-  }
   if (!(enter_height_m > 0 && enter_height_m <= 1)) {
     return bad("enter_height_m", "must be in (0, 1]", enter_height_m);
   }
@@ -47,32 +44,14 @@ Status FootContactOptions::validate() const {
   return {};
 }
 
-const char* contact_state_name(ContactState s) {
-  switch (s) {
-    case ContactState::kFree:
-      return "free";
-    case ContactState::kPlanted:
-      return "planted";
-    case ContactState::kUnknown:
-      break;
-  }
-  return "unknown";
-}
-
-FootPointFilter::FootPointFilter(const FootContactOptions& options) : options_(options) {
-  window_frames_ =
-      std::max(3, static_cast<int>(std::lround(options.speed_window_s * options.frame_rate_hz)));
-  blend_frames_ = static_cast<int>(std::lround(options.blend_s * options.frame_rate_hz));
-  missing_frames_limit_ =
-      std::max(1, static_cast<int>(std::lround(options.hold_missing_s * options.frame_rate_hz)));
-}
+FootPointFilter::FootPointFilter(const FootContactOptions& options) : options_(options) {}
 
 void FootPointFilter::reset() {
+  t0_ns_.reset();
   window_.clear();
   state_ = ContactState::kUnknown;
   far_frames_ = 0;
-  missing_frames_ = 0;
-  blend_left_ = 0;
+  released_s_.reset();
 }
 
 // Over the window's observations (3 at least, else false): the horizontal speed (least-squares
@@ -84,7 +63,7 @@ bool FootPointFilter::window_says_planted(double& speed_mps, double& height_m,
   double mean_t = 0;
   Eigen::Vector3d mean_m = Eigen::Vector3d::Zero();
   for (const Sample& s : window_) {
-    mean_t += static_cast<double>(s.frame);
+    mean_t += s.t_s;
     mean_m += s.X_m;
   }
   mean_t /= static_cast<double>(n);
@@ -93,42 +72,38 @@ bool FootPointFilter::window_says_planted(double& speed_mps, double& height_m,
   Eigen::Vector3d sxy = Eigen::Vector3d::Zero();
   std::vector<double> x, y, z;
   for (const Sample& s : window_) {
-    const double dt = static_cast<double>(s.frame) - mean_t;
+    const double dt = s.t_s - mean_t;
     stt += dt * dt;
     sxy += dt * (s.X_m - mean_m);
     x.push_back(s.X_m.x());
     y.push_back(s.X_m.y());
     z.push_back(s.X_m.z());
   }
-  speed_mps = stt > 0 ? (sxy / stt).norm() * options_.frame_rate_hz : 0.0;
+  speed_mps = stt > 0 ? (sxy / stt).norm() : 0.0;
   height_m = median_of(z);
   place_m = Eigen::Vector3d(median_of(x), median_of(y), std::max(0.0, height_m));
   return true;
 }
 
-// The output moving towards `target_m`: straight there, or along the blend under way.
-Eigen::Vector3d FootPointFilter::blended(const Eigen::Vector3d& target_m) {
-  if (blend_left_ <= 0) return target_m;
-  const double w = static_cast<double>(blend_left_) / static_cast<double>(blend_frames_ + 1);
-  --blend_left_;
-  return w * blend_from_m_ + (1 - w) * target_m;
-}
-
-FootPointEstimate FootPointFilter::update(const std::optional<Eigen::Vector3d>& observed_m) {
-  ++frame_;
+FootPointEstimate FootPointFilter::update(std::int64_t t_ns,
+                                          const std::optional<Eigen::Vector3d>& observed_m) {
+  if (t0_ns_ && t_ns <= *t0_ns_ + static_cast<std::int64_t>(now_s_ * 1e9)) reset();
+  if (!t0_ns_) t0_ns_ = t_ns;
+  now_s_ = static_cast<double>(t_ns - *t0_ns_) * 1e-9;
   const bool observed = observed_m.has_value() && observed_m->allFinite();
-  if (observed) {
-    window_.push_back({frame_, *observed_m});
-    missing_frames_ = 0;
-  } else {
-    ++missing_frames_;
-  }
-  while (!window_.empty() && window_.front().frame <= frame_ - window_frames_) window_.pop_front();
   FootPointEstimate e;
   e.observed = observed;
-  if (missing_frames_ >= missing_frames_limit_) {
+  if (observed) {
+    window_.push_back({now_s_, *observed_m});
+    last_seen_s_ = now_s_;
+  } else if (window_.empty() || now_s_ - last_seen_s_ >= options_.hold_missing_s) {
+    const std::int64_t t0 = *t0_ns_;
     reset();
+    t0_ns_ = t0;
     return e;
+  }
+  while (window_.size() > 3 && now_s_ - window_.front().t_s >= options_.speed_window_s) {
+    window_.pop_front();
   }
   double speed_mps = 0, height_m = 0;
   Eigen::Vector3d place_m;
@@ -140,24 +115,31 @@ FootPointEstimate FootPointFilter::update(const std::optional<Eigen::Vector3d>& 
     }
     if (far_frames_ >= options_.leave_frames) {
       state_ = ContactState::kFree;
-      blend_left_ = blend_frames_;  // from the held place to the observations
-      blend_from_m_ = held_m_;
+      released_s_ = now_s_;  // blended from the held place to the observations
     }
   } else if (measured && speed_mps < options_.enter_speed_mps &&
              height_m < options_.enter_height_m) {
     state_ = ContactState::kPlanted;  // at once: a blend in would slide the planted foot
     held_m_ = place_m;
     far_frames_ = 0;
-    blend_left_ = 0;
+    released_s_.reset();
   } else if (observed) {
     state_ = ContactState::kFree;
   }
   e.state = state_;
   if (state_ == ContactState::kPlanted) {
     e.held_m = held_m_;
-    e.X_m = blended(held_m_);
+    e.X_m = held_m_;
   } else if (observed && state_ == ContactState::kFree) {
-    e.X_m = blended(*observed_m);
+    e.X_m = *observed_m;
+    if (released_s_) {
+      const double w = options_.blend_s > 0 ? 1 - (now_s_ - *released_s_) / options_.blend_s : 0;
+      if (w > 0) {
+        e.X_m = w * held_m_ + (1 - w) * e.X_m;
+      } else {
+        released_s_.reset();
+      }
+    }
   } else {
     return e;  // free and not seen this frame: no position
   }

@@ -22,6 +22,7 @@
 #include <optional>
 
 #include "runtime/core/error.h"
+#include "runtime/msg/messages.h"
 
 namespace mocap::fit {
 
@@ -37,8 +38,7 @@ struct FootContactOptions {
   Status validate() const;          // the error names the field
 };
 
-enum class ContactState : std::uint8_t { kUnknown, kFree, kPlanted };
-const char* contact_state_name(ContactState s);
+using ContactState = FootContact;  // runtime/msg/messages.h
 
 struct FootPointEstimate {
   ContactState state = ContactState::kUnknown;
@@ -51,31 +51,28 @@ struct FootPointEstimate {
 class FootPointFilter {
  public:
   explicit FootPointFilter(const FootContactOptions& options);  // options validated by the caller
-  // The next frame (1 / frame_rate_hz after the previous one): its observation, if any.
-  FootPointEstimate update(const std::optional<Eigen::Vector3d>& observed_m);
+  // The frame at t_ns (after the previous one's): its observation, if any. Time going back
+  // restarts the filter.
+  FootPointEstimate update(std::int64_t t_ns, const std::optional<Eigen::Vector3d>& observed_m);
   void reset();
 
  private:
   struct Sample {
-    std::int64_t frame = 0;
+    double t_s = 0;
     Eigen::Vector3d X_m;
   };
   bool window_says_planted(double& speed_mps, double& height_m, Eigen::Vector3d& place_m) const;
   Eigen::Vector3d blended(const Eigen::Vector3d& target_m);
 
   FootContactOptions options_;
-  int window_frames_ = 3;
-  int blend_frames_ = 0;
-  int missing_frames_limit_ = 1;
-  std::int64_t frame_ = -1;
-  std::deque<Sample> window_;  // the observations of the last window_frames_ frames
+  std::optional<std::int64_t> t0_ns_;  // the first frame's time (the samples' origin)
+  double now_s_ = 0;
+  double last_seen_s_ = 0;
+  std::deque<Sample> window_;  // the observations of the last speed_window_s (3 at least)
   ContactState state_ = ContactState::kUnknown;
   Eigen::Vector3d held_m_ = Eigen::Vector3d::Zero();
   int far_frames_ = 0;
-  int missing_frames_ = 0;
-  // The release's blend under way (frames left, from where).
-  int blend_left_ = 0;
-  Eigen::Vector3d blend_from_m_ = Eigen::Vector3d::Zero();
+  std::optional<double> released_s_;  // the release's blend under way: when
 };
 
 }  // namespace mocap::fit

@@ -5,6 +5,7 @@
 
 #include "runtime/core/clock.h"
 #include "runtime/core/log.h"
+#include "runtime/nn/blazepose.h"
 #include "runtime/nn/movenet.h"
 #include "runtime/nn/preprocess.h"
 
@@ -139,6 +140,13 @@ Status CnnDetector::open_crops(const nn::Model& detector_model) {
                      "' is the detector's own model; crops need a single-person model "
                      "(movenet-thunder or movenet-lightning)");
   }
+  if (nn::is_blazepose(*model)) {
+    // BlazePose: framed as MediaPipe frames it (on the hips), at its one input size; its crops
+    // give the feet as well (CropPose::feet, DetectionSet views' feet).
+    options_.crop_plan.framing = crops::CropFraming::kHipCentred;
+    options_.crop_input_size_px = nn::kBlazePoseInputPx;
+    feet_only_ = true;
+  }
   CropRefinerOptions ro;
   ro.backend = backend_.backend;
   ro.input_size_px = options_.crop_input_size_px;
@@ -213,6 +221,7 @@ Status CnnDetector::refine_with_crops(const FrameSet& frames, DetectionSet& set)
   total_crops_.crops += last_crops_.crops;
   total_crops_.refined += last_crops_.refined;
   total_crops_.added += last_crops_.added;
+  total_crops_.feet += last_crops_.feet;
   total_crops_.ms += last_crops_.ms;
   return set.validate();
 }
@@ -223,11 +232,21 @@ Status CnnDetector::merge_crops(const std::vector<crops::PlannedCrop>& plan,
     crops::CropClaims claims = crops::crop_claims(view);
     for (std::size_t i = 0; i < plan.size(); ++i) {
       if (plan[i].view_id != view.view_id) continue;
-      auto stats = crops::merge_crop(view, claims, *set.topology, poses[i].joints, plan[i].side_px,
-                                     options_.crop_merge);
-      if (!stats.ok()) return stats.error();
-      last_crops_.refined += stats->refined;
-      last_crops_.added += stats->added;
+      if (!feet_only_) {
+        auto stats = crops::merge_crop(view, claims, *set.topology, poses[i].joints,
+                                       plan[i].side_px, options_.crop_merge);
+        if (!stats.ok()) return stats.error();
+        last_crops_.refined += stats->refined;
+        last_crops_.added += stats->added;
+      }
+      // The feet of a tracked person (3D-guided crops; 2D-guided ones have no track yet).
+      if (poses[i].feet.size() == kFootPoints && plan[i].person_id >= 0) {
+        ViewFeet f;
+        f.person_id = plan[i].person_id;
+        std::copy(poses[i].feet.begin(), poses[i].feet.end(), f.points.begin());
+        view.feet.push_back(f);
+        ++last_crops_.feet;
+      }
     }
   }
   return Status::Ok();

@@ -50,7 +50,10 @@ struct CnnOptions {
   int max_views = 1;  // views per frame (the network batch)
   // 3D-guided crops (runtime/crops/crop_plan.h): a MoveNet SinglePose model (empty: none) run
   // on each tracked person's crop in each view, at crop_input_size_px, the cameras (indexed by
-  // view id) to project the skeletons with. Needs the pipeline to hand it the tracks.
+  // view id) to project the skeletons with. Needs the pipeline to hand it the tracks. A
+  // BlazePose landmark model (--cut blazepose) gives the feet instead (DetectionSet views'
+  // feet; its body joints are not merged): its crops are hip-centred (crop_plan.framing) at
+  // 256 px whatever crop_input_size_px says.
   std::filesystem::path crop_model;
   int crop_input_size_px = kDefaultCropInputSizePx;
   // Crops only where the CNN runs on a hardware GPU: on the CPU backend or a software Vulkan
@@ -72,6 +75,7 @@ struct CropStats {
   int crops = 0;
   int refined = 0;  // bottom-up candidates moved to a crop's joint
   int added = 0;    // candidates only a crop found
+  int feet = 0;     // crops that gave a person's feet (BlazePose)
   double ms = 0;    // the crop stage (plan, network, merge)
   int errors = 0;   // frames whose crops failed (they went on with the bottom-up detections)
 };
@@ -123,6 +127,9 @@ class CnnDetector final : public pipeline::Detector {
   std::string crop_model_name_;
   std::string crops_off_reason_;
   double macs_per_crop_ = 0;
+  // BlazePose crops give the feet only: merged into the body joints they made pose2sim_multi
+  // worse (8 ids instead of 3, leave-one-view-out 27.4 px instead of 24.4; docs/quality.md).
+  bool feet_only_ = false;
   mutable std::mutex tracks_mu_;  // the tracks come from the assoc thread
   std::optional<SkeletonSet> latest_;
   std::optional<SkeletonSet> previous_;

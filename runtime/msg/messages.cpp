@@ -142,6 +142,42 @@ Status validate_view(const std::string& frame, const SkeletonTopology& topo,
 
 }  // namespace
 
+std::string_view to_string(FootContact contact) {
+  switch (contact) {
+    case FootContact::kFree:
+      return "free";
+    case FootContact::kPlanted:
+      return "planted";
+    case FootContact::kUnknown:
+      break;
+  }
+  return "unknown";
+}
+
+namespace {
+
+Status validate_feet(const std::string& frame, const ViewDetections& view) {
+  for (const ViewFeet& f : view.feet) {
+    const auto at = [&](int k) {
+      return frame + ", view " + std::to_string(view.view_id) + ", person " +
+             std::to_string(f.person_id) + "'s " + kFootPointNames[static_cast<std::size_t>(k)];
+    };
+    if (f.person_id < 0) return invalid_argument("", at(0) + ": the person id is negative");
+    for (int k = 0; k < kFootPoints; ++k) {
+      const JointCandidate& c = f.points[static_cast<std::size_t>(k)];
+      if (!std::isfinite(c.x_px) || !std::isfinite(c.y_px)) {
+        return invalid_argument("", at(k) + ": coordinates are not finite");
+      }
+      if (!in_unit_range(c.score)) {
+        return invalid_argument("", at(k) + ": score " + num(c.score) + " is outside [0, 1]");
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
 Status DetectionSet::validate() const {
   std::string frame = "frame ";
   frame += std::to_string(frame_id);
@@ -159,6 +195,7 @@ Status DetectionSet::validate() const {
   for (const ViewDetections& view : views) {
     Status s = validate_view(frame, *topology, view);
     if (!s.ok()) return s;
+    if (Status f = validate_feet(frame, view); !f.ok()) return f;
   }
   return Status::Ok();
 }

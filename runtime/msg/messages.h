@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -74,12 +75,26 @@ struct AffinityMatrix {
   float& at(int r, int c) { return values[static_cast<std::size_t>(r * cols + c)]; }
 };
 
+// The foot points (issue 42): heels and toes (foot index, the big-toe side), in BlazePose's
+// order (nn::kBlazePoseFeet).
+inline constexpr int kFootPoints = 4;
+inline constexpr std::array<const char*, kFootPoints> kFootPointNames = {"l_heel", "r_heel",
+                                                                         "l_toe", "r_toe"};
+
+// One tracked person's foot points in one view, from the feet crops (a crop framed by the
+// person's skeleton): candidate score 0 = not seen.
+struct ViewFeet {
+  int person_id = -1;  // the track whose skeleton framed the crop
+  std::array<JointCandidate, kFootPoints> points{};
+};
+
 struct ViewDetections {
   int view_id = -1;
   int width_px = 0;  // image size the coordinates refer to
   int height_px = 0;
   std::vector<std::vector<JointCandidate>> candidates;  // [joint type][candidate]
   std::vector<AffinityMatrix> affinities;               // [limb of the topology]
+  std::vector<ViewFeet> feet;                           // per person (empty: no feet crops)
 };
 
 struct DetectionSet {
@@ -104,11 +119,24 @@ struct DetectionSet {
 
 // ------------------------------------------------------------- skeletons (association -> out)
 
+// A foot point's contact with the floor (runtime/fit/foot_contact.h).
+enum class FootContact : std::uint8_t { kUnknown, kFree, kPlanted };
+std::string_view to_string(FootContact contact);
+
+// A person's foot point in 3D: triangulated from the feet crops, held while planted.
+struct FootPoint {
+  bool valid = false;  // false: not observed (no position)
+  Eigen::Vector3d X_m = Eigen::Vector3d::Zero();
+  FootContact contact = FootContact::kUnknown;
+  int views_used = 0;  // views it was triangulated from this frame (0: held through a gap)
+};
+
 struct PersonSkeleton {
   int person_id = -1;                               // stable track id
   std::vector<Eigen::Vector3d> joints_m;            // world frame, metres, per topology joint
   std::vector<float> confidence;                    // per joint in [0, 1]; 0 = not observed
   std::vector<Eigen::Quaterniond> joint_rotations;  // local rotation per joint (fitted model)
+  std::array<FootPoint, kFootPoints> feet{};        // all invalid without feet crops
 };
 
 struct SkeletonSet {

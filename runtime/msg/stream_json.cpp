@@ -81,6 +81,38 @@ void append_json_string(std::string& out, std::string_view text) {
   out += '"';
 }
 
+namespace {
+
+// ,"feet":[...]: the person's foot points (issue 42), when any is observed; one entry per point
+// (kFootPointNames), a point not observed with null coordinates.
+void append_feet(std::string& out, const PersonSkeleton& person) {
+  bool any = false;
+  for (const FootPoint& f : person.feet) any = any || f.valid;
+  if (!any) return;
+  out += ",\"feet\":[";
+  for (std::size_t k = 0; k < person.feet.size(); ++k) {
+    const FootPoint& f = person.feet[k];
+    if (k > 0) out += ',';
+    out += "{\"name\":\"";
+    out += kFootPointNames[k];
+    const double nan = std::nan("");
+    out += "\",\"x\":";
+    append_number(out, f.valid ? f.X_m.x() : nan, kMetreDecimals);
+    out += ",\"y\":";
+    append_number(out, f.valid ? f.X_m.y() : nan, kMetreDecimals);
+    out += ",\"z\":";
+    append_number(out, f.valid ? f.X_m.z() : nan, kMetreDecimals);
+    out += ",\"contact\":\"";
+    out += to_string(f.contact);
+    out += "\",\"views\":";
+    append_int(out, f.views_used);
+    out += '}';
+  }
+  out += ']';
+}
+
+}  // namespace
+
 std::string encode_skeletons(const SkeletonSet& set, const StreamTime& time) {
   std::string out;
   out.reserve(256 + set.persons.size() * 2048);
@@ -127,7 +159,9 @@ std::string encode_skeletons(const SkeletonSet& set, const StreamTime& time) {
       }
       out += '}';
     }
-    out += "]}";
+    out += ']';
+    append_feet(out, person);
+    out += '}';
   }
   out += "]}";
   return out;

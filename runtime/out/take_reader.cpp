@@ -79,6 +79,19 @@ void set_joint(TakePerson& p, std::size_t j, double x, double y, double z, doubl
   p.confidence[j] = seen ? static_cast<float>(std::clamp(c, 0.0, 1.0)) : 0.f;
 }
 
+// A foot point read back; false for a contact state the stream does not write.
+bool set_foot(FootPoint& f, double x, double y, double z, std::string_view contact) {
+  f.X_m = Eigen::Vector3d(x, y, z);
+  f.valid = f.X_m.allFinite();
+  for (const FootContact c : {FootContact::kUnknown, FootContact::kFree, FootContact::kPlanted}) {
+    if (contact == to_string(c)) {
+      f.contact = c;
+      return true;
+    }
+  }
+  return false;
+}
+
 // The fast path: a "skeletons" line in encode_skeletons' exact layout. Every scan returns
 // false (and the line goes to nlohmann::json) where the layout differs in any way.
 class SkeletonsScanner {
@@ -99,6 +112,7 @@ class SkeletonsScanner {
   bool person(const std::vector<std::string>& names, TakePerson& out);
   bool joint(const std::string& name, std::size_t j, TakePerson& out);
   bool rotation();
+  bool foot(std::size_t k, FootPoint& out);
 
   const char* p_;
   const char* end_;
@@ -213,7 +227,28 @@ bool SkeletonsScanner::person(const std::vector<std::string>& names, TakePerson&
     if (j > 0 && !lit(",")) return false;
     if (!joint(names[j], j, out)) return false;
   }
-  return lit("]}");
+  if (!lit("]")) return false;
+  if (lit(",\"feet\":[")) {
+    for (std::size_t k = 0; k < kFootPoints; ++k) {
+      if (k > 0 && !lit(",")) return false;
+      if (!foot(k, out.feet[k])) return false;
+    }
+    if (!lit("]")) return false;
+  }
+  return lit("}");
+}
+
+// {"name":"l_heel","x":..,"y":..,"z":..,"contact":"planted","views":3}
+bool SkeletonsScanner::foot(std::size_t k, FootPoint& out) {
+  std::string_view n, contact;
+  double x = 0, y = 0, z = 0;
+  if (!lit("{\"name\":") || !plain_string(n) || n != kFootPointNames[k] || !lit(",\"x\":") ||
+      !number_or_null(x) || !lit(",\"y\":") || !number_or_null(y) || !lit(",\"z\":") ||
+      !number_or_null(z) || !lit(",\"contact\":") || !plain_string(contact) ||
+      !lit(",\"views\":") || !integer(out.views_used) || !lit("}")) {
+    return false;
+  }
+  return set_foot(out, x, y, z, contact);
 }
 
 bool SkeletonsScanner::frame(const std::string& topology, const std::vector<std::string>& names,
@@ -255,6 +290,7 @@ class StreamParser {
   Status add_skeletons(const json& msg, int line_no);
   Status add_person(const json& person, int line_no, TakeFrame& frame);
   Status add_joint(const json& joint, std::size_t j, int line_no, TakePerson& person);
+  Status add_feet(const json& person, int line_no, TakePerson& p);
   Status check_topology(const json& msg, int line_no);
 
   fs::path file_;
@@ -389,7 +425,35 @@ Status StreamParser::add_person(const json& person, int line_no, TakeFrame& fram
     if (Status s = add_joint(joints[j], j, line_no, p); !s.ok()) return s;
   }
   names_known_ = true;
+  if (Status s = add_feet(person, line_no, p); !s.ok()) return s;
   frame.persons.push_back(std::move(p));
+  return {};
+}
+
+Status StreamParser::add_feet(const json& person, int line_no, TakePerson& p) {
+  const auto it = person.find("feet");
+  if (it == person.end()) return {};
+  const std::string where = "person " + std::to_string(p.id) + " \"feet\"";
+  if (!it->is_array() || it->size() != kFootPoints) {
+    return line_error(file_, line_no,
+                      where + ": needs an array of " + std::to_string(kFootPoints) +
+                          " foot points: the file is damaged");
+  }
+  for (std::size_t k = 0; k < kFootPoints; ++k) {
+    const json& f = (*it)[k];
+    double x = 0, y = 0, z = 0;
+    const bool ok =
+        f.is_object() && str_field(f, "name") == kFootPointNames[k] && number_or_null(f, "x", x) &&
+        number_or_null(f, "y", y) && number_or_null(f, "z", z) && f.contains("views") &&
+        f["views"].is_number_integer() && set_foot(p.feet[k], x, y, z, str_field(f, "contact"));
+    if (!ok) {
+      return line_error(file_, line_no,
+                        where + " " + std::to_string(k) + ": needs \"name\" " + kFootPointNames[k] +
+                            ", numbers (or null) \"x\", \"y\", \"z\", a \"contact\" "
+                            "(unknown, free, planted) and \"views\": the file is damaged");
+    }
+    p.feet[k].views_used = f["views"].get<int>();
+  }
   return {};
 }
 

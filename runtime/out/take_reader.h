@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -23,14 +24,16 @@
 #include <vector>
 
 #include "runtime/core/error.h"
+#include "runtime/msg/messages.h"
 #include "runtime/out/take_status.h"
 
 namespace mocap::out {
 
 struct TakePerson {
   int id = -1;
-  std::vector<Eigen::Vector3d> joints_m;  // per joint of the topology, world frame, metres
-  std::vector<float> confidence;          // 0 = not observed (NaN position when null)
+  std::vector<Eigen::Vector3d> joints_m;      // per joint of the topology, world frame, metres
+  std::vector<float> confidence;              // 0 = not observed (NaN position when null)
+  std::array<FootPoint, kFootPoints> feet{};  // the stream's "feet" (all invalid without)
 };
 
 struct TakeFrame {

@@ -51,8 +51,8 @@ struct Figures {
   int contacts = 0;
 };
 
-Figures run(const std::vector<sim::FootGaitFrame>& gait, const FootContactOptions& o,
-            const Noise& noise, std::uint64_t seed) {
+Figures run(const std::vector<sim::FootGaitFrame>& gait, double rate_hz,
+            const FootContactOptions& o, const Noise& noise, std::uint64_t seed) {
   sim::Rng rng(seed);
   Figures f;
   long right = 0, total = 0, truly = 0, said = 0, near_change = 0;
@@ -62,7 +62,8 @@ Figures run(const std::vector<sim::FootGaitFrame>& gait, const FootContactOption
     double skate = 0;
     for (std::size_t i = 0; i < gait.size(); ++i) {
       const sim::FootPointTruth& t = gait[i][static_cast<std::size_t>(k)];
-      const FootPointEstimate e = filter.update(observe(t.X_m, noise, rng));
+      const auto t_ns = static_cast<std::int64_t>(static_cast<double>(i) * 1e9 / rate_hz);
+      const FootPointEstimate e = filter.update(t_ns, observe(t.X_m, noise, rng));
       const bool planted = e.state == ContactState::kPlanted;
       ++total;
       right += planted == t.planted ? 1 : 0;
@@ -156,9 +157,8 @@ TEST(FootContact, WalkerWithNoiseMeetsTheContactTargets) {
     auto gait = sim::foot_gait(g);
     ASSERT_TRUE(gait.ok());
     FootContactOptions o;
-    o.frame_rate_hz = rate_hz;
     ASSERT_TRUE(o.validate().ok());
-    const Figures f = run(*gait, o, Noise{}, 7);
+    const Figures f = run(*gait, rate_hz, o, Noise{}, 7);
     const double skate_p50 = median(f.skate_m),
                  skate_max = *std::max_element(f.skate_m.begin(), f.skate_m.end());
     std::printf(
@@ -186,27 +186,29 @@ TEST(FootContact, WalkerWithNoiseMeetsTheContactTargets) {
 TEST(FootContact, NotObservedIsNeverInvented) {
   FootContactOptions o;
   FootPointFilter f(o);
+  std::int64_t t_ns = 0;
+  const auto next = [&] { return t_ns += 16666667; };  // 60 Hz
   for (int i = 0; i < 10; ++i) {
-    const FootPointEstimate e = f.update(std::nullopt);
+    const FootPointEstimate e = f.update(next(), std::nullopt);
     EXPECT_EQ(e.state, ContactState::kUnknown);
     EXPECT_FALSE(e.has_position);
   }
   const Eigen::Vector3d still(1.0, 2.0, 0.02);
   FootPointEstimate e;
-  for (int i = 0; i < 10; ++i) e = f.update(still);
+  for (int i = 0; i < 10; ++i) e = f.update(next(), still);
   ASSERT_EQ(e.state, ContactState::kPlanted);
   EXPECT_LT((e.X_m - still).norm(), 1e-12);
   for (int i = 0; i < 5; ++i) {  // 83 ms unseen: still held
-    e = f.update(std::nullopt);
+    e = f.update(next(), std::nullopt);
     EXPECT_FALSE(e.observed);
     EXPECT_EQ(e.state, ContactState::kPlanted);
     EXPECT_TRUE(e.has_position);
   }
-  for (int i = 0; i < 20; ++i) e = f.update(std::nullopt);  // past hold_missing_s
+  for (int i = 0; i < 20; ++i) e = f.update(next(), std::nullopt);  // past hold_missing_s
   EXPECT_EQ(e.state, ContactState::kUnknown);
   EXPECT_FALSE(e.has_position);
   // Observed below the floor (a bad calibration's floor): never output below z = 0.
-  for (int i = 0; i < 10; ++i) e = f.update(Eigen::Vector3d(0, 0, -0.03));
+  for (int i = 0; i < 10; ++i) e = f.update(next(), Eigen::Vector3d(0, 0, -0.03));
   EXPECT_EQ(e.state, ContactState::kPlanted);
   EXPECT_EQ(e.X_m.z(), 0.0);
 }

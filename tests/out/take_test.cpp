@@ -343,6 +343,14 @@ std::string random_skeletons(std::mt19937& rng, int f) {
       p.confidence.push_back(unit(rng) < 0.2 ? 0.f : static_cast<float>(conf(rng)));
       if (i % 2 == 1) p.joint_rotations.push_back(Quaterniond::UnitRandom());
     }
+    if (i % 3 != 0) {  // the feet (issue 42): some points observed, some not
+      for (FootPoint& fp : p.feet) {
+        fp.valid = unit(rng) < 0.7;
+        fp.X_m = Vector3d(coord(rng), coord(rng), std::fabs(coord(rng)));
+        fp.contact = static_cast<FootContact>(rng() % 3);
+        fp.views_used = static_cast<int>(rng() % 9);
+      }
+    }
     set.persons.push_back(std::move(p));
   }
   const std::int64_t t = static_cast<std::int64_t>(rng() % 1'000'000'000'000) - 1000;
@@ -375,8 +383,62 @@ void expect_same_take(const TakeData& a, const TakeData& b) {
               << " vs " << pb.joints_m[j][k];
         }
       }
+      for (std::size_t k = 0; k < kFootPoints; ++k) {
+        const FootPoint &a_foot = pa.feet[k], &b_foot = pb.feet[k];
+        ASSERT_EQ(a_foot.valid, b_foot.valid) << "frame " << f << " person " << p;
+        EXPECT_EQ(a_foot.contact, b_foot.contact);
+        EXPECT_EQ(a_foot.views_used, b_foot.views_used);
+        if (!a_foot.valid) continue;
+        for (int c = 0; c < 3; ++c) ASSERT_TRUE(same_bits(a_foot.X_m[c], b_foot.X_m[c]));
+      }
     }
   }
+}
+
+// The feet of a person (issue 42) as the stream writes them and the reader reads them back;
+// a person without observed feet writes no "feet" at all.
+TEST(TakeReader, FeetRoundTrip) {
+  testing::TestTempDir tmp("take_feet");
+  SkeletonSet set;
+  set.topology = &body19_topology();
+  for (int id : {4, 9}) {
+    PersonSkeleton p;
+    p.person_id = id;
+    p.joints_m.assign(static_cast<std::size_t>(body19_topology().joint_count()), Vector3d(1, 2, 3));
+    p.confidence.assign(p.joints_m.size(), 0.5f);
+    set.persons.push_back(p);
+  }
+  set.persons[0].feet[0] = {true, Vector3d(0.12345, -1.5, 0.0), FootContact::kPlanted, 3};
+  set.persons[0].feet[2] = {true, Vector3d(0.3, -1.4, 0.08), FootContact::kFree, 2};
+  const std::string msg = encode_skeletons(set, {1000, kStartUnix_ns + 1000});
+  EXPECT_NE(msg.find(",\"feet\":[{\"name\":\"l_heel\",\"x\":0.1235,\"y\":-1.5000,\"z\":0.0000,"
+                     "\"contact\":\"planted\",\"views\":3},{\"name\":\"r_heel\",\"x\":null"),
+            std::string::npos)
+      << msg;
+  EXPECT_EQ(msg.find("feet", msg.find("\"id\":9")), std::string::npos) << msg;
+  for (const bool reordered : {false, true}) {
+    write_text(tmp.path() / "s.ndjson",
+               (reordered ? nlohmann::json::parse(msg).dump() : msg) + "\n");
+    auto take = read_stream_file(tmp.path() / "s.ndjson");
+    ASSERT_TRUE(take.ok()) << take.error().to_string();
+    ASSERT_EQ(take->frames.size(), 1u);
+    const TakePerson& p = take->frames[0].persons[0];
+    EXPECT_TRUE(p.feet[0].valid);
+    EXPECT_LT((p.feet[0].X_m - Vector3d(0.1235, -1.5, 0)).norm(), 1e-9);
+    EXPECT_EQ(p.feet[0].contact, FootContact::kPlanted);
+    EXPECT_EQ(p.feet[0].views_used, 3);
+    EXPECT_FALSE(p.feet[1].valid);
+    EXPECT_EQ(p.feet[2].contact, FootContact::kFree);
+    for (const FootPoint& f : take->frames[0].persons[1].feet) EXPECT_FALSE(f.valid);
+  }
+  // A damaged "feet" is named.
+  std::string bad = msg;
+  bad.replace(bad.find("\"planted\""), 9, "\"sitting\"");
+  write_text(tmp.path() / "bad.ndjson", bad + "\n");
+  auto r = read_stream_file(tmp.path() / "bad.ndjson");
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message().find("person 4 \"feet\" 0"), std::string::npos)
+      << r.error().message();
 }
 
 TEST(TakeReader, FastPathGivesWhatNlohmannGives) {

@@ -16,8 +16,9 @@ inline constexpr int kLightningInputSizePx = 192;
 
 // Sets cnn's crop model and size from a name: auto (Thunder where the CNN runs on a hardware
 // GPU, none on the CPU or a software device such as lavapipe: gpu::CnnOptions::crops_need_gpu),
-// none, thunder, lightning or a model file; size_px 0 = the model's (Thunder 256, Lightning
-// 192). The cameras are the caller's.
+// none, thunder, lightning, blazepose (full), blazepose-lite (the crops give the feet too) or a
+// model file; size_px 0 = the model's (Thunder 256, Lightning 192, BlazePose 256 always). The
+// cameras are the caller's.
 inline Status set_crops(const std::string& crops, int size_px, gpu::CnnOptions& cnn) {
   cnn.crops_need_gpu = crops == "auto";
   if (crops == "none") {
@@ -26,7 +27,8 @@ inline Status set_crops(const std::string& crops, int size_px, gpu::CnnOptions& 
   }
   if (crops.empty()) {
     return Error(ErrorCode::kInvalidArgument,
-                 "crops: empty (auto, none, thunder, lightning or a model file)");
+                 "crops: empty (auto, none, thunder, lightning, blazepose, blazepose-lite or a "
+                 "model file)");
   }
   const std::string model = crops == "auto" ? "thunder" : crops;
   cnn.crop_model = model_path_for(model);
@@ -54,12 +56,13 @@ struct CropArgs {
   int size_px = 0;
 
   void add_to(cli::ArgParser& p) {
-    p.option("--crops", &crops, "auto|none|thunder|lightning|FILE",
+    p.option("--crops", &crops, "auto|none|thunder|lightning|blazepose|blazepose-lite|FILE",
              "3D-guided crops: each tracked person's skeleton, projected into every view, gives "
              "a crop that a single-person model refines (MoveNet Thunder, or Lightning, the fast "
-             "one; a model file converted with --cut movenet-singlepose); auto (default): "
-             "Thunder on a hardware GPU, none on the CPU or a software device such as lavapipe "
-             "(there they cost 2.7x the detector, docs/crops.md)");
+             "one; BlazePose full or lite, which also gives heels and toes: the skeletons' "
+             "feet; a model file converted with --cut movenet-singlepose or blazepose); auto "
+             "(default): Thunder on a hardware GPU, none on the CPU or a software device such "
+             "as lavapipe (there they cost 2.7x the detector, docs/crops.md)");
     p.option("--crop-input-size-px", &size_px, "S",
              "crop model input size, a multiple of 32 (default: Thunder 256, Lightning 192)");
     p.deprecated("--crop-size", "--crop-input-size-px");

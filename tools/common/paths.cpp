@@ -25,6 +25,8 @@ fs::path model_path_for(const std::string& name_or_file) {
   if (name_or_file == "movenet") return share_path("models") / "movenet-multipose.mcnn";
   if (name_or_file == "thunder") return share_path("models") / "movenet-thunder.mcnn";
   if (name_or_file == "lightning") return share_path("models") / "movenet-lightning.mcnn";
+  if (name_or_file == "blazepose") return share_path("models") / "blazepose-full.mcnn";
+  if (name_or_file == "blazepose-lite") return share_path("models") / "blazepose-lite.mcnn";
   return name_or_file;
 }
 

@@ -15,7 +15,8 @@ std::filesystem::path share_path(const std::string& sub);
 // docs/quality.md).
 std::filesystem::path default_model_path();
 
-// A --model or --crops argument: the names "posenet", "movenet", "thunder" and "lightning"
+// A --model or --crops argument: the names "posenet", "movenet", "thunder", "lightning",
+// "blazepose" (full) and "blazepose-lite"
 // (share_path("models")/posenet.mcnn, movenet-multipose.mcnn, movenet-thunder.mcnn and
 // movenet-lightning.mcnn, which tools/setup.sh converts), anything else a file path.
 std::filesystem::path model_path_for(const std::string& name_or_file);

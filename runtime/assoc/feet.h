@@ -1,0 +1,40 @@
+// The feet stage of the engine (issue 42): each output person's foot points (heels and toes)
+// from the feet crops' 2D points (DetectionSet views' feet, keyed by the track whose skeleton
+// framed the crop), triangulated across the views, then through the contact filter
+// (runtime/fit/foot_contact.h): planted points held still on the floor. A point seen in fewer
+// than two views is not triangulated; a point never seen is reported not observed (never
+// placed by guess). Without feet crops (no view carries feet) it does nothing.
+#pragma once
+
+#include <array>
+#include <map>
+#include <vector>
+
+#include "runtime/assoc/options.h"
+#include "runtime/assoc/triangulate.h"
+#include "runtime/fit/foot_contact.h"
+#include "runtime/geometry/camera.h"
+#include "runtime/msg/messages.h"
+
+namespace mocap::assoc {
+
+class FeetStage {
+ public:
+  // `cameras` indexed by view id; kept by reference (the engine's).
+  FeetStage(const FeetOptions& options, const TriangulationOptions& triangulation,
+            const std::vector<Camera>& cameras);
+  // Fills the persons' feet in `set` (the frame's output) from `det`; persons no longer in
+  // the output are forgotten.
+  void process(const DetectionSet& det, SkeletonSet& set);
+  void reset() { filters_.clear(); }
+
+ private:
+  using PersonFilters = std::array<fit::FootPointFilter, kFootPoints>;
+  FeetOptions options_;
+  TriangulationOptions triangulation_;
+  const std::vector<Camera>& cameras_;
+  std::map<int, PersonFilters> filters_;  // by person id
+  std::vector<Observation> obs_;          // scratch
+};
+
+}  // namespace mocap::assoc
