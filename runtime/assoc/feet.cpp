@@ -51,7 +51,9 @@ void FeetStage::process(const DetectionSet& det, SkeletonSet& set) {
       FootPoint& out = p.feet[static_cast<std::size_t>(k)];
       out.valid = e.has_position;
       out.X_m = e.X_m;
-      out.contact = e.state;
+      out.contact = e.state == fit::ContactState::kPlanted ? FootContact::kPlanted
+                    : e.state == fit::ContactState::kFree  ? FootContact::kFree
+                                                           : FootContact::kUnknown;
       out.views_used = views;
     }
     kept.insert(filters_.extract(it));

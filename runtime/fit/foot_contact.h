@@ -22,7 +22,6 @@
 #include <optional>
 
 #include "runtime/core/error.h"
-#include "runtime/msg/messages.h"
 
 namespace mocap::fit {
 
@@ -38,7 +37,8 @@ struct FootContactOptions {
   Status validate() const;          // the error names the field
 };
 
-using ContactState = FootContact;  // runtime/msg/messages.h
+// (runtime/msg/messages.h's FootContact in the stream, the same three states.)
+enum class ContactState : std::uint8_t { kUnknown, kFree, kPlanted };
 
 struct FootPointEstimate {
   ContactState state = ContactState::kUnknown;

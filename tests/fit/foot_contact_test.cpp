@@ -169,7 +169,7 @@ TEST(FootContact, WalkerWithNoiseMeetsTheContactTargets) {
         rate_hz, 100 * f.right_share, 100 * f.right_within_2, 100 * f.planted_share, f.contacts,
         1000 * skate_p50, 1000 * skate_max, 1000 * f.lowest_z_m, 1000 * median(f.held_error_m),
         1000 * percentile(f.held_error_m, 0.9));
-    // Measured (1 cm noise): 93.2 % / 91.2 % of frames right at 60 / 30 Hz, 97.0 % / 97.6 % not
+    // Measured (1 cm noise): 93.0 % / 91.3 % of frames right at 60 / 30 Hz, 97.1 % / 97.6 % not
     // counting the frames within 2 of a change. A causal detector sees a heel lift or land only
     // once it has moved more than the noise: without noise the figures are 93.6 % and 97.0 %
     // at 60 Hz (the heel starts rising by 0.3 mm, 1 mm, 2 mm ... in its first frames).
