@@ -92,7 +92,8 @@ const std::vector<Param<CnnChoice>>& CnnChoice::params() {
                    "3D-guided crops: each tracked person's skeleton, projected into every view, "
                    "gives a crop that a single-person model refines: auto (thunder on a hardware "
                    "GPU, none on the CPU or a software device such as lavapipe), none, thunder "
-                   "(MoveNet Thunder), lightning (the fast one) or a model file; needs a "
+                   "(MoveNet Thunder), lightning (the fast one), blazepose or blazepose-lite "
+                   "(the feet instead: heels and toes in the stream) or a model file; needs a "
                    "calibration",
                    &O::crops),
       int_param("crop_input_size_px", "px", {0, 1024},
