@@ -76,7 +76,8 @@ void fill_poses(const HumanoidMapper& mapper, const std::vector<Sighting>& sight
   const HumanoidPose* previous = nullptr;
   for (const Sighting& s : sightings) {
     const auto f = static_cast<std::size_t>(s.frame);
-    p.poses[f] = mapper.pose(p.shape, s.person->joints_m, s.person->confidence, previous);
+    p.poses[f] =
+        mapper.pose(p.shape, s.person->joints_m, s.person->confidence, previous, s.person->feet);
     p.seen[f] = true;
     previous = &p.poses[f];
   }
@@ -96,7 +97,7 @@ Result<PersonAnimation> build_person(const HumanoidMapper& mapper, int id,
                                      const std::vector<Sighting>& sightings, int frame_count) {
   ShapeEstimator estimator;
   for (const Sighting& s : sightings) {
-    estimator.add(mapper.measure(s.person->joints_m, s.person->confidence));
+    estimator.add(mapper.measure(s.person->joints_m, s.person->confidence, s.person->feet));
   }
   PersonAnimation p;
   p.person_id = id;

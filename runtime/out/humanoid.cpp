@@ -269,7 +269,8 @@ Result<HumanoidMapper> HumanoidMapper::create(const SkeletonTopology& topology) 
 }
 
 HumanoidMapper::RoleJoints HumanoidMapper::gather(std::span<const Vector3d> joints_m,
-                                                  std::span<const float> confidence) const {
+                                                  std::span<const float> confidence,
+                                                  std::span<const FootPoint> feet) const {
   RoleJoints J;
   for (int r = 0; r < kRoleCount; ++r) {
     const int j = joint_[ix(r)];
@@ -282,12 +283,20 @@ HumanoidMapper::RoleJoints HumanoidMapper::gather(std::span<const Vector3d> join
     J.ok[kRoleNeck] = true;  // no neck joint: the shoulders' middle
     J.x[kRoleNeck] = 0.5 * (J.at(kRoleShoulder) + J.at(kRoleShoulder + 1));
   }
+  // No toe joints: the feet crops' toes (foot index points), where observed.
+  for (int side = 0; side < 2 && feet.size() == kFootPoints; ++side) {
+    const FootPoint& toe = feet[ix(2 + side)];
+    if (joint_[ix(kRoleToe + side)] >= 0 || !toe.valid || !toe.X_m.allFinite()) continue;
+    J.ok[ix(kRoleToe + side)] = true;
+    J.x[ix(kRoleToe + side)] = toe.X_m;
+  }
   return J;
 }
 
 BodyLengths HumanoidMapper::measure(std::span<const Vector3d> joints_m,
-                                    std::span<const float> confidence) const {
-  const RoleJoints J = gather(joints_m, confidence);
+                                    std::span<const float> confidence,
+                                    std::span<const FootPoint> feet) const {
+  const RoleJoints J = gather(joints_m, confidence, feet);
   BodyLengths L;
   for (double* f : fields(L)) *f = kNaN;
   L.hip_half_width_m = 0.5 * distance(J, kRoleHip, kRoleHip + 1);
@@ -333,9 +342,9 @@ struct PoseBuilder {
 };
 
 HumanoidPose HumanoidMapper::pose(const HumanoidShape& shape, std::span<const Vector3d> joints_m,
-                                  std::span<const float> confidence,
-                                  const HumanoidPose* previous) const {
-  const RoleJoints J = gather(joints_m, confidence);
+                                  std::span<const float> confidence, const HumanoidPose* previous,
+                                  std::span<const FootPoint> feet) const {
+  const RoleJoints J = gather(joints_m, confidence, feet);
   if (!J.has(kRoleHip) || !J.has(kRoleHip + 1)) {
     if (previous) return *previous;
     HumanoidPose p;

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "runtime/core/error.h"
+#include "runtime/msg/messages.h"
 
 namespace mocap {
 class SkeletonTopology;
@@ -115,20 +116,24 @@ class HumanoidMapper {
  public:
   // The topology must have l_/r_ shoulder, elbow, wrist, hip, knee and ankle joints; neck,
   // nose, ears and big toes are used when present (body19 has them all; coco17, the cameras'
-  // skeleton, has no neck, taken as the shoulders' middle, and no toes, so the feet keep the
-  // shanks' rotation). The error names the missing joints.
+  // skeleton, has no neck, taken as the shoulders' middle, and no toes: the feet keep the
+  // shanks' rotation unless the feet crops' toes are given). The error names the missing
+  // joints.
   static Result<HumanoidMapper> create(const SkeletonTopology& topology);
 
-  // The lengths measured in one frame (NaN where a joint it needs has confidence 0).
-  BodyLengths measure(std::span<const Eigen::Vector3d> joints_m,
-                      std::span<const float> confidence) const;
+  // The lengths measured in one frame (NaN where a joint it needs has confidence 0). `feet`
+  // (a person's foot points, PersonSkeleton::feet: kFootPoints or none) give the toes where
+  // the topology has no toe joints (coco17 with the feet crops): the Foot bones are then
+  // observed.
+  BodyLengths measure(std::span<const Eigen::Vector3d> joints_m, std::span<const float> confidence,
+                      std::span<const FootPoint> feet = {}) const;
 
   // The pose of one frame. A bone whose joints are missing (confidence 0) or coincide keeps its
   // previous local rotation (`previous`, when given) or its parent's; without the hips the
   // previous pose is held.
   HumanoidPose pose(const HumanoidShape& shape, std::span<const Eigen::Vector3d> joints_m,
-                    std::span<const float> confidence,
-                    const HumanoidPose* previous = nullptr) const;
+                    std::span<const float> confidence, const HumanoidPose* previous = nullptr,
+                    std::span<const FootPoint> feet = {}) const;
 
   // The topology joint at bone b's pivot, -1 where the pivot is not a joint (Hips: the hips'
   // middle; Spine, Chest, Head: points on the torso/neck line; Neck and Shoulders without a
@@ -153,8 +158,8 @@ class HumanoidMapper {
 
  private:
   HumanoidMapper() = default;
-  RoleJoints gather(std::span<const Eigen::Vector3d> joints_m,
-                    std::span<const float> confidence) const;
+  RoleJoints gather(std::span<const Eigen::Vector3d> joints_m, std::span<const float> confidence,
+                    std::span<const FootPoint> feet) const;
   void torso(PoseBuilder& b, const Eigen::Vector3d& hips_m) const;
   void arm(PoseBuilder& b, int side) const;  // 0 left, 1 right
   void leg(PoseBuilder& b, int side) const;

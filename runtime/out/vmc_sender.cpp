@@ -98,10 +98,11 @@ bool VmcSender::ensure_mapper(const SkeletonTopology* topology) {
 void VmcSender::encode_person(const PersonSkeleton& ps, int slot, float time_s) {
   Person& p = persons_[ps.person_id];
   if (p.estimator.samples() < options_.shape_frames) {
-    p.estimator.add(mapper_->measure(ps.joints_m, ps.confidence));
+    p.estimator.add(mapper_->measure(ps.joints_m, ps.confidence, ps.feet));
     p.shape = make_shape(p.estimator.lengths());
   }
-  p.pose = mapper_->pose(p.shape, ps.joints_m, ps.confidence, p.has_pose ? &p.pose : nullptr);
+  p.pose =
+      mapper_->pose(p.shape, ps.joints_m, ps.confidence, p.has_pose ? &p.pose : nullptr, ps.feet);
   p.has_pose = true;
   encode_vmc_frame(p.shape, p.pose, time_s, options_.max_datagram_bytes, packet_);
   packet_slot_.resize(packet_.ends.size(), slot);

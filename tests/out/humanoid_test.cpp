@@ -165,5 +165,50 @@ TEST(Humanoid, ShapeEstimatorTakesMediansAndScalesTheRest) {
   EXPECT_NE(bad.validate().error().message().find("thigh_m[right]"), std::string::npos);
 }
 
+// coco17 has no toes: with the feet crops' toes (PersonSkeleton::feet) the Foot bones are
+// observed, and the toes' pivots come back as they are; without them the feet follow the shanks.
+TEST(Humanoid, Coco17FeetFromTheFeetCrops) {
+  auto body = HumanoidMapper::create(body19_topology());
+  auto coco = HumanoidMapper::create(coco17_topology());
+  ASSERT_TRUE(body.ok() && coco.ok());
+  const SkeletonTopology& b19 = body19_topology();
+  const SkeletonTopology& c17 = coco17_topology();
+  std::mt19937 rng(11);
+  const HumanoidShape shape = make_shape(BodyLengths{});
+  double worst_with_m = 0, worst_without_m = 0;
+  for (int trial = 0; trial < 100; ++trial) {
+    const HumanoidPose truth = random_pose(rng);
+    const std::vector<Vector3d> x19 = joints_of(shape, truth, *body);
+    std::vector<Vector3d> x(ix(c17.joint_count()), Vector3d::Zero());
+    std::vector<float> conf(ix(c17.joint_count()), 0.f);
+    for (int j = 0; j < c17.joint_count(); ++j) {
+      const int k = b19.find_joint(c17.joint_name(j));
+      if (k < 0) continue;  // the eyes
+      x[ix(j)] = x19[ix(k)];
+      conf[ix(j)] = 1.f;
+    }
+    std::array<FootPoint, kFootPoints> feet{};
+    feet[2] = {true, x19[ix(b19.find_joint("l_big_toe"))], FootContact::kFree, 3};
+    feet[3] = {true, x19[ix(b19.find_joint("r_big_toe"))], FootContact::kPlanted, 3};
+    const PerBone<Vector3d> want = forward_kinematics(shape, truth);
+    const PerBone<Vector3d> with =
+        forward_kinematics(shape, coco->pose(shape, x, conf, nullptr, feet));
+    const PerBone<Vector3d> without = forward_kinematics(shape, coco->pose(shape, x, conf));
+    for (const int toes : {kLeftToes, kRightToes}) {
+      worst_with_m = std::max(worst_with_m, (with[ix(toes)] - want[ix(toes)]).norm());
+      worst_without_m = std::max(worst_without_m, (without[ix(toes)] - want[ix(toes)]).norm());
+    }
+    // The feet measure the foot length as a toe joint does.
+    const BodyLengths L = coco->measure(x, conf, feet);
+    EXPECT_NEAR(L.foot_m[0], BodyLengths{}.foot_m[0], 1e-9);
+  }
+  std::printf(
+      "coco17 toes' pivots over 100 random poses: %.2f mm with the feet crops' toes, "
+      "%.0f mm without\n",
+      worst_with_m * 1e3, worst_without_m * 1e3);
+  EXPECT_LT(worst_with_m, 0.01);
+  EXPECT_GT(worst_without_m, 0.05);
+}
+
 }  // namespace
 }  // namespace mocap::out
