@@ -243,7 +243,6 @@ void BoardCapture::detect_sample(std::vector<Image>& images, std::uint64_t frame
     if (obs[c].size() < 4) continue;
     seen = true;
     ++cam.frames_seen;
-    if (detail::usable_view(board_, obs[c], options_.calibration.min_corners)) ++cam.usable_views;
     for (const Eigen::Vector2d& p : obs[c].px) {
       const int gx =
           std::clamp(static_cast<int>(p.x() * cols / std::max(1, cam.width_px)), 0, cols - 1);
@@ -260,6 +259,19 @@ void BoardCapture::detect_sample(std::vector<Image>& images, std::uint64_t frame
     }
   }
   samples_.push_back(std::move(obs));
+  // The views the solve will take (distinct, adding coverage): a camera shown the board many
+  // times at one place is not ready (CI: "ready" at 5 usable frames, the solve found 4 distinct).
+  for (std::size_t c = 0; c < cameras_.size(); ++c) {
+    CameraFrames cf;
+    cf.view_id = cameras_[c].view_id;
+    cf.width_px = cameras_[c].width_px;
+    cf.height_px = cameras_[c].height_px;
+    for (const auto& sample : samples_) cf.frames.push_back(sample[c]);
+    cameras_[c].usable_views =
+        cf.width_px > 0 && cf.height_px > 0
+            ? static_cast<int>(detail::choose_frames(cf, board_, options_.calibration).size())
+            : 0;
+  }
 }
 
 Status BoardCapture::solve() {

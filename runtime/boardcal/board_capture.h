@@ -81,8 +81,8 @@ class BoardCapture {
     std::string view_id;
     int width_px = 0, height_px = 0;
     int frames_seen = 0;
-    // Frames the solve can use (enough corners over two rows and columns: usable_view), what
-    // "ready" and the hint count: a camera that only glimpsed the board is not ready.
+    // Frames the solve will use (detail::choose_frames: usable, distinct, adding coverage),
+    // what "ready" and the hint count: a camera that only glimpsed the board is not ready.
     int usable_views = 0;
     std::vector<int> grid;  // corners per cell, row-major
     std::uint64_t last_frame_id = 0;

@@ -26,6 +26,8 @@ double view_distance_px(const BoardObservation& a, const BoardObservation& b) {
   return s.mean_px;
 }
 
+}  // namespace
+
 std::vector<int> choose_frames(const CameraFrames& cam, const BoardSpec& board,
                                const BoardCalibrationOptions& o) {
   std::vector<int> candidates;
@@ -89,7 +91,7 @@ std::vector<int> choose_frames(const CameraFrames& cam, const BoardSpec& board,
   return chosen;
 }
 
-}  // namespace
+namespace {}  // namespace
 
 LensModel resolve_lens_model(LensModel asked, double coverage, int views) {
   if (asked != LensModel::kAuto) return asked;

@@ -43,6 +43,12 @@ LensModel resolve_lens_model(LensModel asked, double coverage, int views);
 // A view whose corners can pose the board: enough of them, spread over two rows and columns.
 bool usable_view(const BoardSpec& board, const BoardObservation& obs, int min_corners);
 
+// The views a camera's intrinsics are fitted from: usable, each adding grid cells not covered
+// yet, no near-duplicate of one already chosen (within 1 % of the image diagonal), at most
+// max_intrinsic_frames. Their count is what "ready" counts during a capture.
+std::vector<int> choose_frames(const CameraFrames& cam, const BoardSpec& board,
+                               const BoardCalibrationOptions& o);
+
 // Share of a cols x rows grid over the image with a corner of any frame.
 double grid_coverage(const CameraFrames& cam, int cols, int rows);
 
