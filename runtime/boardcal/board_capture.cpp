@@ -129,7 +129,10 @@ BoardCapture::BoardCapture(const BoardSpec& board, BoardDetector detector,
   const std::size_t n = view_ids.size();
   for (std::string& id : view_ids) {
     CameraState c;
-    c.view_id = std::move(id);
+    c.view_id = id;
+    CameraFrames cf;
+    cf.view_id = std::move(id);
+    frames_.push_back(std::move(cf));
     c.grid.assign(static_cast<std::size_t>(options_.calibration.grid_cols) *
                       static_cast<std::size_t>(options_.calibration.grid_rows),
                   0);
@@ -152,7 +155,7 @@ void BoardCapture::observe(const FrameSet& frames, std::int64_t now_ns) {
   {
     std::lock_guard lock(mu_);
     if (phase_ != CapturePhase::kCollecting || busy_ || pending_) return;
-    if (static_cast<int>(samples_.size()) >= options_.max_samples) return;
+    if (static_cast<int>(samples_) >= options_.max_samples) return;
     if (last_sample_ns_ != 0 &&
         now_ns - last_sample_ns_ < static_cast<std::int64_t>(options_.sample_interval_s * 1e9)) {
       return;
@@ -258,15 +261,14 @@ void BoardCapture::detect_sample(std::vector<Image>& images, std::uint64_t frame
       if (obs[a].size() >= min_corners && obs[b].size() >= min_corners) ++pair_frames_[a][b];
     }
   }
-  samples_.push_back(std::move(obs));
+  ++samples_;
   // The views the solve will take (distinct, adding coverage): a camera shown the board many
   // times at one place is not ready (CI: "ready" at 5 usable frames, the solve found 4 distinct).
   for (std::size_t c = 0; c < cameras_.size(); ++c) {
-    CameraFrames cf;
-    cf.view_id = cameras_[c].view_id;
+    CameraFrames& cf = frames_[c];
+    cf.frames.push_back(std::move(obs[c]));
     cf.width_px = cameras_[c].width_px;
     cf.height_px = cameras_[c].height_px;
-    for (const auto& sample : samples_) cf.frames.push_back(sample[c]);
     cameras_[c].usable_views =
         cf.width_px > 0 && cf.height_px > 0
             ? static_cast<int>(detail::choose_frames(cf, board_, options_.calibration).size())
@@ -288,7 +290,7 @@ Status BoardCapture::solve() {
   if (!pair) {
     return Error(ErrorCode::kInvalidArgument,
                  "no two cameras have seen the board at the same moment yet (" +
-                     std::to_string(samples_.size()) +
+                     std::to_string(samples_) +
                      " frames with the board): hold it where two cameras see it, then Solve");
   }
   phase_ = CapturePhase::kSolving;
@@ -310,14 +312,10 @@ void BoardCapture::wait_idle() {
 }
 
 std::vector<CameraFrames> BoardCapture::frames_for_solve() const {
-  std::vector<CameraFrames> out;
+  std::vector<CameraFrames> out = frames_;
   for (std::size_t c = 0; c < cameras_.size(); ++c) {
-    CameraFrames cf;
-    cf.view_id = cameras_[c].view_id;
-    cf.width_px = cameras_[c].width_px;
-    cf.height_px = cameras_[c].height_px;
-    for (const auto& s : samples_) cf.frames.push_back(s[c]);
-    out.push_back(std::move(cf));
+    out[c].width_px = cameras_[c].width_px;
+    out[c].height_px = cameras_[c].height_px;
   }
   return out;
 }
@@ -328,7 +326,7 @@ void BoardCapture::run_solve() {
   {
     std::lock_guard lock(mu_);
     frames = frames_for_solve();
-    o.floor_frames = std::min(options_.floor_samples, static_cast<int>(samples_.size()));
+    o.floor_frames = std::min(options_.floor_samples, static_cast<int>(samples_));
   }
   const auto t0 = Clock::now();
   auto r = calibrate_board(board_, frames, o);
@@ -394,7 +392,7 @@ json BoardCapture::status_json() const {
   json j;
   j["phase"] = to_string(phase_);
   j["board"] = board_.to_spec();
-  j["samples"] = samples_.size();
+  j["samples"] = samples_;
   j["sampled"] = sampled_;
   j["max_samples"] = options_.max_samples;
   j["floor_samples"] = options_.floor_samples;

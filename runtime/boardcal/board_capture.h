@@ -110,10 +110,12 @@ class BoardCapture {
   std::optional<std::vector<Image>> pending_;
   std::uint64_t pending_frame_id_ = 0;
   std::vector<CameraState> cameras_;
-  std::vector<std::vector<BoardObservation>> samples_;  // [sample][camera]
-  std::vector<std::vector<int>> pair_frames_;           // [a][b], a < b
-  std::uint64_t sampled_ = 0;                           // frame sets detected
-  std::vector<double> detect_ms_;                       // per sample, the last 64
+  // [camera]: every sample's observation, as the solve takes them (sizes set when solving)
+  std::vector<CameraFrames> frames_;
+  std::size_t samples_ = 0;                    // frame sets with the board, kept in frames_
+  std::vector<std::vector<int>> pair_frames_;  // [a][b], a < b
+  std::uint64_t sampled_ = 0;                  // frame sets detected
+  std::vector<double> detect_ms_;              // per sample, the last 64
   double solve_s_ = 0;
   std::optional<BoardCalibrationResult> result_;
   std::string error_;
