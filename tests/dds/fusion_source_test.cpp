@@ -25,9 +25,13 @@
 #include "runtime/sim/simulator.h"
 #include "runtime/sim/simulator_source.h"
 #include "runtime/skeleton/topology.h"
+#include "tests/support/dds_loopback.h"
 
 namespace mocap::dds {
 namespace {
+
+using mocap::testing::use_loopback_dds;
+using mocap::testing::wait_until;
 
 using nlohmann::json;
 
@@ -91,11 +95,7 @@ bool node_alive(const json& status, const std::string& node) {
 }
 
 TEST(FusionSourceThreads, TwoNodesAPipelineAndHealthReaders) {
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface "
-         "name=\"lo\"/></Interfaces></General><Discovery><Peers><Peer "
-         "address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>",
-         1);
+  use_loopback_dds();
   const std::int64_t epoch_ms = realtime_ns() / 1000000 + 500;
   auto st = Stage::join(stage_options("fusion"));
   ASSERT_TRUE(st.ok()) << st.error().message();
@@ -146,12 +146,6 @@ TEST(FusionSourceThreads, TwoNodesAPipelineAndHealthReaders) {
     }
   });
 
-  const auto wait_until = [&](int ms, auto pred) {
-    for (int i = 0; i < ms / 20 && !pred(); ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    return pred();
-  };
   EXPECT_TRUE(wait_until(15000, [&] { return with_people > 20; }))
       << "frames " << frames << ", complete " << complete << ", with people " << with_people;
   EXPECT_GT(complete.load(), 0);
@@ -180,11 +174,7 @@ TEST(FusionSourceThreads, TwoNodesAPipelineAndHealthReaders) {
 // A node killed before its first detections (it only said hello on mocap/status) is noticed as
 // lost by its status writer's liveliness: it must not stay "alive" on the page for ever.
 TEST(FusionSourceThreads, ANodeGoneBeforeItsFirstDetectionsIsLost) {
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface "
-         "name=\"lo\"/></Interfaces></General><Discovery><Peers><Peer "
-         "address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>",
-         1);
+  use_loopback_dds();
   auto st = Stage::join(stage_options("fusion"));
   ASSERT_TRUE(st.ok()) << st.error().message();
   auto ring = sim::simulator_ring(kPeople, kViewsPerNode);
@@ -204,12 +194,6 @@ TEST(FusionSourceThreads, ANodeGoneBeforeItsFirstDetectionsIsLost) {
       ASSERT_TRUE((*src)->next(item, 20).ok());
     }
   });
-  const auto wait_until = [&](int ms, auto pred) {
-    for (int i = 0; i < ms / 20 && !pred(); ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    return pred();
-  };
   const auto status = [&] { return json::parse((*src)->status_json(), nullptr, false); };
   const auto listed = [&] {
     const json s = status();

@@ -35,6 +35,7 @@
 #include "runtime/sim/simulator_source.h"
 #include "runtime/skeleton/topology.h"
 #include "tests/dds/stage_probe.h"
+#include "tests/support/dds_loopback.h"
 #include "tests/support/line_client.h"
 #include "tests/support/mocapd_process.h"
 #include "tests/support/temp_dir.h"
@@ -62,11 +63,7 @@ class Stage {
  public:
   Stage() {
     // Loopback only, unicast discovery: the test never talks to the machine's network.
-    setenv("CYCLONEDDS_URI",
-           "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface "
-           "name=\"lo\"/></Interfaces></General><Discovery><Peers><Peer "
-           "address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>",
-           1);
+    use_loopback_dds();
     stage_ = "scaleout" + std::to_string(getpid());
     domain_ = 1 + getpid() % 200;
     epoch_ms_ = unix_ms();

@@ -23,6 +23,7 @@
 #include "runtime/geometry/calibration.h"
 #include "runtime/net/token_file.h"
 #include "tests/support/data.h"
+#include "tests/support/dds_loopback.h"
 #include "tests/support/line_client.h"
 #include "tests/support/mocapd_process.h"
 #include "tests/support/subprocess.h"
@@ -31,6 +32,8 @@
 
 namespace mocap {
 namespace {
+
+using mocap::testing::use_loopback_dds;
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -364,11 +367,7 @@ TEST_F(Browser, AMinuteOfMixedAttackLeavesTheOperatorAndTheStreamUntouched) {
 // one of them SIGKILLed: the Stage panel lists both, the live one with its cameras and the
 // killed one as LOST.
 TEST_F(Browser, StagePanelShowsTheNodesAndALostOne) {
-  ::setenv("CYCLONEDDS_URI",
-           "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface "
-           "name=\"lo\"/></Interfaces></General><Discovery><Peers><Peer "
-           "address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>",
-           1);
+  use_loopback_dds();
   std::string stage = "web";
   stage += std::to_string(::getpid());
   const std::string domain = std::to_string(1 + ::getpid() % 200);
