@@ -88,8 +88,19 @@ TEST(FeetE2e, Pose2SimMultiFeetInTheStream) {
   std::map<int, std::array<std::vector<Eigen::Vector3d>, 4>> feet;  // by person, NaN: none
   std::map<int, std::array<int, 4>> planted;
   std::map<int, Eigen::Vector3d> hips;
-  for (const out::TakeFrame& f : take->frames) {
+  // Per person and point a contact timeline, a character per frame: '#' planted, '-' free,
+  // '?' unknown (not seen long enough), ' ' the person not in the frame.
+  std::map<int, std::array<std::string, 4>> timeline;
+  for (std::size_t i = 0; i < take->frames.size(); ++i) {
+    const out::TakeFrame& f = take->frames[i];
     for (const out::TakePerson& p : f.persons) {
+      for (std::size_t k = 0; k < 4; ++k) {
+        std::string& line = timeline[p.id][k];
+        line.resize(take->frames.size(), ' ');
+        line[i] = p.feet[k].contact == FootContact::kPlanted ? '#'
+                  : p.feet[k].contact == FootContact::kFree  ? '-'
+                                                             : '?';
+      }
       if (p.joints_m[11].allFinite() && p.joints_m[12].allFinite()) {
         hips[p.id] = 0.5 * (p.joints_m[11] + p.joints_m[12]);
       }
@@ -120,6 +131,10 @@ TEST(FeetE2e, Pose2SimMultiFeetInTheStream) {
       line += buf;
     }
     std::printf("%s\n", line.c_str());
+    std::printf("[ feet ] person %d contact per frame ('#' planted, '-' free, '?' unknown):\n", id);
+    for (std::size_t k = 0; k < 4; ++k) {
+      std::printf("    %-6s |%s|\n", kFootNames[k], timeline[id][k].c_str());
+    }
   }
   // The woman stands still until frame 33, then steps sideways with her left foot (her own
   // MoveNet left ankle moves 7 cm in y over frames 33-56) and stands again: over the still
