@@ -96,7 +96,12 @@ Status FeetOptions::validate() const {
     return invalid_argument("assoc",
                             "feet.min_score must be in (0, 1], got " + std::to_string(min_score));
   }
-  return contact.validate();
+  if (!(place_max_px > 0 && place_max_px <= 10000)) {
+    return invalid_argument(
+        "assoc", "feet.place_max_px must be in (0, 10000], got " + std::to_string(place_max_px));
+  }
+  if (Status s = contact.validate(); !s.ok()) return s;
+  return floor.validate();
 }
 
 Status AssociationOptions::validate() const {

@@ -7,6 +7,7 @@
 
 #include "runtime/core/error.h"
 #include "runtime/fit/foot_contact.h"
+#include "runtime/fit/person_floor.h"
 #include "runtime/fit/skeleton_fitter.h"
 
 namespace mocap::assoc {
@@ -132,8 +133,12 @@ struct LimbSanityOptions {
 
 // The feet (feet.h): foot points from the feet crops, triangulated and held while planted.
 struct FeetOptions {
-  float min_score = 0.5f;           // (0, 1]: a crop's foot point counts from this score
+  float min_score = 0.5f;  // (0, 1]: a crop's foot point counts from this score
+  // Feet of no track (kFeetOfNoTrack: the simulator's) go to the person whose projected ankle
+  // is nearest their points' centre in that view, when nearer than this, (0, 10000] px.
+  double place_max_px = 80;
   fit::FootContactOptions contact;  // contact with the floor (runtime/fit/foot_contact.h)
+  fit::PersonFloorOptions floor;    // each person's floor (runtime/fit/person_floor.h)
   Status validate() const;
 };
 

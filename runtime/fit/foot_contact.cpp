@@ -56,7 +56,7 @@ void FootPointFilter::reset() {
 
 // Over the window's observations (3 at least, else false): the horizontal speed (least-squares
 // slope of x and y over the frame numbers), the median height and the median place.
-bool FootPointFilter::window_says_planted(double& speed_mps, double& height_m,
+bool FootPointFilter::window_says_planted(double floor_m, double& speed_mps, double& height_m,
                                           Eigen::Vector3d& place_m) const {
   const std::size_t n = window_.size();
   if (n < 3) return false;
@@ -80,13 +80,15 @@ bool FootPointFilter::window_says_planted(double& speed_mps, double& height_m,
     z.push_back(s.X_m.z());
   }
   speed_mps = stt > 0 ? (sxy / stt).norm() : 0.0;
-  height_m = median_of(z);
-  place_m = Eigen::Vector3d(median_of(x), median_of(y), std::max(0.0, height_m));
+  const double z_m = median_of(z);
+  height_m = z_m - floor_m;
+  place_m = Eigen::Vector3d(median_of(x), median_of(y), std::max(floor_m, z_m));
   return true;
 }
 
 FootPointEstimate FootPointFilter::update(std::int64_t t_ns,
-                                          const std::optional<Eigen::Vector3d>& observed_m) {
+                                          const std::optional<Eigen::Vector3d>& observed_m,
+                                          double floor_m) {
   if (t0_ns_ && t_ns <= *t0_ns_ + static_cast<std::int64_t>(now_s_ * 1e9)) reset();
   if (!t0_ns_) t0_ns_ = t_ns;
   now_s_ = static_cast<double>(t_ns - *t0_ns_) * 1e-9;
@@ -107,7 +109,7 @@ FootPointEstimate FootPointFilter::update(std::int64_t t_ns,
   }
   double speed_mps = 0, height_m = 0;
   Eigen::Vector3d place_m;
-  const bool measured = window_says_planted(speed_mps, height_m, place_m);
+  const bool measured = window_says_planted(floor_m, speed_mps, height_m, place_m);
   if (state_ == ContactState::kPlanted) {
     if (observed) {
       const double d = (*observed_m - held_m_).norm();
@@ -143,7 +145,7 @@ FootPointEstimate FootPointFilter::update(std::int64_t t_ns,
   } else {
     return e;  // free and not seen this frame: no position
   }
-  e.X_m.z() = std::max(0.0, e.X_m.z());
+  e.X_m.z() = std::max(floor_m, e.X_m.z());
   e.has_position = true;
   return e;
 }

@@ -9,7 +9,8 @@
 // no sliding, no penetration, whatever the noise. It is released when it is observed further
 // than leave_distance_m from the held place (rising or sliding) for leave_frames frames in a
 // row (an outlier is one frame); the output then blends from the held place to the
-// observations over blend_s. The floor is z = 0 of the calibration; no output goes below it.
+// observations over blend_s. The floor is z = 0 of the calibration or the one given (a
+// person's own, runtime/fit/person_floor.h); no output goes below it.
 //
 // Causal: no frame is waited for. A point not observed for hold_missing_s becomes unknown and
 // gives no position (never invented); a planted point keeps its place through shorter gaps.
@@ -44,16 +45,18 @@ struct FootPointEstimate {
   ContactState state = ContactState::kUnknown;
   bool observed = false;                             // this frame had an observation
   bool has_position = false;                         // false while unknown
-  Eigen::Vector3d X_m = Eigen::Vector3d::Zero();     // the position to output (z >= 0)
+  Eigen::Vector3d X_m = Eigen::Vector3d::Zero();     // the position to output (z >= floor)
   Eigen::Vector3d held_m = Eigen::Vector3d::Zero();  // where it is held (planted only)
 };
 
 class FootPointFilter {
  public:
   explicit FootPointFilter(const FootContactOptions& options);  // options validated by the caller
-  // The frame at t_ns (after the previous one's): its observation, if any. Time going back
-  // restarts the filter.
-  FootPointEstimate update(std::int64_t t_ns, const std::optional<Eigen::Vector3d>& observed_m);
+  // The frame at t_ns (after the previous one's): its observation, if any, and the floor's
+  // height (z = 0 of the calibration, or the person's own: runtime/fit/person_floor.h).
+  // Time going back restarts the filter.
+  FootPointEstimate update(std::int64_t t_ns, const std::optional<Eigen::Vector3d>& observed_m,
+                           double floor_m = 0);
   void reset();
 
  private:
@@ -61,7 +64,8 @@ class FootPointFilter {
     double t_s = 0;
     Eigen::Vector3d X_m;
   };
-  bool window_says_planted(double& speed_mps, double& height_m, Eigen::Vector3d& place_m) const;
+  bool window_says_planted(double floor_m, double& speed_mps, double& height_m,
+                           Eigen::Vector3d& place_m) const;
   Eigen::Vector3d blended(const Eigen::Vector3d& target_m);
 
   FootContactOptions options_;

@@ -162,7 +162,9 @@ Status validate_feet(const std::string& frame, const ViewDetections& view) {
       return frame + ", view " + std::to_string(view.view_id) + ", person " +
              std::to_string(f.person_id) + "'s " + kFootPointNames[static_cast<std::size_t>(k)];
     };
-    if (f.person_id < 0) return invalid_argument("", at(0) + ": the person id is negative");
+    if (f.person_id < kFeetOfNoTrack) {
+      return invalid_argument("", at(0) + ": the person id is below -1 (-1: of no track)");
+    }
     for (int k = 0; k < kFootPoints; ++k) {
       const JointCandidate& c = f.points[static_cast<std::size_t>(k)];
       if (!std::isfinite(c.x_px) || !std::isfinite(c.y_px)) {

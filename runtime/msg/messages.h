@@ -83,8 +83,11 @@ inline constexpr std::array<const char*, kFootPoints> kFootPointNames = {"l_heel
 
 // One tracked person's foot points in one view, from the feet crops (a crop framed by the
 // person's skeleton): candidate score 0 = not seen.
+inline constexpr int kFeetOfNoTrack = -1;  // feet not framed by a track: the engine places them
 struct ViewFeet {
-  int person_id = -1;  // the track whose skeleton framed the crop
+  // The track whose skeleton framed the crop, or kFeetOfNoTrack (the simulator's feet): the
+  // engine gives them to the person whose projected ankles are nearest (runtime/assoc/feet.h).
+  int person_id = kFeetOfNoTrack;
   std::array<JointCandidate, kFootPoints> points{};
 };
 

@@ -5,6 +5,7 @@
 #include <limits>
 #include <string>
 
+#include "runtime/sim/feet_truth.h"
 #include "runtime/skeleton/topology.h"
 
 namespace mocap::sim {
@@ -182,6 +183,43 @@ void DetectionRenderer::render_view(int view, const Camera& cam, const SkeletonT
   ViewDetections& vd = out.detections.views[ix(view)];
   for (int l = 0; l < topology.limb_count(); ++l) {
     render_affinities(topology.limb(l), J, noise, expected, vd.affinities[ix(l)]);
+  }
+  vd.feet.clear();
+  if (noise.feet) add_feet(cam, noise, occlusion, vd);  // last: the draws before are unchanged
+}
+
+// Each person's heels and toes as the feet crops would give them (of no track).
+void DetectionRenderer::add_feet(const Camera& cam, const DetectionNoiseOptions& noise,
+                                 bool occlusion, ViewDetections& vd) {
+  const double width_px = static_cast<double>(cam.width_px());
+  const double height_px = static_cast<double>(cam.height_px());
+  for (int p = 0; p < persons_; ++p) {
+    if (!person_view_[ix(p)].any) continue;
+    const auto points =
+        feet_of_body19(std::span<const Vector3d>(&body_m_[ix(p * kBodyJoints)], ix(kBodyJoints)));
+    ViewFeet f;
+    bool any = false;
+    for (int k = 0; k < kFootPoints; ++k) {
+      const Vector3d& X = points[ix(k)];
+      const auto px = cam.project(X);
+      if (!px || cam.to_camera(X).z() <= kMinRenderDepth_m || px->x() < 0 || px->y() < 0 ||
+          px->x() >= width_px || px->y() >= height_px) {
+        continue;
+      }
+      if (occlusion && occluded(p, *px, noise.occlusion_radius_px) &&
+          rng_.bernoulli(kOccludedDropProbability)) {
+        continue;
+      }
+      if (rng_.bernoulli(noise.miss_rate)) continue;
+      JointCandidate& c = f.points[ix(k)];
+      c.x_px = static_cast<float>(
+          std::clamp(px->x() + rng_.normal(0.0, noise.jitter_px), 0.0, width_px - 1e-3));
+      c.y_px = static_cast<float>(
+          std::clamp(px->y() + rng_.normal(0.0, noise.jitter_px), 0.0, height_px - 1e-3));
+      c.score = static_cast<float>(rng_.uniform(kTrueScoreMin, kTrueScoreMax));
+      any = true;
+    }
+    if (any) vd.feet.push_back(f);
   }
 }
 

@@ -47,6 +47,9 @@ struct DetectionNoiseOptions {
   double false_affinity_mean = 0.05;        // mean of the occasional unrelated affinity, [0, 1]
   bool occlusion = true;
   double occlusion_radius_px = 20;  // [0, 1000]
+  // Also the feet crops' heels and toes (ViewFeet of no track: the engine places them;
+  // runtime/sim/feet_truth.h), jittered, missed and occluded as the joints are.
+  bool feet = false;
 
   // The error names the field.
   Status validate() const;
@@ -119,6 +122,8 @@ class DetectionRenderer {
                             std::size_t expected, ViewDetections& vd,
                             std::vector<std::vector<int>>& truth_person);
   void mark_near_persons(const DetectionNoiseOptions& noise);
+  void add_feet(const Camera& cam, const DetectionNoiseOptions& noise, bool occlusion,
+                ViewDetections& vd);
   void render_affinities(const Limb& limb, int J, const DetectionNoiseOptions& noise,
                          std::size_t expected, AffinityMatrix& m);
 

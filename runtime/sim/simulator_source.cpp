@@ -77,8 +77,9 @@ Result<std::unique_ptr<SimulatorSource>> SimulatorSource::open(
     mine.cameras.push_back(ring->cameras[static_cast<std::size_t>(v)]);
     mine.view_ids.push_back(std::to_string(v - options.first_view));
   }
-  auto sim =
-      Simulator::create_on_rig(std::move(mine), scene, DetectionNoiseOptions{}, body19_topology());
+  DetectionNoiseOptions noise;
+  noise.feet = options.feet;
+  auto sim = Simulator::create_on_rig(std::move(mine), scene, noise, body19_topology());
   if (!sim.ok()) return sim.error();
   std::unique_ptr<SimulatorSource> s(new SimulatorSource());
   s->options_ = options;

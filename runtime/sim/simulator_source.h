@@ -21,6 +21,7 @@ struct SimulatorSourceOptions {
   int views = 4;              // [2, 16]
   double frame_rate_hz = 30;  // (0, 1000]
   bool paced = true;          // false: no waiting between frames
+  bool feet = true;           // the feet crops' heels and toes too (as --crops blazepose gives)
   std::int64_t frames = -1;   // the source ends after this many; -1 = never
   // A bumped camera: view bump_view turned by bump_deg about its vertical axis from frame
   // bump_frame on (-1: none). Shows the calibration check at work.
