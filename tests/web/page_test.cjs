@@ -116,6 +116,8 @@ async function pageMode(a, browser, result) {
     }
     return n;
   }, persons.map((p) => p.colour));
+  // The feet (the simulator gives them, as the feet crops do): points drawn, planted ones.
+  result.feet = await page.evaluate(() => window.mocapStats.feet);
   result.summary = await page.$eval("#summary", (e) => e.textContent);
   await page.screenshot({ path: path.join(a.out, "page.png"), fullPage: true });
 

@@ -136,6 +136,13 @@ TEST_F(Browser, PageShowsEachPersonCamerasAndTakesWithTheToken) {
   // The camera tiles draw the limbs (the skeletons seen through each camera), and the header
   // says where the CNN runs in words.
   EXPECT_GT(r.value("tile_limb_pixels", 0), 200) << r.dump();
+  // Their feet: the simulator's heels and toes through the engine (contact, floor), each
+  // person's four points drawn, planted ones white.
+  ASSERT_TRUE(r["feet"].is_object()) << r.dump();
+  std::printf("[ browser ] feet drawn: %d points, %d planted\n", r["feet"].value("points", 0),
+              r["feet"].value("planted", 0));
+  EXPECT_GE(r["feet"].value("points", 0), 6) << r["feet"].dump();
+  EXPECT_GE(r["feet"].value("planted", 0), 1) << r["feet"].dump();
   EXPECT_NE(r.value("summary", "").find("no CNN: the simulator gives detections"),
             std::string::npos)
       << r.value("summary", "");

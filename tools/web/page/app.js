@@ -110,6 +110,12 @@ function showCameras(cameras) {
 }
 
 const jointGeometry = new THREE.SphereGeometry(0.045, 12, 8);
+const footGeometry = new THREE.SphereGeometry(0.028, 10, 6);
+// A foot point planted on the floor (the stream's feet: docs/stream-format.md) is drawn white.
+const plantedMaterial = new THREE.MeshBasicMaterial({ color: 0xffffff });
+// The foot's segments, by index into the stream's feet (l_heel, r_heel, l_toe, r_toe) and the
+// ankle joint names: ankle -> heel and heel -> toe, each side.
+const FOOT_SEGMENTS = [["l_ankle", 0], ["r_ankle", 1], [0, 2], [1, 3]];
 const boneGeometry = new THREE.CylinderGeometry(0.022, 0.022, 1, 8);  // along +y, unit length
 const UP = new THREE.Vector3(0, 1, 0);
 
@@ -132,12 +138,25 @@ function personObject(id, jointCount, boneCount) {
     bones.push(m);
     group.add(m);
   }
+  const feet = [], footBones = [];
+  for (let k = 0; k < 4; k++) {
+    const m = new THREE.Mesh(footGeometry, material);
+    m.visible = false;
+    feet.push(m);
+    group.add(m);
+  }
+  for (let k = 0; k < FOOT_SEGMENTS.length; k++) {
+    const m = new THREE.Mesh(boneGeometry, material);
+    m.visible = false;
+    footBones.push(m);
+    group.add(m);
+  }
   const label = document.createElement("div");
   label.textContent = "id " + id;
   label.style.color = colourOf(id);
   $("labels").appendChild(label);
   view.scene.add(group);
-  return { group, joints, bones, label, material, seen: 0 };
+  return { group, joints, bones, feet, footBones, label, material, seen: 0 };
 }
 
 function dropPerson(id) {
@@ -150,8 +169,48 @@ function dropPerson(id) {
 
 const tmpA = new THREE.Vector3(), tmpB = new THREE.Vector3(), tmpD = new THREE.Vector3();
 
+const hasPoint = (j) => !!j && j.x !== null && j.y !== null && j.z !== null;
+
+// A cylinder mesh from a to b (points with x, y, z); hidden when either is missing.
+function placeBone(m, a, b) {
+  if (!m) return;
+  if (!hasPoint(a) || !hasPoint(b)) { m.visible = false; return; }
+  tmpA.set(a.x, a.y, a.z);
+  tmpB.set(b.x, b.y, b.z);
+  tmpD.subVectors(tmpB, tmpA);
+  const len = tmpD.length();
+  m.visible = len > 1e-4;
+  if (!m.visible) return;
+  m.position.addVectors(tmpA, tmpB).multiplyScalar(0.5);
+  m.scale.set(1, len, 1);
+  m.quaternion.setFromUnitVectors(UP, tmpD.divideScalar(len));
+}
+
+// The person's foot points (white while planted) and the ankle -> heel -> toe segments; none
+// when the stream has no feet for them. Counted into the page's stats.
+function applyFeet(p, person, count) {
+  const feet = person.feet || [];
+  const ankle = (name) => person.joints.find((j) => j.name === name);
+  feet.forEach((f, k) => {
+    const m = p.feet[k];
+    if (!m) return;
+    m.visible = hasPoint(f);
+    if (!m.visible) return;
+    m.position.set(f.x, f.y, f.z);
+    m.material = f.contact === "planted" ? plantedMaterial : p.material;
+    count.points++;
+    if (f.contact === "planted") count.planted++;
+  });
+  for (let k = feet.length; k < p.feet.length; k++) p.feet[k].visible = false;
+  FOOT_SEGMENTS.forEach(([a, b], i) => {
+    const from = typeof a === "string" ? ankle(a) : feet[a];
+    placeBone(p.footBones[i], from, feet[b]);
+  });
+}
+
 function applyFrame(msg, frameNo) {
   const bones = bonesOf(msg);
+  const feetCount = { points: 0, planted: 0 };
   for (const person of msg.persons || []) {
     let p = view.persons.get(person.id);
     if (p && (p.bones.length !== bones.length || p.joints.length !== person.joints.length)) {
@@ -170,20 +229,10 @@ function applyFrame(msg, frameNo) {
       m.visible = j.x !== null && j.y !== null && j.z !== null;
       if (m.visible) m.position.set(j.x, j.y, j.z);
     });
-    bones.forEach(([a, b], i) => {
-      const m = p.bones[i], ja = js[a], jb = js[b];
-      if (!m || !ja || !jb || ja.x === null || jb.x === null) { if (m) m.visible = false; return; }
-      tmpA.set(ja.x, ja.y, ja.z);
-      tmpB.set(jb.x, jb.y, jb.z);
-      tmpD.subVectors(tmpB, tmpA);
-      const len = tmpD.length();
-      m.visible = len > 1e-4;
-      if (!m.visible) return;
-      m.position.addVectors(tmpA, tmpB).multiplyScalar(0.5);
-      m.scale.set(1, len, 1);
-      m.quaternion.setFromUnitVectors(UP, tmpD.divideScalar(len));
-    });
+    bones.forEach(([a, b], i) => placeBone(p.bones[i], js[a], js[b]));
+    applyFeet(p, person, feetCount);
   }
+  stats.feet = feetCount;
   for (const [id, p] of view.persons) if (p.seen !== frameNo) dropPerson(id);
 }
 
@@ -210,6 +259,7 @@ const stats = {
   lag_ms: [],           // capture (box clock) to drawn (this computer's clock), last 600
   arrival_lag_ms: [],   // message arrival to drawn, last 600: the page's own delay
   persons: [],
+  feet: { points: 0, planted: 0 },  // the frame drawn last: foot points drawn, planted ones
 };
 window.mocapStats = stats;
 window.mocapColourOf = colourOf;
@@ -509,6 +559,13 @@ function drawLimbs(g, w, h, i) {
       if (!pts[a] || !pts[b]) continue;
       g.moveTo(pts[a][0], pts[a][1]);
       g.lineTo(pts[b][0], pts[b][1]);
+    }
+    const feet = (person.feet || []).map(project);
+    for (const [a, b] of FOOT_SEGMENTS) {
+      const from = typeof a === "string" ? project(person.joints.find((j) => j.name === a)) : feet[a];
+      if (!from || !feet[b]) continue;
+      g.moveTo(from[0], from[1]);
+      g.lineTo(feet[b][0], feet[b][1]);
     }
     g.stroke();
   }
