@@ -35,6 +35,7 @@
 #include "runtime/sim/simulator_source.h"
 #include "runtime/skeleton/topology.h"
 #include "tests/dds/stage_probe.h"
+#include "tests/support/data.h"
 #include "tests/support/dds_loopback.h"
 #include "tests/support/line_client.h"
 #include "tests/support/mocapd_process.h"
@@ -373,6 +374,28 @@ TEST(ScaleOut, FourDetectorNodesAndAFusionNode) {
   EXPECT_EQ(gaps(afterwards.frames), 0);
   EXPECT_EQ(h.at("status"), "ok") << h.at("problems").dump();
   EXPECT_EQ(::waitpid(fusion.process->pid(), nullptr, WNOHANG), 0) << fusion.process->err_so_far();
+}
+
+// A detector node asked for crops (here the feet crops) on a recording: they cannot run there
+// (the tracked skeletons that place them are the fusion node's), and the node says so in
+// /health's problems and /status, instead of streaming without them in silence.
+TEST(ScaleOut, CropsOnADetectorNodeAreSaidOff) {
+  MOCAP_REQUIRE_DATA(data, "pose2sim_multi");
+  Stage stage;
+  TestTempDir dir("scaleout_crops");
+  MocapdProcess node = start_mocapd(
+      kBin, dir.path(),
+      {"--role", "detector", "--node-name", "d0", "--stage", stage.name(), "--dds-domain",
+       std::to_string(stage.domain()), "--recording", data.string(), "--crops", "blazepose-lite"});
+  ASSERT_GT(node.http_port, 0) << node.process->err_so_far();
+  const json h = health(node.http_port);
+  ASSERT_TRUE(h.is_object());
+  bool said = false;
+  for (const json& p : h.at("problems")) {
+    said = said || p.get<std::string>().find("crops blazepose-lite are off on a detector node") !=
+                       std::string::npos;
+  }
+  EXPECT_TRUE(said) << h.dump(1);
 }
 
 }  // namespace

@@ -124,6 +124,7 @@ class Daemon {
   // Scale-out roles (tools/mocapd/stage_roles.cpp, docs/scaleout.md). A detector node keeps
   // its source and CNN, drops association and publishes; a fusion node's source is the stage.
   Status become_detector_node();
+  void report_crops_off_on_detector_node();
   Status adopt_cnn(std::unique_ptr<gpu::CnnDetector> first, const gpu::CnnOptions& options);
   Status open_fusion();
   Result<Calibration> fusion_calibration(const SkeletonTopology*& topology, std::string& file);

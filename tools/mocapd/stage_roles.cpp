@@ -33,6 +33,7 @@ Status Daemon::become_detector_node() {
   config_.lifecycle.self_calibrate = false;
   lifecycle_->hand_over("(the fusion node's: stage " + config_.dds.stage + ")");
   if (Status s = join_stage(frame_rate_hz_); !s.ok()) return s;
+  report_crops_off_on_detector_node();
   std::vector<std::string> names = camera_names_;
   if (source_kind_ != box::SourceKind::kSimulator) {
     // Camera names are unique in the stage: this node's name first.
@@ -49,6 +50,19 @@ Status Daemon::become_detector_node() {
   MOCAP_LOG(Daemon, Info) << "detector node " << stage_->options().node << " of stage "
                           << config_.dds.stage << ": publishing " << names.size() << " cameras";
   return {};
+}
+
+// The 3D-guided crops (and the feet crops) are placed by the tracked skeletons, which are the
+// fusion node's: on a detector node they never run. Said in /status (crops) and, when asked for
+// by name, as a problem.
+void Daemon::report_crops_off_on_detector_node() {
+  const std::string& crops = config_.cnn.crops;
+  if (detector_ == nullptr || crops == "none" || !crops_off_reason_.empty()) return;
+  crops_off_reason_ = "crops " + crops +
+                      " are off on a detector node: the tracked skeletons that place them are the "
+                      "fusion node's (docs/scaleout.md); the feet crops need a standalone box";
+  MOCAP_LOG(Daemon, Info) << crops_off_reason_;
+  if (crops != "auto") add_problem(box::ProblemCode::kCropsOff, crops_off_reason_);
 }
 
 // The stage calibration: the one named, else the simulated stage's ring, else the state
