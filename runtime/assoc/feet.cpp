@@ -102,15 +102,26 @@ void FeetStage::process(const DetectionSet& det, SkeletonSet& set) {
     if (it == filters_.end()) {
       const fit::FootPointFilter f(options_.contact);
       it = filters_
-               .emplace(p.person_id, PersonFilters{{f, f, f, f}, fit::PersonFloor(options_.floor)})
+               .emplace(p.person_id, PersonFilters{{f, f, f, f},
+                                                   fit::PersonFloor(options_.floor),
+                                                   fit::FootLengths(options_.length, kFootPoints)})
                .first;
     }
+    const int l_ankle = set.topology != nullptr ? set.topology->find_joint("l_ankle") : -1;
+    const int r_ankle = set.topology != nullptr ? set.topology->find_joint("r_ankle") : -1;
     std::array<std::optional<Eigen::Vector3d>, kFootPoints> X;
     std::array<int, kFootPoints> views{};
     std::array<std::optional<double>, kFootPoints> z_m;
     for (int k = 0; k < kFootPoints; ++k) {
       const auto i = static_cast<std::size_t>(k);
       triangulate_point(det, p.person_id, k, X[i], views[i]);
+      // Heels and toes 0, 2 are the left foot's, 1, 3 the right's.
+      const int ankle = k % 2 == 0 ? l_ankle : r_ankle;
+      if (X[i] && ankle >= 0 && static_cast<std::size_t>(ankle) < p.joints_m.size() &&
+          !it->second.lengths.accept(i, *X[i], p.joints_m[static_cast<std::size_t>(ankle)])) {
+        X[i].reset();  // not its foot's length: a bad detection, not taken
+        views[i] = 0;
+      }
       if (X[i]) z_m[i] = X[i]->z();
     }
     const double floor_m = it->second.floor.update(det.timestamp_ns, z_m);

@@ -3,8 +3,9 @@
 // framed the crop), triangulated across the views, then through the contact filter
 // (runtime/fit/foot_contact.h): planted points held still on the floor, the person's own
 // (runtime/fit/person_floor.h: learnt from their lowest foot points, z = 0 until then). A point
-// seen in fewer than two views is not triangulated; a point never seen is reported not observed
-// (never placed by guess). Without feet crops (no view carries feet) it does nothing.
+// far from its learnt distance to the person's ankle is not taken (runtime/fit/foot_length.h). A
+// point seen in fewer than two views is not triangulated; a point never seen is reported not
+// observed (never placed by guess). Without feet crops (no view carries feet) it does nothing.
 #pragma once
 
 #include <array>
@@ -34,6 +35,7 @@ class FeetStage {
   struct PersonFilters {
     std::array<fit::FootPointFilter, kFootPoints> points;
     fit::PersonFloor floor;
+    fit::FootLengths lengths;
   };
   void place_feet_of_no_track(const DetectionSet& det, const SkeletonSet& set);
   void triangulate_point(const DetectionSet& det, int person, int k,

@@ -101,6 +101,7 @@ Status FeetOptions::validate() const {
         "assoc", "feet.place_max_px must be in (0, 10000], got " + std::to_string(place_max_px));
   }
   if (Status s = contact.validate(); !s.ok()) return s;
+  if (Status s = length.validate(); !s.ok()) return s;
   return floor.validate();
 }
 

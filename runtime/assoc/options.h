@@ -7,6 +7,7 @@
 
 #include "runtime/core/error.h"
 #include "runtime/fit/foot_contact.h"
+#include "runtime/fit/foot_length.h"
 #include "runtime/fit/person_floor.h"
 #include "runtime/fit/skeleton_fitter.h"
 
@@ -139,6 +140,7 @@ struct FeetOptions {
   double place_max_px = 80;
   fit::FootContactOptions contact;  // contact with the floor (runtime/fit/foot_contact.h)
   fit::PersonFloorOptions floor;    // each person's floor (runtime/fit/person_floor.h)
+  fit::FootLengthOptions length;    // feet of learnt length (runtime/fit/foot_length.h)
   Status validate() const;
 };
 

@@ -38,6 +38,15 @@ constexpr int kFrames = 100;      // the whole clip
 constexpr int kStillFrames = 33;  // the woman stands still (then steps aside with her left foot)
 const char* const kFootNames[4] = {"l_heel", "r_heel", "l_toe", "r_toe"};
 
+double stddev(const std::vector<double>& v) {
+  if (v.size() < 2) return std::nan("");
+  double m = 0, s2 = 0;
+  for (const double x : v) m += x;
+  m /= static_cast<double>(v.size());
+  for (const double x : v) s2 += (x - m) * (x - m);
+  return std::sqrt(s2 / static_cast<double>(v.size()));
+}
+
 double lowest_z_m(const std::vector<Eigen::Vector3d>& xs) {
   double z = 1e9;
   for (const Eigen::Vector3d& x : xs) {
@@ -88,6 +97,8 @@ TEST(FeetE2e, Pose2SimMultiFeetInTheStream) {
   std::map<int, std::array<std::vector<Eigen::Vector3d>, 4>> feet;  // by person, NaN: none
   std::map<int, std::array<int, 4>> planted;
   std::map<int, Eigen::Vector3d> hips;
+  // Label-free: each point's distance from its ankle (a foot's length does not change).
+  std::map<int, std::array<std::vector<double>, 4>> ankle_m;
   // Per person and point a contact timeline, a character per frame: '#' planted, '-' free,
   // '?' unknown (not seen long enough), ' ' the person not in the frame.
   std::map<int, std::array<std::string, 4>> timeline;
@@ -108,6 +119,10 @@ TEST(FeetE2e, Pose2SimMultiFeetInTheStream) {
         feet[p.id][k].push_back(p.feet[k].valid ? p.feet[k].X_m
                                                 : Eigen::Vector3d::Constant(std::nan("")));
         planted[p.id][k] += p.feet[k].contact == FootContact::kPlanted ? 1 : 0;
+        const Eigen::Vector3d& ankle = p.joints_m[k % 2 == 0 ? 15 : 16];  // coco17 ankles
+        if (p.feet[k].valid && ankle.allFinite()) {
+          ankle_m[p.id][k].push_back((p.feet[k].X_m - ankle).norm());
+        }
       }
     }
   }
@@ -129,9 +144,10 @@ TEST(FeetE2e, Pose2SimMultiFeetInTheStream) {
       char buf[256];
       std::snprintf(buf, sizeof buf,
                     "\n    %-6s %3ld/%zu frames, planted in %d, from its median place p50 %.3f "
-                    "p90 %.3f max %.3f m, lowest %.3f m",
+                    "p90 %.3f max %.3f m, lowest %.3f m, from its ankle median %.3f std %.3f m",
                     kFootNames[k], static_cast<long>(seen), t[k].size(), planted[id][k],
-                    drift_m(t[k], 0.5), drift_m(t[k], 0.9), drift_m(t[k], 1.0), lowest_z_m(t[k]));
+                    drift_m(t[k], 0.5), drift_m(t[k], 0.9), drift_m(t[k], 1.0), lowest_z_m(t[k]),
+                    median(ankle_m[id][k]), stddev(ankle_m[id][k]));
       line += buf;
     }
     std::printf("%s\n", line.c_str());
